@@ -1,0 +1,378 @@
+"""The Marlin serial protocol as pure functions: encode host lines, parse printer answers.
+
+Nothing here does I/O or keeps state. Encoding adds the line number and XOR checksum Marlin checks
+(``N<n> <command>*<checksum>``); parsing turns each line the printer sends into one typed event.
+The parser is lenient in the ways established hosts are, because firmwares differ: ``ok`` with or
+without ``N``/``P``/``B`` fields or a temperature report after it, ``Resend: 12``, ``Resend:12``,
+``rs N12`` and ``rs 12``, ``echo:``-prefixed or bare ``busy:`` lines, leading spaces, and ``Error:``
+lines whose text says whether the printer has halted.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+#: Marlin's MAX_CMD_SIZE is 96 bytes including the terminating NUL, so an encoded line (without its
+#: newline) must stay at 95 characters or fewer.
+MAX_LINE_LENGTH = 95
+
+
+def checksum(text: str) -> int:
+    """XOR of every byte of ``text``: the checksum Marlin compares with the number after ``*``."""
+    value = 0
+    for byte in text.encode("ascii"):
+        value ^= byte
+    return value
+
+
+_COMMENT = re.compile(r"\([^)]*\)|;.*$")
+
+
+def strip_comment(line: str) -> str:
+    """The command part of a G-code line: ``;`` and ``( … )`` comments and outer spaces removed."""
+    return _COMMENT.sub("", line).strip()
+
+
+def encode(line_number: int, command: str) -> bytes:
+    """Encode ``command`` as a numbered, checksummed line ready for the wire.
+
+    Raises
+    ------
+    ValueError
+        When the command is empty, not ASCII, contains a line break or ``*``, or when the encoded
+        line would exceed :data:`MAX_LINE_LENGTH` characters (the firmware would truncate it).
+    """
+    command = command.strip()
+    if not command:
+        raise ValueError("cannot encode an empty command")
+    if any(c in command for c in "\r\n*") or not command.isascii():
+        raise ValueError(f"command {command!r} contains a line break, '*' or non-ASCII text")
+    body = f"N{line_number} {command}"
+    text = f"{body}*{checksum(body)}"
+    if len(text) > MAX_LINE_LENGTH:
+        raise ValueError(
+            f"command {command!r} encodes to {len(text)} characters; the firmware's limit is "
+            f"{MAX_LINE_LENGTH}"
+        )
+    return (text + "\n").encode("ascii")
+
+
+def encode_unnumbered(command: str) -> bytes:
+    """Encode a command without line number or checksum (emergency commands such as ``M112``)."""
+    command = command.strip()
+    if not command or any(c in command for c in "\r\n") or not command.isascii():
+        raise ValueError(f"cannot encode {command!r} as an unnumbered line")
+    return (command + "\n").encode("ascii")
+
+
+# --------------------------------------------------------------------------------------------
+# Events: one per line received from the printer.
+
+
+@dataclass(frozen=True)
+class HeaterReading:
+    """One heater in a temperature report: ``T:210.0 /210.0`` and its power ``@:64``."""
+
+    name: str  # "T", "T0", "T1", "B", "C" (chamber), …
+    current: float
+    target: float | None
+    power: int | None = None
+
+
+@dataclass(frozen=True)
+class Temperatures:
+    """A temperature report, from ``ok T:…``, an autoreport line or a heating wait."""
+
+    heaters: tuple[HeaterReading, ...]
+
+    def get(self, name: str) -> HeaterReading | None:
+        for heater in self.heaters:
+            if heater.name == name:
+                return heater
+        return None
+
+    @property
+    def hotend(self) -> HeaterReading | None:
+        return self.get("T") or self.get("T0")
+
+    @property
+    def bed(self) -> HeaterReading | None:
+        return self.get("B")
+
+
+@dataclass(frozen=True)
+class Ok:
+    """An acknowledgement. ``line`` is the ``N`` field of ADVANCED_OK (the acknowledged line).
+
+    ``planner_free`` and ``queue_free`` are the ``P`` and ``B`` fields; ``temperatures`` is set for
+    the ``ok T:…`` answer to ``M105``; ``text`` is whatever followed ``ok``.
+    """
+
+    line: int | None = None
+    planner_free: int | None = None
+    queue_free: int | None = None
+    temperatures: Temperatures | None = None
+    text: str = ""
+
+    @property
+    def advanced(self) -> bool:
+        """True for an ADVANCED_OK acknowledgement (it carries the free planner and queue slots)."""
+        return self.planner_free is not None and self.queue_free is not None
+
+
+@dataclass(frozen=True)
+class Resend:
+    """The printer asks for every line from ``line`` on again."""
+
+    line: int
+
+
+class ErrorKind:
+    """What an ``Error:`` line says. Plain strings on purpose: they are only ever compared."""
+
+    CHECKSUM = "checksum"
+    LINE_NUMBER = "line_number"
+    NO_CHECKSUM = "no_checksum"
+    NO_LINE_NUMBER = "no_line_number"
+    HALTED = "halted"
+    THERMAL = "thermal"
+    STOPPED = "stopped"
+    OTHER = "other"
+
+
+@dataclass(frozen=True)
+class Error:
+    """An ``Error:``/``!!`` line. ``fatal`` is True when the printer has halted or stopped."""
+
+    message: str
+    kind: str
+    last_line: int | None = None
+    fatal: bool = False
+
+
+@dataclass(frozen=True)
+class Busy:
+    """``busy: processing``, ``busy: paused for user``, …: the printer is alive and working."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class TemperatureReport:
+    """A temperature line on its own (autoreport, heating wait)."""
+
+    temperatures: Temperatures
+    waiting: bool = False  # heating waits end their lines with ``W:<seconds>`` or ``W:?``
+
+
+@dataclass(frozen=True)
+class Position:
+    """The answer to ``M114``: ``X:0.00 Y:0.00 Z:0.00 E:0.00 Count …``."""
+
+    x: float
+    y: float
+    z: float
+    e: float
+
+
+@dataclass(frozen=True)
+class Start:
+    """``start``: the firmware has (re)booted. During a job this means all its state is lost."""
+
+
+@dataclass(frozen=True)
+class FirmwareInfo:
+    """The ``FIRMWARE_NAME:…`` line of ``M115``, split into its ``KEY:value`` fields."""
+
+    fields: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.fields.get("FIRMWARE_NAME", "")
+
+
+@dataclass(frozen=True)
+class Capability:
+    """A ``Cap:NAME:1`` line of ``M115``."""
+
+    name: str
+    enabled: bool
+
+
+@dataclass(frozen=True)
+class UnknownCommand:
+    """``echo:Unknown command: "X"``: the printer skipped a command it does not know."""
+
+    command: str
+
+
+@dataclass(frozen=True)
+class Action:
+    """A host action command, ``//action:pause`` and the like."""
+
+    action: str
+
+
+@dataclass(frozen=True)
+class Echo:
+    """Any other ``echo:`` line: informational."""
+
+    text: str
+
+
+@dataclass(frozen=True)
+class Other:
+    """A line the parser has no better name for; kept so that nothing is silently dropped."""
+
+    text: str
+
+
+Event = (
+    Ok
+    | Resend
+    | Error
+    | Busy
+    | TemperatureReport
+    | Position
+    | Start
+    | FirmwareInfo
+    | Capability
+    | UnknownCommand
+    | Action
+    | Echo
+    | Other
+)
+
+_NUMBER = r"-?\d+(?:\.\d+)?"
+# T:210.0 /210.0, T0:20.1 /0.0, B:60 /60, @:64, B@:0, W:?; Klipper writes "B:60.0 /60.0" too.
+_HEATER = re.compile(rf"(?<![\w@])([TBC]\d?):\s*({_NUMBER})(?:\s*/\s*({_NUMBER}))?")
+_POWER = re.compile(rf"(?<!\w)([TBC]?\d?)@:\s*({_NUMBER})")
+_RESEND = re.compile(r"^(?:resend|rs)\s*:?\s*N?\s*(\d+)", re.IGNORECASE)
+_OK_FIELD = re.compile(r"\b([NPB])(-?\d+)\b")
+_BARE_NUMBER = re.compile(r"^\s*(\d+)\s*$")
+_LAST_LINE = re.compile(r"Last Line:\s*(-?\d+)", re.IGNORECASE)
+_POSITION = re.compile(
+    rf"^X:\s*({_NUMBER})\s+Y:\s*({_NUMBER})\s+Z:\s*({_NUMBER})\s+E\d?:\s*({_NUMBER})"
+)
+_FIRMWARE_FIELD = re.compile(
+    r"(FIRMWARE_NAME|FIRMWARE_VERSION|SOURCE_CODE_URL|PROTOCOL_VERSION|MACHINE_TYPE|KINEMATICS"
+    r"|EXTRUDER_COUNT|UUID|FIRMWARE_URL):"
+)
+
+
+def parse_temperatures(text: str) -> Temperatures | None:
+    """The heaters reported in ``text``, or None when it holds no temperature report."""
+    readings = {}
+    for name, current, target in _HEATER.findall(text):
+        if name not in readings:
+            readings[name] = [float(current), float(target) if target else None, None]
+    if not readings:
+        return None
+    for name, power in _POWER.findall(text):
+        key = name or "T"
+        if key in readings:
+            readings[key][2] = int(float(power))
+        elif key == "T" and "T0" in readings:
+            readings["T0"][2] = int(float(power))
+    return Temperatures(tuple(HeaterReading(n, c, t, p) for n, (c, t, p) in readings.items()))
+
+
+def _parse_ok(rest: str) -> Ok:
+    temperatures = parse_temperatures(rest) if ("T:" in rest or "B:" in rest) else None
+    fields: dict[str, int] = {}
+    if temperatures is None:
+        for key, value in _OK_FIELD.findall(rest):
+            fields.setdefault(key, int(value))
+        bare = _BARE_NUMBER.match(rest)
+        if bare and "N" not in fields:
+            fields["N"] = int(bare.group(1))  # Repetier: "ok 123"
+    return Ok(
+        line=fields.get("N"),
+        planner_free=fields.get("P"),
+        queue_free=fields.get("B"),
+        temperatures=temperatures,
+        text=rest.strip(),
+    )
+
+
+def _parse_error(message: str) -> Error:
+    lower = message.lower()
+    match = _LAST_LINE.search(message)
+    last_line = int(match.group(1)) if match else None
+    if "checksum mismatch" in lower:
+        return Error(message, ErrorKind.CHECKSUM, last_line)
+    if "line number is not" in lower:
+        return Error(message, ErrorKind.LINE_NUMBER, last_line)
+    if "no checksum" in lower:
+        return Error(message, ErrorKind.NO_CHECKSUM, last_line)
+    if "no line number" in lower:
+        return Error(message, ErrorKind.NO_LINE_NUMBER, last_line)
+    if "thermal runaway" in lower or "maxtemp" in lower or "mintemp" in lower or "heating failed" in lower:
+        return Error(message, ErrorKind.THERMAL, last_line, fatal=True)
+    if "kill() called" in lower or "halted" in lower:
+        return Error(message, ErrorKind.HALTED, last_line, fatal=True)
+    if "printer stopped" in lower or "stopped due to errors" in lower:
+        return Error(message, ErrorKind.STOPPED, last_line, fatal=True)
+    return Error(message, ErrorKind.OTHER, last_line)
+
+
+def parse_line(raw: str) -> Event:
+    """Parse one line received from the printer (without its line terminator) into an event.
+
+    Every input gives an event; a line nothing recognises becomes :class:`Other`.
+    """
+    line = raw.strip()
+    lower = line.lower()
+    if lower == "ok" or lower.startswith("ok ") or lower.startswith("ok:"):
+        return _parse_ok(line[2:].lstrip(": "))
+    if lower.startswith("resend") or lower.startswith("rs ") or lower.startswith("rs:"):
+        match = _RESEND.match(line)
+        if match:
+            return Resend(int(match.group(1)))
+        return Other(line)
+    if lower.startswith("error:") or lower.startswith("!!"):
+        message = line[6:] if lower.startswith("error:") else line[2:]
+        return _parse_error(message.strip())
+    if lower == "start":
+        return Start()
+    if lower.startswith("//action:"):
+        return Action(line[len("//action:") :].strip())
+    body = line[5:].strip() if lower.startswith("echo:") else line
+    body_lower = body.lower()
+    if body_lower.startswith("busy:"):
+        return Busy(body[5:].strip())
+    if body_lower.startswith("unknown command:"):
+        command = body[len("unknown command:") :].strip().strip('"')
+        return UnknownCommand(command)
+    if lower.startswith("echo:"):
+        return Echo(body)
+    if line.startswith("FIRMWARE_NAME:"):
+        return FirmwareInfo(_split_firmware_fields(line))
+    if line.startswith("Cap:"):
+        parts = line[4:].rsplit(":", 1)
+        if len(parts) == 2 and parts[1].strip() in ("0", "1"):
+            return Capability(parts[0].strip().upper(), parts[1].strip() == "1")
+        return Other(line)
+    position = _POSITION.match(line)
+    if position:
+        x, y, z, e = (float(v) for v in position.groups())
+        return Position(x, y, z, e)
+    if line.startswith(("T:", "T0:", "B:")):
+        temperatures = parse_temperatures(line)
+        if temperatures is not None:
+            return TemperatureReport(temperatures, waiting=" W:" in line)
+    return Other(line)
+
+
+def _split_firmware_fields(line: str) -> dict[str, str]:
+    """Split ``FIRMWARE_NAME:Marlin 2.1 (…) SOURCE_CODE_URL:… UUID:…`` into its fields.
+
+    Values may contain spaces (the firmware name does), so split on the known keys.
+    """
+    marks = list(_FIRMWARE_FIELD.finditer(line))
+    fields: dict[str, str] = {}
+    for i, mark in enumerate(marks):
+        end = marks[i + 1].start() if i + 1 < len(marks) else len(line)
+        fields[mark.group(1)] = line[mark.end() : end].strip()
+    return fields

@@ -1,0 +1,459 @@
+"""The printer link: one object the rest of ribbond talks to.
+
+It wires the transport (bytes), the codec (lines → events) and the sender (flow control) together,
+runs the connection handshake, keeps the printer's status (temperatures, position, firmware) and the
+link's state. Everything above it (the job state machine, the API) uses only this module.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import enum
+import logging
+import re
+import time
+from collections.abc import Callable, Iterable, Sequence
+
+from pydantic import BaseModel
+
+from . import codec
+from .capabilities import Capabilities
+from .errors import Disconnected, LinkError, NotReady, PrinterHalted, PrinterReset
+from .sender import Answer, Sender, StreamProgress, StreamResult, Timeouts
+from .transport import SerialTransport
+
+log = logging.getLogger(__name__)
+
+
+class LinkState(enum.Enum):
+    DISCONNECTED = "disconnected"
+    CONNECTING = "connecting"
+    READY = "ready"
+    STREAMING = "streaming"
+    PAUSED = "paused"
+    HALTED = "halted"
+
+
+_S = LinkState
+#: The only transitions the link makes. Anything else is a bug, and raises.
+TRANSITIONS: dict[LinkState, frozenset[LinkState]] = {
+    _S.DISCONNECTED: frozenset({_S.CONNECTING}),
+    _S.CONNECTING: frozenset({_S.READY, _S.DISCONNECTED, _S.HALTED}),
+    _S.READY: frozenset({_S.STREAMING, _S.CONNECTING, _S.HALTED, _S.DISCONNECTED}),
+    _S.STREAMING: frozenset({_S.READY, _S.PAUSED, _S.CONNECTING, _S.HALTED, _S.DISCONNECTED}),
+    _S.PAUSED: frozenset({_S.STREAMING, _S.READY, _S.CONNECTING, _S.HALTED, _S.DISCONNECTED}),
+    _S.HALTED: frozenset({_S.CONNECTING, _S.DISCONNECTED}),
+}
+
+
+class HeaterStatus(BaseModel):
+    current: float
+    target: float | None = None
+    power: int | None = None
+
+
+class PrinterStatus(BaseModel):
+    """What the link knows about the printer right now."""
+
+    state: LinkState
+    firmware: str = ""
+    capabilities: dict[str, bool] = {}
+    advanced_ok: bool = False
+    heaters: dict[str, HeaterStatus] = {}
+    position: tuple[float, float, float, float] | None = None
+    last_error: str | None = None
+    busy: str | None = None
+    lines_acknowledged: int = -1
+
+
+def prepare_program(lines: Iterable[str], source: str = "program") -> list[str]:
+    """Turn G-code text lines into the commands to stream.
+
+    Comments and blank lines go; an existing ``N…`` prefix or ``*…`` checksum is removed (the link
+    numbers lines itself). Raises ValueError naming the line when a command cannot be sent: too
+    long for the firmware's buffer, not ASCII, or one that would break the protocol (``M110``
+    renumbers lines, ``M112`` is the emergency stop and is never part of a program).
+    """
+    commands: list[str] = []
+    for index, raw in enumerate(lines, start=1):
+        command = codec.strip_comment(raw)
+        if not command:
+            continue
+        command = _EXISTING_NUMBER.sub("", command)
+        command = command.split("*", 1)[0].strip()
+        if not command:
+            continue
+        word = command.split()[0].upper()
+        if word in ("M110", "M112"):
+            raise ValueError(f"{source}, line {index}: {word} cannot be part of a program "
+                             f"(the link manages line numbers and the emergency stop)")
+        try:
+            codec.encode(9_999_999, command)
+        except ValueError as exc:
+            raise ValueError(f"{source}, line {index}: {exc}") from None
+        commands.append(command)
+    return commands
+
+
+_EXISTING_NUMBER = re.compile(r"^N\d+\s+")
+
+
+class PrinterLink:
+    """A connection to one Marlin-compatible printer.
+
+    Parameters
+    ----------
+    port, baud
+        Serial device and baud rate.
+    capabilities
+        Starting assumptions about the firmware (receive buffer size, ok after resend); the
+        handshake and the acknowledgements refine them.
+    timeouts
+        Silence allowed before probing, per kind of command.
+    ping_pong
+        One line in flight at a time instead of a window.
+    boot_wait_s
+        How long to wait for the boot banner after opening (boards that reset on open need 1–2 s;
+        boards that do not reset send nothing, and the handshake goes on after this long).
+    temperature_interval_s
+        Autoreport interval asked for with ``M155`` when the firmware has AUTOREPORT_TEMP.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        baud: int = 250000,
+        *,
+        capabilities: Capabilities | None = None,
+        timeouts: Timeouts | None = None,
+        ping_pong: bool = False,
+        boot_wait_s: float = 2.5,
+        reset_on_open: bool = False,
+        temperature_interval_s: int = 2,
+    ) -> None:
+        self.port = port
+        self.baud = baud
+        self._initial_capabilities = capabilities or Capabilities()
+        self.capabilities = self._initial_capabilities.model_copy(deep=True)
+        self.timeouts = timeouts or Timeouts()
+        self.ping_pong = ping_pong
+        self.boot_wait_s = boot_wait_s
+        self.temperature_interval_s = temperature_interval_s
+        self._reset_on_open = reset_on_open
+        self._transport: SerialTransport | None = None
+        self._sender: Sender | None = None
+        self._state = LinkState.DISCONNECTED
+        self._status = PrinterStatus(state=self._state)
+        self._listeners: list[Callable[[codec.Event], None]] = []
+        self._boot_seen: asyncio.Event | None = None
+        self._last_line_at = 0.0
+        self._rehandshake: asyncio.Task[None] | None = None
+        self._state_changed: asyncio.Event | None = None
+        self._position_at = 0.0
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def state(self) -> LinkState:
+        return self._state
+
+    def _set_state(self, new: LinkState) -> None:
+        if new == self._state:
+            return
+        if new not in TRANSITIONS[self._state]:
+            raise NotReady(f"link cannot go from {self._state.value} to {new.value}")
+        log.info("link %s -> %s", self._state.value, new.value)
+        self._state = new
+        self._status.state = new
+        if self._state_changed is not None:
+            self._state_changed.set()
+            self._state_changed = asyncio.Event()
+
+    @property
+    def status(self) -> PrinterStatus:
+        """A snapshot of what is known about the printer."""
+        status = self._status.model_copy(deep=True)
+        status.capabilities = dict(self.capabilities.reported)
+        status.advanced_ok = self.capabilities.advanced_ok
+        status.firmware = self.capabilities.firmware_name
+        if self._sender is not None:
+            status.lines_acknowledged = self._sender.last_acknowledged_line
+        return status
+
+    @property
+    def sender(self) -> Sender:
+        if self._sender is None:
+            raise NotReady("not connected")
+        return self._sender
+
+    def add_listener(self, listener: Callable[[codec.Event], None]) -> None:
+        """Call ``listener`` with every event parsed from the printer (for logs and live views)."""
+        self._listeners.append(listener)
+
+    # ------------------------------------------------------------------ connecting
+
+    async def connect(self) -> None:
+        """Open the port, wait for the boot banner, number lines from 1 and learn the firmware."""
+        if self._state is not LinkState.DISCONNECTED:
+            raise NotReady(f"cannot connect: link is {self._state.value}")
+        self._state_changed = asyncio.Event()
+        self._set_state(LinkState.CONNECTING)
+        self.capabilities = self._initial_capabilities.model_copy(deep=True)
+        self._boot_seen = asyncio.Event()
+        self._transport = SerialTransport(
+            self.port, self.baud, on_line=self._on_line, on_lost=self._on_lost,
+            reset_on_open=self._reset_on_open,
+        )
+        try:
+            await self._transport.open()
+            await self._await_boot()
+            await self._handshake()
+        except BaseException:
+            self._close_transport()
+            if self._state is not LinkState.DISCONNECTED:
+                self._set_state(LinkState.DISCONNECTED)
+            raise
+        self._set_state(LinkState.READY)
+
+    async def _await_boot(self) -> None:
+        """Wait for the banner (boards that reset on open) or for the boot wait to pass."""
+        assert self._boot_seen is not None
+        try:
+            await asyncio.wait_for(self._boot_seen.wait(), self.boot_wait_s)
+        except asyncio.TimeoutError:
+            return  # no reset on open: the firmware is already up
+        # The banner is a burst of lines; let it finish before talking.
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline and time.monotonic() - self._last_line_at < 0.3:
+            await asyncio.sleep(0.05)
+
+    async def _handshake(self, attempts: int = 3) -> None:
+        last_error: Exception | None = None
+        for _ in range(attempts):
+            self._new_sender()
+            sender = self.sender
+            try:
+                await asyncio.wait_for(sender.reset_line_numbers(), self.timeouts.default_s * 2)
+                answer = await asyncio.wait_for(sender.send("M115"), self.timeouts.default_s * 2)
+                for event in answer.events:
+                    if isinstance(event, codec.FirmwareInfo):
+                        self.capabilities.learn_firmware(event)
+                    elif isinstance(event, codec.Capability):
+                        self.capabilities.learn_capability(event)
+                if self.capabilities.autoreport_temperatures and self.temperature_interval_s > 0:
+                    await asyncio.wait_for(sender.send(f"M155 S{self.temperature_interval_s}"),
+                                           self.timeouts.default_s * 2)
+                return
+            except (LinkError, asyncio.TimeoutError) as exc:
+                if isinstance(exc, Disconnected) or self._transport is None or not self._transport.is_open:
+                    raise
+                last_error = exc
+                log.warning("handshake failed (%s); trying again", exc)
+        raise LinkError(f"printer on {self.port} did not complete the handshake: {last_error}")
+
+    def _new_sender(self) -> None:
+        if self._sender is not None:
+            self._sender.stop(LinkError("superseded by a new handshake"))
+        assert self._transport is not None
+        self._sender = Sender(self._transport.write, self.capabilities, timeouts=self.timeouts,
+                              ping_pong=self.ping_pong)
+        self._sender.start()
+
+    async def close(self) -> None:
+        """Close the port (in-flight work fails with Disconnected)."""
+        if self._rehandshake is not None:
+            self._rehandshake.cancel()
+        if self._sender is not None:
+            self._sender.stop(Disconnected("link closed by the host"))
+        self._close_transport()
+        if self._state is not LinkState.DISCONNECTED:
+            self._set_state(LinkState.DISCONNECTED)
+
+    def _close_transport(self) -> None:
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None
+
+    # ------------------------------------------------------------------ commands
+
+    async def send(self, command: str, timeout: float | None = None) -> Answer:
+        """Send one command (ahead of any running program) and wait for its acknowledgement."""
+        self._require(LinkState.READY, LinkState.STREAMING, LinkState.PAUSED, LinkState.CONNECTING)
+        word = command.split()[0].upper() if command.split() else ""
+        if word == "M112":
+            self.emergency_stop()
+            raise PrinterHalted("emergency stop sent")
+        if word == "M110":
+            raise ValueError("M110 is managed by the link (line numbers)")
+        future = self.sender.send(command)
+        return await (asyncio.wait_for(future, timeout) if timeout else future)
+
+    async def query_temperatures(self) -> codec.Temperatures:
+        """Ask for the temperatures (``M105``)."""
+        answer = await self.send("M105")
+        if answer.ok.temperatures is not None:
+            return answer.ok.temperatures
+        for event in answer.events:
+            if isinstance(event, codec.TemperatureReport):
+                return event.temperatures
+        raise LinkError(f"printer answered M105 without temperatures: {answer.ok.text!r}")
+
+    async def query_position(self, grace_s: float = 1.0) -> codec.Position:
+        """Ask for the position (``M114``). Some firmwares print it after the ``ok``: wait a little."""
+        asked_at = time.monotonic()
+        answer = await self.send("M114")
+        found = answer.first(codec.Position)
+        if isinstance(found, codec.Position):
+            return found
+        deadline = time.monotonic() + grace_s
+        while time.monotonic() < deadline:
+            if self._status.position is not None and self._position_at >= asked_at:
+                return codec.Position(*self._status.position)
+            await asyncio.sleep(0.02)
+        raise LinkError("printer answered M114 without a position")
+
+    # ------------------------------------------------------------------ streaming
+
+    async def stream(
+        self,
+        commands: Sequence[str],
+        progress: Callable[[StreamProgress], None] | None = None,
+    ) -> StreamResult:
+        """Stream prepared commands (see :func:`prepare_program`); returns when every line was
+        acknowledged, raises a :class:`LinkError` saying why otherwise."""
+        self._require(LinkState.READY)
+        self._set_state(LinkState.STREAMING)
+        try:
+            return await self.sender.stream(commands, progress)
+        finally:
+            if self._state in (LinkState.STREAMING, LinkState.PAUSED):
+                self._set_state(LinkState.READY)
+
+    def pause(self) -> None:
+        """Stop feeding lines; what the printer already has is still executed."""
+        self._require(LinkState.STREAMING)
+        self.sender.pause()
+        self._set_state(LinkState.PAUSED)
+
+    def resume(self) -> None:
+        self._require(LinkState.PAUSED)
+        self.sender.resume()
+        self._set_state(LinkState.STREAMING)
+
+    def cancel(self) -> None:
+        """End the stream after the lines in flight (the stream raises StreamCancelled)."""
+        self._require(LinkState.STREAMING, LinkState.PAUSED)
+        self.sender.cancel()
+
+    def emergency_stop(self) -> None:
+        """Send ``M112`` at once, ahead of everything, and halt the link."""
+        if self._transport is None or not self._transport.is_open:
+            raise Disconnected("cannot send the emergency stop: the port is not open")
+        self._transport.write_urgent(codec.encode_unnumbered("M112"))
+        if self._sender is not None:
+            self._sender.stop(PrinterHalted("emergency stop (M112) sent by the host"))
+        if self._state is not LinkState.HALTED:
+            self._set_state(LinkState.HALTED)
+
+    async def recover(self) -> None:
+        """After a halt: ask the firmware to restart (``M999``) and shake hands again."""
+        self._require(LinkState.HALTED)
+        assert self._transport is not None
+        self._set_state(LinkState.CONNECTING)
+        self._boot_seen = asyncio.Event()
+        self._transport.write(codec.encode_unnumbered("M999"))
+        await self._await_boot()
+        await self._handshake()
+        self._set_state(LinkState.READY)
+
+    async def wait_for_state(self, *states: LinkState, timeout: float | None = None) -> LinkState:
+        """Wait until the link is in one of ``states``."""
+
+        async def _wait() -> LinkState:
+            while self._state not in states:
+                assert self._state_changed is not None
+                await self._state_changed.wait()
+            return self._state
+
+        return await asyncio.wait_for(_wait(), timeout)
+
+    def _require(self, *states: LinkState) -> None:
+        if self._state not in states:
+            allowed = ", ".join(s.value for s in states)
+            raise NotReady(f"link is {self._state.value}; this needs it {allowed}")
+
+    # ------------------------------------------------------------------ what the printer says
+
+    def _on_line(self, text: str) -> None:
+        self._last_line_at = time.monotonic()
+        event = codec.parse_line(text)
+        log.debug("<< %s", text)
+        self._observe(event)
+        for listener in self._listeners:
+            listener(event)
+        if isinstance(event, codec.Start):
+            self._on_boot()
+            return
+        if self._sender is not None:
+            self._sender.handle(event)
+        if isinstance(event, codec.Error) and event.fatal:
+            self._on_halt(event.message)
+
+    def _observe(self, event: codec.Event) -> None:
+        temperatures = None
+        if isinstance(event, codec.Ok):
+            temperatures = event.temperatures
+            self._status.busy = None
+        elif isinstance(event, codec.TemperatureReport):
+            temperatures = event.temperatures
+        elif isinstance(event, codec.Position):
+            self._status.position = (event.x, event.y, event.z, event.e)
+            self._position_at = time.monotonic()
+        elif isinstance(event, codec.Busy):
+            self._status.busy = event.reason
+        elif isinstance(event, codec.Error):
+            self._status.last_error = event.message
+        if temperatures is not None:
+            self._status.heaters = {
+                h.name: HeaterStatus(current=h.current, target=h.target, power=h.power)
+                for h in temperatures.heaters
+            }
+
+    def _on_boot(self) -> None:
+        if self._boot_seen is not None:
+            self._boot_seen.set()
+        if self._state is LinkState.CONNECTING:
+            return
+        if self._state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED, LinkState.HALTED):
+            acked = self._sender.last_acknowledged_line if self._sender else -1
+            reason = PrinterReset(f"printer reset (boot banner) after line {acked} was acknowledged; "
+                                  f"its queue, planner and line numbers are lost")
+            if self._sender is not None:
+                self._sender.stop(reason)
+            self._set_state(LinkState.CONNECTING)
+            self._rehandshake = asyncio.get_running_loop().create_task(self._after_reset())
+
+    async def _after_reset(self) -> None:
+        try:
+            await self._await_boot()
+            await self._handshake()
+            self._set_state(LinkState.READY)
+        except (LinkError, OSError) as exc:
+            log.error("handshake after reset failed: %s", exc)
+            await self.close()
+
+    def _on_halt(self, message: str) -> None:
+        if self._sender is not None:
+            self._sender.stop(PrinterHalted(f"printer halted: {message}"))
+        if self._state not in (LinkState.HALTED, LinkState.DISCONNECTED):
+            self._set_state(LinkState.HALTED)
+
+    def _on_lost(self, reason: Exception) -> None:
+        acked = self._sender.last_acknowledged_line if self._sender else -1
+        error = Disconnected(f"{reason} (last acknowledged line: {acked})")
+        if self._sender is not None:
+            self._sender.stop(error)
+        self._transport = None
+        if self._state is not LinkState.DISCONNECTED:
+            self._set_state(LinkState.DISCONNECTED)
+

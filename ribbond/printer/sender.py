@@ -1,0 +1,601 @@
+"""The sender: numbered lines out, acknowledgements in, flow control, resends and timeouts.
+
+It is a go-back-N sender over Marlin's line-number protocol:
+
+* Every command gets the next line number and a checksum and stays in a bounded history until it
+  can no longer be asked for again.
+* A line goes out only while the printer can take it: the bytes that may still sit in the printer's
+  receive buffer stay within ``Capabilities.rx_buffer_bytes``. With ADVANCED_OK the estimate uses
+  the free queue slots the printer reports (the first lines after the acknowledged one are in its
+  command queue, not in its receive buffer); without it every unacknowledged byte counts. Ping-pong
+  (one line in flight) is the fallback and an option.
+* ``Resend: N`` rewinds the send cursor to N, once: further requests for the same N that come from
+  lines already in flight are swallowed, and so is the plain ``ok`` Marlin sends after each request.
+  The firmware's line-number check guarantees that a line it accepted is never executed again; the
+  sender's part is never to give one command two numbers and never to resend a line the printer
+  had already acknowledged (that means the printer lost its state).
+* When nothing at all comes back for a while (a lost ``ok``), a numbered ``M105`` probe goes out:
+  either the printer asks for a lost line, or its ``ok T:…`` proves that everything before the probe
+  was processed. A printer that stays silent through several probes is reported, not waited on.
+
+The sender parses nothing: it takes events from :mod:`.codec` and writes bytes to a callable.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import re
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from pydantic import BaseModel, Field
+
+from . import codec
+from .capabilities import Capabilities
+from .errors import LinkError, PrinterSilent, ProtocolError, StreamCancelled
+
+log = logging.getLogger(__name__)
+
+PROBE_COMMAND = "M105"
+_LINE_NUMBER_RESET = "M110 N0"
+
+
+class Timeouts(BaseModel):
+    """How long the printer may say nothing at all before the sender probes it, per kind of
+    command (the oldest unacknowledged one decides). Any line from the printer (``busy:``, a
+    temperature report, an ``ok``) restarts the clock."""
+
+    default_s: float = Field(default=8.0, gt=0)
+    #: Homing, leveling, M400 and dwells: the printer may be quiet while the machine moves.
+    motion_wait_s: float = Field(default=300.0, gt=0)
+    #: Heating waits (M109, M190, …): Marlin reports temperatures, other firmwares may not.
+    heating_s: float = Field(default=1200.0, gt=0)
+    #: Probes sent before the printer is declared silent.
+    probes: int = Field(default=3, ge=1)
+
+    def for_command(self, command: str) -> float | None:
+        """Seconds of silence allowed while ``command`` is the oldest unacknowledged one; None
+        for waits on the user (``M0``/``M1``), which may last as long as the user takes."""
+        word = _command_word(command)
+        if word in ("M0", "M1"):
+            return None
+        if word in ("M109", "M190", "M191", "M116", "M303"):
+            return self.heating_s
+        if word in ("G28", "G29", "G30", "G33", "G34", "M400", "M48"):
+            return self.motion_wait_s
+        if word == "G4":
+            return self.default_s + _dwell_seconds(command)
+        return self.default_s
+
+
+_WORD = re.compile(r"^\s*([GMTgmt]\d+)")
+
+
+def _keeps_alive(event: codec.Event) -> bool:
+    """Whether an event shows that the printer is working on our commands (unsolicited reports
+    such as temperature autoreports and echo lines do not)."""
+    if isinstance(event, codec.TemperatureReport):
+        return event.waiting
+    return isinstance(event, (codec.Busy, codec.Error, codec.Position, codec.FirmwareInfo,
+                              codec.Capability, codec.UnknownCommand))
+
+
+def _command_word(command: str) -> str:
+    match = _WORD.match(command)
+    return match.group(1).upper() if match else ""
+
+
+def _dwell_seconds(command: str) -> float:
+    seconds = re.search(r"\bS(\d+(?:\.\d+)?)", command)
+    millis = re.search(r"\bP(\d+(?:\.\d+)?)", command)
+    return (float(seconds.group(1)) if seconds else 0.0) + (float(millis.group(1)) / 1000 if millis else 0.0)
+
+
+@dataclass
+class Answer:
+    """What the printer said about one command: the lines it printed while the command was the
+    oldest unacknowledged one, and the acknowledgement."""
+
+    command: str
+    line: int
+    events: list[codec.Event]
+    ok: codec.Ok
+
+    def first(self, kind: type) -> codec.Event | None:
+        for event in self.events:
+            if isinstance(event, kind):
+                return event
+        return None
+
+
+@dataclass
+class StreamProgress:
+    """Progress of a stream: ``acknowledged`` of ``total`` program lines."""
+
+    total: int
+    sent: int
+    acknowledged: int
+    resends: int
+    elapsed_s: float
+
+
+@dataclass
+class StreamResult:
+    lines: int
+    resends: int
+    elapsed_s: float
+    probes: int
+
+
+@dataclass(eq=False)
+class _Line:
+    number: int
+    command: str
+    data: bytes
+    program_index: int | None = None  # index in the running program, None for other commands
+    future: asyncio.Future[Answer] | None = None
+    events: list[codec.Event] = field(default_factory=list)
+    is_probe: bool = False
+
+
+@dataclass
+class _Program:
+    commands: Sequence[str]
+    progress: Callable[[StreamProgress], None] | None
+    done: asyncio.Future[StreamResult]
+    started: float
+    next_index: int = 0
+    acknowledged: int = 0
+    cancelled: bool = False
+
+
+@dataclass
+class _Swallow:
+    """Resend requests for ``line`` that may still arrive from lines sent before we rewound."""
+
+    line: int
+    budget: int
+
+
+class Sender:
+    """Sends commands to a Marlin-style printer with flow control and resends.
+
+    Parameters
+    ----------
+    write
+        Hands bytes to the transport.
+    capabilities
+        The firmware's capabilities; updated from acknowledgements as they arrive.
+    timeouts
+        Silence allowed before probing.
+    ping_pong
+        Keep at most one line in flight (the classic host behaviour).
+    history
+        Lines kept for resends.
+    """
+
+    def __init__(
+        self,
+        write: Callable[[bytes], None],
+        capabilities: Capabilities,
+        *,
+        timeouts: Timeouts | None = None,
+        ping_pong: bool = False,
+        history: int = 1024,
+    ) -> None:
+        self._write = write
+        self.capabilities = capabilities
+        self.timeouts = timeouts or Timeouts()
+        self.ping_pong = ping_pong
+        self._history_size = history
+        self._history: dict[int, _Line] = {}
+        self._history_floor = 0  # lowest number that may still be in the history
+        self._recent_sizes: deque[int] = deque(maxlen=256)  # sizes of the latest transmissions
+        self._next_number = 0  # number the next new command gets
+        self._cursor = 0  # number of the next line to transmit (rewound by resends)
+        self._inflight: deque[_Line] = deque()  # transmitted, not acknowledged, ascending numbers
+        self._inflight_bytes = 0
+        self._acked_through = -1  # highest line number known processed by the printer
+        self._singles: deque[_Line] = deque()  # commands from send(), ahead of the program
+        self._program: _Program | None = None
+        self._paused = False
+        self._failure: LinkError | None = None
+        self._swallow: _Swallow | None = None
+        self._resend_ok_due = False
+        self._last_advanced: codec.Ok | None = None
+        self._last_heard = time.monotonic()
+        self._probes_outstanding = 0
+        self._watchdog: asyncio.Task[None] | None = None
+        # Statistics for reports and benchmarks.
+        self.resends = 0
+        self.probes = 0
+        self.lines_sent = 0
+
+    # ------------------------------------------------------------------ public API
+
+    def start(self) -> None:
+        """Start the silence watchdog (call from the running loop)."""
+        if self._watchdog is None:
+            self._watchdog = asyncio.get_running_loop().create_task(self._watch())
+
+    def stop(self, reason: LinkError) -> None:
+        """Fail everything outstanding with ``reason`` and stop sending."""
+        if self._failure is None:
+            self._failure = reason
+        for line in list(self._inflight) + list(self._singles):
+            if line.future is not None and not line.future.done():
+                line.future.set_exception(reason)
+        self._inflight.clear()
+        self._inflight_bytes = 0
+        self._singles.clear()
+        if self._program is not None and not self._program.done.done():
+            self._program.done.set_exception(reason)
+        self._program = None
+        if self._watchdog is not None:
+            self._watchdog.cancel()
+            self._watchdog = None
+
+    @property
+    def failure(self) -> LinkError | None:
+        return self._failure
+
+    @property
+    def streaming(self) -> bool:
+        return self._program is not None
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    @property
+    def in_flight(self) -> int:
+        return len(self._inflight)
+
+    @property
+    def last_acknowledged_line(self) -> int:
+        return self._acked_through
+
+    def reset_line_numbers(self) -> asyncio.Future[Answer]:
+        """Send ``M110 N0`` as line 0 and number what follows from 1 (the connection handshake)."""
+        if self._inflight or self._singles or self._program is not None:
+            raise LinkError("cannot reset line numbers while commands are outstanding")
+        self._history.clear()
+        self._history_floor = 0
+        self._next_number = 0
+        self._cursor = 0
+        self._acked_through = -1
+        self._swallow = None
+        self._resend_ok_due = False
+        self._last_advanced = None
+        return self.send(_LINE_NUMBER_RESET)
+
+    def send(self, command: str) -> asyncio.Future[Answer]:
+        """Queue one command ahead of any running program; the future gives its answer."""
+        self._raise_if_failed()
+        command = codec.strip_comment(command)
+        codec.encode(self._next_number + 10_000, command)  # raises ValueError if it cannot fit
+        future: asyncio.Future[Answer] = asyncio.get_running_loop().create_future()
+        self._singles.append(_Line(-1, command, b"", future=future))
+        self._pump()
+        return future
+
+    def stream(
+        self,
+        commands: Sequence[str],
+        progress: Callable[[StreamProgress], None] | None = None,
+    ) -> asyncio.Future[StreamResult]:
+        """Start streaming ``commands`` (already stripped of comments and blank lines); the future
+        completes when every one of them was acknowledged."""
+        self._raise_if_failed()
+        if self._program is not None:
+            raise LinkError("a program is already streaming")
+        loop = asyncio.get_running_loop()
+        done: asyncio.Future[StreamResult] = loop.create_future()
+        self._program = _Program(commands, progress, done, time.monotonic())
+        self._paused = False
+        self._report_progress()
+        if not commands:
+            self._finish_program()
+        self._pump()
+        return done
+
+    def pause(self) -> None:
+        """Stop feeding program lines (lines in flight still complete; resends still go out)."""
+        self._paused = True
+
+    def resume(self) -> None:
+        self._paused = False
+        self._pump()
+
+    def cancel(self) -> None:
+        """Stop the program: no further lines are sent; it ends with StreamCancelled once the
+        lines in flight are acknowledged."""
+        if self._program is None:
+            return
+        self._program.cancelled = True
+        self._maybe_finish_program()
+
+    # ------------------------------------------------------------------ events from the printer
+
+    def handle(self, event: codec.Event) -> None:
+        """Take one event parsed from the printer's output."""
+        if isinstance(event, (codec.Ok, codec.Resend)):
+            self._last_heard = time.monotonic()
+            self._probes_outstanding = 0
+        elif _keeps_alive(event):
+            self._last_heard = time.monotonic()
+        if isinstance(event, codec.Ok):
+            self._on_ok(event)
+        elif isinstance(event, codec.Resend):
+            self._on_resend(event.line)
+        elif self._inflight:
+            self._inflight[0].events.append(event)
+
+    def _on_ok(self, ok: codec.Ok) -> None:
+        self.capabilities.learn_ok(ok)
+        if self._resend_ok_due:
+            self._resend_ok_due = False
+            if not ok.advanced and ok.temperatures is None:
+                return  # the ok Marlin prints right after each Resend: line
+        if ok.advanced:
+            self._last_advanced = ok
+            if ok.line is not None:
+                self._ack_through(ok.line, ok)
+            else:
+                self._ack_oldest(ok)  # an unnumbered command acknowledged in order
+        elif ok.temperatures is not None:
+            # The answer to M105, processed in order: everything before the oldest M105 in flight
+            # has been processed too.
+            probe = next((ln for ln in self._inflight if _command_word(ln.command) == "M105"), None)
+            if probe is not None:
+                self._ack_through(probe.number, ok)
+            else:
+                self._ack_oldest(ok)
+        elif self.capabilities.advanced_ok:
+            return  # a plain ok from a firmware that acknowledges commands with P/B is no ack
+        elif ok.line is not None:
+            self._ack_through(ok.line, ok)
+        else:
+            self._ack_oldest(ok)
+        self._pump()
+
+    def _ack_oldest(self, ok: codec.Ok) -> None:
+        if self._inflight:
+            self._acknowledge(self._inflight.popleft(), ok)
+
+    def _ack_through(self, number: int, ok: codec.Ok) -> None:
+        while self._inflight and self._inflight[0].number <= number:
+            self._acknowledge(self._inflight.popleft(), ok)
+        if number > self._acked_through and number < self._next_number:
+            self._acked_through = number
+        if self._swallow is not None and number >= self._swallow.line:
+            self._swallow = None  # the printer has moved past the line it asked for
+
+    def _acknowledge(self, line: _Line, ok: codec.Ok) -> None:
+        self._inflight_bytes -= len(line.data)
+        if line.number > self._acked_through:
+            self._acked_through = line.number
+        if line.future is not None and not line.future.done():
+            line.future.set_result(Answer(line.command, line.number, line.events, ok))
+        if line.program_index is not None and self._program is not None:
+            self._program.acknowledged += 1
+            self._report_progress()
+            self._maybe_finish_program()
+        self._forget_old_history()
+
+    def _on_resend(self, number: int) -> None:
+        if self.capabilities.ok_after_resend:
+            self._resend_ok_due = True
+        swallow = self._swallow
+        if swallow is not None and number == swallow.line and swallow.budget > 0:
+            swallow.budget -= 1  # a stale request from a line sent before we rewound
+            return
+        if number > self._next_number:
+            self._fail(ProtocolError(f"printer asked to resend line {number}, which was never sent "
+                                     f"(last line sent: {self._next_number - 1})"))
+            return
+        if number <= self._acked_through:
+            self._fail(ProtocolError(
+                f"printer asked to resend line {number}, which it had already acknowledged (up to "
+                f"line {self._acked_through}): it has lost its state, probably a reset"))
+            return
+        if number < self._next_number and number not in self._history:
+            self._fail(ProtocolError(f"printer asked to resend line {number}, which is no longer in "
+                                     f"the history of {self._history_size} lines"))
+            return
+        # Lines from `number` on are not in the printer: either flushed with its receive buffer or
+        # still on the way, where each will be rejected with the same request. Any transmission
+        # that may still be between us and the printer's parser can cause such a request.
+        stale = [line for line in self._inflight if line.number >= number]
+        self._swallow = _Swallow(number, self._transmissions_in_the_pipe())
+        for line in stale:
+            self._inflight_bytes -= len(line.data)
+            line.events.clear()
+        self._inflight = deque(line for line in self._inflight if line.number < number)
+        self._cursor = number
+        self.resends += 1
+        log.info("printer asked for line %d again; %d lines rewound", number, len(stale))
+        self._pump()
+
+    # ------------------------------------------------------------------ transmitting
+
+    def _window_allows(self, size: int) -> bool:
+        if not self._inflight:
+            return True
+        if self.ping_pong:
+            return False
+        return self._receive_buffer_estimate() + size <= self.capabilities.rx_buffer_bytes
+
+    def _receive_buffer_estimate(self) -> int:
+        """Bytes of unacknowledged lines that may still be in the printer's receive buffer."""
+        last = self._last_advanced
+        if not self.capabilities.advanced_ok or last is None or last.queue_free is None:
+            return self._inflight_bytes
+        # At that ok the queue held (slots - B) commands counting the acknowledged one; the lines
+        # sent after it fill the queue first, in order, and only the rest wait in the buffer.
+        in_queue = max(0, self.capabilities.queue_slots - last.queue_free - 1)
+        return sum(len(line.data) for line in list(self._inflight)[in_queue:])
+
+    def _next_fresh(self) -> tuple[_Line, bool] | None:
+        """The next command not yet numbered, and whether it is a single (not a program line)."""
+        if self._singles:
+            return self._singles[0], True
+        program = self._program
+        if program is None or self._paused or program.cancelled:
+            return None
+        if program.next_index >= len(program.commands):
+            return None
+        index = program.next_index
+        return _Line(-1, program.commands[index], b"", program_index=index), False
+
+    def _pump(self) -> None:
+        if self._failure is not None:
+            return
+        while True:
+            if self._cursor < self._next_number:
+                line = self._history[self._cursor]
+            else:
+                fresh = self._next_fresh()
+                if fresh is None:
+                    return
+                line, single = fresh
+                data = codec.encode(self._next_number, line.command)
+                if not self._window_allows(len(data)):
+                    return
+                if single:
+                    self._singles.popleft()
+                else:
+                    assert self._program is not None
+                    self._program.next_index += 1
+                line.number = self._next_number
+                line.data = data
+                self._history[line.number] = line
+                self._next_number += 1
+            if not self._window_allows(len(line.data)):
+                return
+            self._transmit(line)
+            self._cursor += 1
+
+    def _transmit(self, line: _Line) -> None:
+        if not self._inflight:
+            self._last_heard = time.monotonic()  # the silence clock starts with the first line out
+        self._inflight.append(line)
+        self._inflight_bytes += len(line.data)
+        self._recent_sizes.append(len(line.data))
+        self.lines_sent += 1
+        self._write(line.data)
+
+    def _transmissions_in_the_pipe(self) -> int:
+        """How many of the latest transmissions fit in the printer's receive buffer plus the line
+        being received: an upper bound on those not yet seen by its parser."""
+        room = self.capabilities.rx_buffer_bytes + 2 * codec.MAX_LINE_LENGTH
+        count = 0
+        for size in reversed(self._recent_sizes):
+            room -= size
+            if room < 0:
+                break
+            count += 1
+        return count
+
+    def _forget_old_history(self) -> None:
+        oldest_kept = self._acked_through + 1 - self._history_size
+        while self._history_floor < oldest_kept:
+            self._history.pop(self._history_floor, None)
+            self._history_floor += 1
+
+    # ------------------------------------------------------------------ program bookkeeping
+
+    def _report_progress(self) -> None:
+        program = self._program
+        if program is None or program.progress is None:
+            return
+        program.progress(StreamProgress(
+            total=len(program.commands),
+            sent=program.next_index,
+            acknowledged=program.acknowledged,
+            resends=self.resends,
+            elapsed_s=time.monotonic() - program.started,
+        ))
+
+    def _maybe_finish_program(self) -> None:
+        program = self._program
+        if program is None:
+            return
+        outstanding = any(line.program_index is not None for line in self._inflight) or (
+            self._cursor < self._next_number
+            and any(self._history[n].program_index is not None for n in range(self._cursor, self._next_number))
+        )
+        if program.cancelled and not outstanding:
+            self._program = None
+            if not program.done.done():
+                program.done.set_exception(StreamCancelled(
+                    f"cancelled after {program.acknowledged} of {len(program.commands)} lines"))
+            return
+        if program.acknowledged >= len(program.commands) and not outstanding:
+            self._finish_program()
+
+    def _finish_program(self) -> None:
+        program = self._program
+        if program is None:
+            return
+        self._program = None
+        if not program.done.done():
+            program.done.set_result(StreamResult(
+                lines=len(program.commands),
+                resends=self.resends,
+                elapsed_s=time.monotonic() - program.started,
+                probes=self.probes,
+            ))
+
+    # ------------------------------------------------------------------ silence
+
+    async def _watch(self) -> None:
+        while self._failure is None:
+            await asyncio.sleep(0.05)
+            if not self._inflight:
+                continue
+            limit = self.timeouts.for_command(self._inflight[0].command)
+            if limit is None:
+                continue
+            silent = time.monotonic() - self._last_heard
+            if silent < limit:
+                continue
+            if self._probes_outstanding >= self.timeouts.probes:
+                oldest = self._inflight[0]
+                self._fail(PrinterSilent(
+                    f"no answer from the printer for {silent:.1f} s while line {oldest.number} "
+                    f"({oldest.command}) was unacknowledged, after {self._probes_outstanding} probes"))
+                return
+            self._probe()
+
+    def _probe(self) -> None:
+        """Send a numbered M105 regardless of the window: its answer settles what happened."""
+        self._probes_outstanding += 1
+        self.probes += 1
+        self._last_heard = time.monotonic()
+        line = _Line(self._next_number, PROBE_COMMAND, codec.encode(self._next_number, PROBE_COMMAND),
+                     is_probe=True)
+        log.info("printer silent; probing with line %d", line.number)
+        if self._cursor < self._next_number:
+            # Rewound lines are waiting: they go first, and the probe will follow them.
+            self._history[line.number] = line
+            self._next_number += 1
+            self._pump()
+            return
+        self._history[line.number] = line
+        self._next_number += 1
+        self._cursor += 1
+        self._transmit(line)
+
+    # ------------------------------------------------------------------ failure
+
+    def _fail(self, reason: LinkError) -> None:
+        log.error("%s", reason)
+        self.stop(reason)
+
+    def _raise_if_failed(self) -> None:
+        if self._failure is not None:
+            raise self._failure
