@@ -1,0 +1,156 @@
+"""``python -m sim``: serve a simulated Marlin printer on a pty until SIGTERM/SIGINT.
+
+The first line on stdout is the pty device path (flushed at once); if a disconnect
+fault later plugs in a new pty, its path is printed as a further line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+
+from .config import FaultConfig, FrameConfig, SimConfig
+from .printer import SimulatedPrinter
+
+
+def _pair(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y, got {text!r}") from None
+    return (x, y)
+
+
+def _rate(text: str) -> float:
+    v = float(text)
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"a probability in [0, 1] is needed, got {text!r}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    d = SimConfig()
+    f = FaultConfig()
+    p = argparse.ArgumentParser(
+        prog="python -m sim",
+        description="Simulated Marlin 2.x printer behind a pseudo-terminal. Prints the pty "
+                    "device path as the first line of stdout, then serves until SIGTERM/SIGINT.")
+    g = p.add_argument_group("serial and firmware")
+    g.add_argument("--baud", type=int, default=d.baud,
+                   help="serial speed; bytes are paced at 10/baud s each way (default %(default)s)")
+    g.add_argument("--time-scale", type=float, default=d.time_scale,
+                   help="wall seconds per physical second; 0.001 runs a 2 h print in 7.2 s "
+                        "(default %(default)s)")
+    g.add_argument("--no-advanced-ok", action="store_true",
+                   help="plain 'ok' instead of 'ok N<line> P<planner free> B<queue free>'")
+    g.add_argument("--no-ok-after-resend", action="store_true",
+                   help="do not print 'ok' after 'Resend:'")
+    g.add_argument("--rx-buffer", type=int, default=d.rx_buffer,
+                   help="serial receive buffer in bytes; overflow is lost (default %(default)s)")
+    g.add_argument("--bufsize", type=int, default=d.bufsize,
+                   help="command queue slots, Marlin BUFSIZE (default %(default)s)")
+    g.add_argument("--planner-blocks", type=int, default=d.planner_blocks,
+                   help="planner ring size, holds one move less (default %(default)s)")
+    g.add_argument("--keepalive", type=float, default=d.keepalive_s,
+                   help="seconds between 'echo:busy:' lines while a command blocks; 0 = off "
+                        "(default %(default)s)")
+    g.add_argument("--seed", type=int, default=d.seed,
+                   help="seed of every fault's random stream (default %(default)s)")
+    g.add_argument("--boot-time", type=float, default=d.boot_s,
+                   help="seconds a (re)boot takes; input meanwhile is lost (default %(default)s)")
+    g = p.add_argument_group("faults")
+    g.add_argument("--corrupt-rate", type=_rate, default=f.corrupt_rate,
+                   help="per incoming line: probability one byte is corrupted")
+    g.add_argument("--drop-ok-rate", type=_rate, default=f.drop_ok_rate,
+                   help="per 'ok': probability it is never sent")
+    g.add_argument("--spurious-resend-rate", type=_rate, default=f.spurious_resend_rate,
+                   help="per accepted numbered line: probability of an unasked 'Resend:'")
+    g.add_argument("--unsolicited-rate", type=_rate, default=f.unsolicited_rate,
+                   help="per output line: probability of an unsolicited line before it")
+    g.add_argument("--slow-rate", type=_rate, default=f.slow_rate,
+                   help="per output line: probability it is held back --slow-delay seconds")
+    g.add_argument("--slow-delay", type=float, default=f.slow_delay_s,
+                   help="seconds a slow line is held back (default %(default)s)")
+    g.add_argument("--reset-after-lines", type=int, default=None, metavar="N",
+                   help="reboot after N accepted numbered lines")
+    g.add_argument("--disconnect-after-lines", type=int, default=None, metavar="N",
+                   help="unplug (close the pty) after N accepted numbered lines")
+    g.add_argument("--runaway-after-lines", type=int, default=None, metavar="N",
+                   help="thermal runaway (halt) after N accepted numbered lines")
+    g.add_argument("--reconnect-after", type=float, default=None, metavar="S",
+                   help="after an unplug, plug a new pty in after S seconds and print its path")
+    g = p.add_argument_group("fabric frame")
+    g.add_argument("--frame-center", type=_pair, default=FrameConfig().center, metavar="X,Y",
+                   help="machine coordinates of the frame's flip centre (default 110,110)")
+    g.add_argument("--flip-axis", choices=("x", "y"), default=FrameConfig().flip_axis,
+                   help="axis the frame turns over about (y mirrors x) (default %(default)s)")
+    g = p.add_argument_group("outputs")
+    g.add_argument("--record", metavar="FILE",
+                   help="write every executed command to FILE as JSON lines")
+    g.add_argument("--render", metavar="FILE", help="write a PNG of the deposits at exit")
+    g.add_argument("--control", metavar="SOCKET",
+                   help="Unix socket for JSON-line control requests "
+                        "(flip, reset, disconnect, runaway, stats, render, segments, commands, port)")
+    return p
+
+
+def config_from_args(args: argparse.Namespace) -> SimConfig:
+    return SimConfig(
+        baud=args.baud,
+        time_scale=args.time_scale,
+        advanced_ok=not args.no_advanced_ok,
+        ok_after_resend=not args.no_ok_after_resend,
+        rx_buffer=args.rx_buffer,
+        bufsize=args.bufsize,
+        planner_blocks=args.planner_blocks,
+        keepalive_s=args.keepalive,
+        seed=args.seed,
+        boot_s=args.boot_time,
+        faults=FaultConfig(
+            corrupt_rate=args.corrupt_rate,
+            drop_ok_rate=args.drop_ok_rate,
+            spurious_resend_rate=args.spurious_resend_rate,
+            unsolicited_rate=args.unsolicited_rate,
+            slow_rate=args.slow_rate,
+            slow_delay_s=args.slow_delay,
+            reset_after_lines=args.reset_after_lines,
+            disconnect_after_lines=args.disconnect_after_lines,
+            runaway_after_lines=args.runaway_after_lines,
+            reconnect_after_s=args.reconnect_after,
+        ),
+        frame=FrameConfig(center=args.frame_center, flip_axis=args.flip_axis),
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        config = config_from_args(args)
+    except ValueError as exc:
+        parser.error(str(exc))
+    done = threading.Event()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: done.set())
+
+    def announce(path: str) -> None:
+        print(path, flush=True)
+
+    sim = SimulatedPrinter(config, record_path=args.record, control_path=args.control,
+                           on_port_change=announce)
+    sim.start()
+    try:
+        announce(sim.port)
+        while not done.wait(0.5):
+            pass
+        if args.render:
+            sim.render_png(args.render)
+    finally:
+        sim.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

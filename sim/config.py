@@ -1,0 +1,127 @@
+"""Configuration of the simulated printer: firmware settings, faults and fabric frame.
+
+Every field maps to one command-line option of ``python -m sim``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = ["FaultConfig", "FrameConfig", "SimConfig"]
+
+
+def _check_rate(name: str, value: float) -> None:
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"{name} must be a probability in [0, 1], got {value!r}")
+
+
+def _check_trigger(name: str, value: int | None) -> None:
+    if value is not None and value < 1:
+        raise ValueError(f"{name} must be >= 1 or None, got {value!r}")
+
+
+@dataclass(frozen=True)
+class FaultConfig:
+    """Faults injected on the serial link and in the firmware.
+
+    Rates are probabilities drawn from per-fault random streams seeded by
+    ``SimConfig.seed``, so a run is reproducible and enabling one fault does not
+    change when another one fires.  ``*_after_lines`` triggers fire once, after that
+    many numbered lines have been accepted since the simulator started.
+    """
+
+    corrupt_rate: float = 0.0
+    """Per incoming line: replace one byte with another printable byte."""
+    drop_ok_rate: float = 0.0
+    """Per ``ok`` line of any kind: never send it."""
+    spurious_resend_rate: float = 0.0
+    """Per accepted numbered line: request an unasked ``Resend:``."""
+    unsolicited_rate: float = 0.0
+    """Per output line: first interleave an unsolicited line."""
+    slow_rate: float = 0.0
+    """Per output line: hold it back ``slow_delay_s`` before release."""
+    slow_delay_s: float = 0.5
+    reset_after_lines: int | None = None
+    disconnect_after_lines: int | None = None
+    runaway_after_lines: int | None = None
+    reconnect_after_s: float | None = None
+    """After a disconnect, plug a new pty back in after this many seconds
+    (``SimulatedPrinter.port`` then names the new device). None: stay unplugged."""
+
+    def __post_init__(self) -> None:
+        for name in ("corrupt_rate", "drop_ok_rate", "spurious_resend_rate",
+                     "unsolicited_rate", "slow_rate"):
+            _check_rate(name, getattr(self, name))
+        for name in ("reset_after_lines", "disconnect_after_lines", "runaway_after_lines"):
+            _check_trigger(name, getattr(self, name))
+        if self.slow_delay_s < 0:
+            raise ValueError("slow_delay_s must be >= 0")
+        if self.reconnect_after_s is not None and self.reconnect_after_s < 0:
+            raise ValueError("reconnect_after_s must be >= 0 or None")
+
+
+@dataclass(frozen=True)
+class FrameConfig:
+    """Where the fabric frame's flip axis is, in machine coordinates (mm).
+
+    ``flip_axis="y"`` turns the frame over about the line x = cx (x is mirrored);
+    ``flip_axis="x"`` turns it over about y = cy (y is mirrored).
+    """
+
+    center: tuple[float, float] = (110.0, 110.0)
+    flip_axis: str = "y"
+
+    def __post_init__(self) -> None:
+        if self.flip_axis not in ("x", "y"):
+            raise ValueError(f"flip_axis must be 'x' or 'y', got {self.flip_axis!r}")
+        if len(self.center) != 2:
+            raise ValueError("center must be (x, y)")
+        object.__setattr__(self, "center", (float(self.center[0]), float(self.center[1])))
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Settings of the simulated Marlin 2.x board."""
+
+    baud: int = 250000
+    """Serial speed; 8N1 framing, so a byte takes 10/baud seconds each way."""
+    time_scale: float = 1.0
+    """Wall seconds per physical second (0.001 runs a 2 h print in 7.2 s)."""
+    advanced_ok: bool = True
+    """Acks read ``ok N<line> P<planner free> B<queue free>`` (Marlin ADVANCED_OK)."""
+    ok_after_resend: bool = True
+    """Print ``ok`` after every ``Resend:`` (as Marlin 2.x does)."""
+    rx_buffer: int = 128
+    """Serial receive ring buffer in bytes (RX_BUFFER_SIZE); bytes beyond it are lost."""
+    bufsize: int = 4
+    """Command queue slots (BUFSIZE)."""
+    planner_blocks: int = 16
+    """Planner ring size (BLOCK_BUFFER_SIZE); it holds planner_blocks - 1 moves."""
+    keepalive_s: float = 2.0
+    """``echo:busy:`` interval while a command blocks (0 disables)."""
+    seed: int = 0
+    boot_s: float = 0.05
+    """Wall time a (re)boot takes: bytes arriving meanwhile are lost, then the banner."""
+    faults: FaultConfig = field(default_factory=FaultConfig)
+    frame: FrameConfig = field(default_factory=FrameConfig)
+
+    def __post_init__(self) -> None:
+        if self.baud <= 0:
+            raise ValueError("baud must be > 0")
+        if self.time_scale <= 0:
+            raise ValueError("time_scale must be > 0")
+        if self.rx_buffer < 2:
+            raise ValueError("rx_buffer must be >= 2")
+        if self.bufsize < 1:
+            raise ValueError("bufsize must be >= 1")
+        if self.planner_blocks < 2:
+            raise ValueError("planner_blocks must be >= 2 (the ring keeps one slot free)")
+        if self.keepalive_s < 0:
+            raise ValueError("keepalive_s must be >= 0")
+        if self.boot_s < 0:
+            raise ValueError("boot_s must be >= 0")
+
+    @property
+    def byte_time(self) -> float:
+        """Seconds one byte occupies the wire (start + 8 data + stop bits)."""
+        return 10.0 / self.baud
