@@ -48,7 +48,7 @@ def _panel(fig: Figure, ax, segs: Sequence[Segment], fabric: bool, frame: FrameC
                  fontsize=10)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
     ax.grid(True, color="#dddddd", linewidth=0.5)
     cx, cy = frame.center
     if len(pts):
