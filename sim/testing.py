@@ -6,6 +6,7 @@ replies with timeouts.  It is deliberately dumb: no flow control, no resends.
 
 from __future__ import annotations
 
+import errno
 import os
 import select
 import time
@@ -66,7 +67,11 @@ class PtyHost:
         assert self.fd is not None
         r, _, _ = select.select([self.fd], [], [], max(0.0, timeout))
         if r:
-            self._buf += os.read(self.fd, 65536)  # raises OSError(EIO) once unplugged
+            data = os.read(self.fd, 65536)
+            if not data:
+                # Linux: a hung-up tty reads as end of file (writes fail with EIO).
+                raise OSError(errno.EIO, "pty hung up: the simulator closed its side")
+            self._buf += data
 
     def readline(self, timeout: float = 2.0) -> str | None:
         """The next line without its newline, or None on timeout."""
