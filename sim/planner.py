@@ -68,7 +68,10 @@ class Planner:
         return block
 
     def quickstop(self, t: float) -> Block | None:
-        """Drop every block; return the executing one truncated at ``t`` (if it had started)."""
+        """Drop every block; return the executing one truncated at ``t`` (if it had started).
+
+        The caller completes the blocks that ended by ``t`` first.
+        """
         partial: Block | None = None
         if self._blocks and self._blocks[0].t_start < t:
             head = self._blocks[0]
@@ -80,9 +83,12 @@ class Planner:
 
     def position_at(self, t: float) -> Position:
         """The steppers' actual position at ``t``."""
-        if self._blocks and self._blocks[0].t_start <= t:
-            return self._blocks[0].at(t)
-        return self._pos
+        pos = self._pos
+        for block in self._blocks:  # blocks run back to back: find the one at t
+            if block.t_start > t:
+                break
+            pos = block.at(t)
+        return pos
 
     def set_position(self, pos: Position) -> None:
         """Position the steppers are taken to be at when idle (G92, G28)."""
