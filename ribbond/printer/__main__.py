@@ -65,7 +65,9 @@ def _link(args: argparse.Namespace) -> PrinterLink:
 async def _stream(args: argparse.Namespace, commands: list[str]) -> int:
     link = _link(args)
     await link.connect()
-    bar = tqdm(total=len(commands), unit="line", disable=args.quiet, file=sys.stderr, dynamic_ncols=True)
+    # In a log (not a terminal) a bar redrawn ten times a second is noise: redraw every 5 s there.
+    bar = tqdm(total=len(commands), unit="line", disable=args.quiet, file=sys.stderr, dynamic_ncols=True,
+               mininterval=0.1 if sys.stderr.isatty() else 5.0)
     loop = asyncio.get_running_loop()
     loop.add_signal_handler(signal.SIGINT, link.cancel)
 

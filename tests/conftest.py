@@ -1,0 +1,52 @@
+"""Shared fixtures: simulated printers on real ptys, and programs to stream."""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from sim import FaultConfig, SimConfig, SimulatedPrinter
+
+#: Commands the link sends on its own: the handshake and its probes. Test programs use none of them.
+HOST_COMMANDS = ("M110", "M115", "M155", "M105")
+
+
+@pytest.fixture
+def make_sim() -> Iterator[Callable[..., SimulatedPrinter]]:
+    """Start simulated printers (fast by default: 1 Mbaud, 1000× time) and stop them afterwards."""
+    started: list[SimulatedPrinter] = []
+
+    def make(faults: FaultConfig | None = None, **options: object) -> SimulatedPrinter:
+        options.setdefault("baud", 1_000_000)
+        options.setdefault("time_scale", 0.001)
+        sim = SimulatedPrinter(SimConfig(faults=faults or FaultConfig(), **options))  # type: ignore[arg-type]
+        sim.__enter__()
+        started.append(sim)
+        return sim
+
+    yield make
+    for sim in started:
+        sim.__exit__(None, None, None)
+
+
+def moves(count: int, seed: int = 1) -> list[str]:
+    """A program of short extruding moves, each line distinct so that order errors show."""
+    rng = random.Random(seed)
+    lines = ["G92 E0"]
+    e = 0.0
+    for i in range(count - 1):
+        e += 0.01
+        lines.append(f"G1 X{100 + rng.uniform(-40, 40):.3f} Y{100 + rng.uniform(-40, 40):.3f} E{e:.4f} F{3000 + i % 7}")
+    return lines
+
+
+def executed_program(sim: SimulatedPrinter) -> list[str]:
+    """The commands the simulator executed, without the link's own."""
+    return [c.command for c in sim.commands() if c.command.split()[0] not in HOST_COMMANDS]
+
+
+def assert_prefix_without_duplicates(executed: list[str], program: list[str]) -> None:
+    """After a failure mid-job: what ran is the program's beginning, each line once, in order."""
+    assert executed == program[: len(executed)], "executed lines must be the program's first lines, in order"

@@ -1,0 +1,325 @@
+"""The printer link against the simulated Marlin printer, over the simulator's pty."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import select
+import subprocess
+import sys
+import threading
+import time
+import tty
+from pathlib import Path
+
+import pytest
+
+from ribbond.printer import (
+    Capabilities,
+    Disconnected,
+    LinkState,
+    PrinterHalted,
+    PrinterLink,
+    PrinterReset,
+    PrinterSilent,
+    StreamCancelled,
+    Timeouts,
+    prepare_program,
+)
+from sim import FaultConfig
+
+from .conftest import assert_prefix_without_duplicates, executed_program, moves
+
+FAST = Timeouts(default_s=0.5, probes=4)
+
+
+def link_for(sim, **kwargs) -> PrinterLink:
+    kwargs.setdefault("timeouts", FAST)
+    kwargs.setdefault("boot_wait_s", 1.0)
+    return PrinterLink(sim.port, sim.config.baud, **kwargs)
+
+
+async def test_handshake_learns_the_firmware(make_sim) -> None:
+    sim = make_sim()
+    link = link_for(sim)
+    await link.connect()
+    status = link.status
+    assert status.state is LinkState.READY
+    assert status.firmware.startswith("Marlin")
+    assert status.capabilities["AUTOREPORT_TEMP"] and status.capabilities["EMERGENCY_PARSER"]
+    assert "ADVANCED_OK" not in status.capabilities
+    assert status.advanced_ok, "learned from the acknowledgements"
+    assert [c.command for c in sim.commands()][:2] == ["M110 N0", "M115"]
+    await link.close()
+
+
+async def test_plain_ok_firmware_is_detected(make_sim) -> None:
+    sim = make_sim(advanced_ok=False)
+    link = link_for(sim)
+    await link.connect()
+    assert not link.status.advanced_ok
+    await link.close()
+
+
+async def test_send_and_queries(make_sim) -> None:
+    sim = make_sim()
+    link = link_for(sim)
+    await link.connect()
+    await link.send("M104 S200")
+    temps = await link.query_temperatures()
+    assert temps.hotend is not None and temps.hotend.target == 200.0
+    await link.send("G28")
+    await link.send("G1 X12.5 Y7 Z3 F6000")
+    position = await link.query_position()
+    assert (position.x, position.y, position.z) == (12.5, 7.0, 3.0)
+    answer = await link.send("G999")
+    assert any(getattr(e, "command", None) == "G999" for e in answer.events)
+    await link.close()
+
+
+@pytest.mark.parametrize("ping_pong", [False, True], ids=["windowed", "ping-pong"])
+async def test_clean_stream_executes_every_line_once_in_order(make_sim, ping_pong: bool) -> None:
+    sim = make_sim()
+    link = link_for(sim, ping_pong=ping_pong)
+    await link.connect()
+    program = moves(500)
+    seen: list[int] = []
+    result = await link.stream(program, lambda p: seen.append(p.acknowledged))
+    assert result.lines == 500 and result.resends == 0
+    assert executed_program(sim) == program
+    assert seen[-1] == 500 and seen == sorted(seen)
+    assert sim.stats().dropped_bytes == 0, "the window never overruns the receive buffer"
+    await link.close()
+
+
+FAULTS = {
+    "corrupted-bytes": FaultConfig(corrupt_rate=0.05),
+    "lost-oks": FaultConfig(drop_ok_rate=0.05),
+    "spurious-resends": FaultConfig(spurious_resend_rate=0.03),
+    "unsolicited-lines": FaultConfig(unsolicited_rate=0.2),
+    "slow-answers": FaultConfig(slow_rate=0.05, slow_delay_s=0.05),
+}
+
+
+@pytest.mark.parametrize("advanced_ok", [True, False], ids=["advanced-ok", "plain-ok"])
+@pytest.mark.parametrize("fault", list(FAULTS))
+async def test_each_fault_alone_still_executes_every_line_once_in_order(make_sim, fault: str, advanced_ok: bool) -> None:
+    sim = make_sim(faults=FAULTS[fault], advanced_ok=advanced_ok, seed=7)
+    link = link_for(sim)
+    await link.connect()
+    program = moves(800, seed=3)
+    await link.stream(program)
+    assert executed_program(sim) == program
+    stats = sim.stats()
+    if fault == "corrupted-bytes":
+        assert stats.checksum_errors + stats.line_number_errors > 0, "the fault must have happened"
+    if fault == "lost-oks":
+        assert stats.oks_dropped > 0
+    await link.close()
+
+
+async def test_without_ok_after_resend(make_sim) -> None:
+    sim = make_sim(faults=FaultConfig(corrupt_rate=0.05), ok_after_resend=False, seed=11)
+    link = link_for(sim, capabilities=Capabilities(ok_after_resend=False))
+    await link.connect()
+    program = moves(600, seed=5)
+    await link.stream(program)
+    assert executed_program(sim) == program
+    await link.close()
+
+
+async def test_fifty_thousand_lines_under_all_faults_at_once(make_sim) -> None:
+    faults = FaultConfig(corrupt_rate=0.003, drop_ok_rate=0.003, spurious_resend_rate=0.002,
+                         unsolicited_rate=0.02, slow_rate=0.002, slow_delay_s=0.02)
+    sim = make_sim(faults=faults, baud=2_000_000, seed=2026)
+    link = link_for(sim)
+    await link.connect()
+    program = moves(50_000, seed=9)
+    result = await link.stream(program)
+    assert executed_program(sim) == program
+    stats = sim.stats()
+    assert stats.checksum_errors + stats.line_number_errors > 0 and stats.oks_dropped > 0
+    assert result.resends > 0
+    await link.close()
+
+
+async def test_reset_mid_job_fails_clearly_without_duplicates(make_sim) -> None:
+    sim = make_sim(faults=FaultConfig(reset_after_lines=300))
+    link = link_for(sim)
+    await link.connect()
+    program = moves(2000)
+    with pytest.raises(PrinterReset, match="reset"):
+        await link.stream(program)
+    assert_prefix_without_duplicates(executed_program(sim), program)
+    await link.wait_for_state(LinkState.READY, timeout=5)  # it shakes hands again afterwards
+    await link.close()
+
+
+async def test_disconnect_mid_job_fails_clearly_without_duplicates(make_sim) -> None:
+    sim = make_sim(faults=FaultConfig(disconnect_after_lines=300))
+    link = link_for(sim)
+    await link.connect()
+    program = moves(2000)
+    with pytest.raises(Disconnected, match="disconnected|closed"):
+        await link.stream(program)
+    assert link.state is LinkState.DISCONNECTED
+    assert_prefix_without_duplicates(executed_program(sim), program)
+
+
+async def test_thermal_runaway_halts_the_stream(make_sim) -> None:
+    sim = make_sim(faults=FaultConfig(runaway_after_lines=200))
+    link = link_for(sim)
+    await link.connect()
+    with pytest.raises(PrinterHalted, match="Thermal Runaway"):
+        await link.stream(moves(2000))
+    assert link.state is LinkState.HALTED
+    await link.close()
+
+
+async def test_emergency_stop_halts_within_100ms_with_a_full_queue(make_sim) -> None:
+    # Real time and slow moves: the planner and the command queue fill up and stay full.
+    sim = make_sim(baud=250000, time_scale=1.0)
+    link = link_for(sim)
+    await link.connect()
+    program = [f"G1 X{10 + (i % 2) * 50} Y10 F600" for i in range(200)]
+    streaming = asyncio.ensure_future(link.stream(program))
+    await asyncio.sleep(0.5)
+    assert sim.stats().planner_peak >= 15, "the planner must be full for this test to mean something"
+    called = time.monotonic()
+    link.emergency_stop()
+    with pytest.raises(PrinterHalted):
+        await asyncio.wait_for(streaming, 2)
+    deadline = time.monotonic() + 1
+    while sim.halted_at is None and time.monotonic() < deadline:
+        await asyncio.sleep(0.005)
+    assert sim.halted_at is not None
+    assert sim.halted_at - called < 0.1
+    assert link.state is LinkState.HALTED
+    await link.close()
+
+
+class DeadAfterHandshake:
+    """A pty whose 'firmware' acknowledges the handshake and then never answers again, as a
+    board whose firmware crashed while its USB bridge stays up."""
+
+    def __init__(self, answers: int) -> None:
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.port = os.ttyname(slave)
+        os.close(slave)
+        self._answers = answers
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        pending = b""
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.master], [], [], 0.05)
+            if not ready:
+                continue
+            try:
+                pending += os.read(self.master, 4096)
+            except OSError:
+                continue  # no host has the port open (yet)
+            while b"\n" in pending:
+                _, pending = pending.split(b"\n", 1)
+                if self._answers > 0:
+                    self._answers -= 1
+                    os.write(self.master, b"ok\n")
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        os.close(self.master)
+
+
+async def test_silent_printer_is_reported_not_waited_on() -> None:
+    printer = DeadAfterHandshake(answers=2)  # M110 and M115
+    try:
+        link = PrinterLink(printer.port, 250000, timeouts=Timeouts(default_s=0.3, probes=2), boot_wait_s=0.2)
+        await link.connect()
+        started = time.monotonic()
+        with pytest.raises(PrinterSilent, match="no answer"):
+            await link.stream(moves(100))
+        assert time.monotonic() - started < 3
+        await link.close()
+    finally:
+        printer.close()
+
+
+async def test_pause_resume_and_cancel(make_sim) -> None:
+    sim = make_sim(time_scale=0.01)
+    link = link_for(sim)
+    await link.connect()
+    program = moves(3000)
+    streaming = asyncio.ensure_future(link.stream(program))
+    await asyncio.sleep(0.2)
+    link.pause()
+    assert link.state is LinkState.PAUSED
+    await asyncio.sleep(0.3)
+    count = len(executed_program(sim))
+    await asyncio.sleep(0.3)
+    assert len(executed_program(sim)) == count, "nothing new is fed while paused"
+    link.resume()
+    await asyncio.sleep(0.2)
+    assert len(executed_program(sim)) > count
+    link.cancel()
+    with pytest.raises(StreamCancelled):
+        await streaming
+    assert link.state is LinkState.READY
+    executed = executed_program(sim)
+    assert 0 < len(executed) < len(program)
+    assert_prefix_without_duplicates(executed, program)
+    await link.close()
+
+
+def test_prepare_program_names_the_bad_line() -> None:
+    good = prepare_program(["; header", "", "N10 G28*18", "G1 X1 ; move", "  "], source="a.gcode")
+    assert good == ["G28", "G1 X1"]
+    with pytest.raises(ValueError, match=r"b\.gcode, line 3: .*characters"):
+        prepare_program(["G28", "G1 X1", "M117 " + "x" * 120], source="b.gcode")
+    with pytest.raises(ValueError, match="line 2: M110"):
+        prepare_program(["G28", "M110 N0"])
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "ribbond.printer", *args], capture_output=True, text=True, timeout=120)
+
+
+def test_stream_command_exits_zero_when_every_line_was_acknowledged(make_sim, tmp_path: Path) -> None:
+    sim = make_sim(faults=FaultConfig(corrupt_rate=0.02), seed=5)
+    program = moves(400)
+    path = tmp_path / "part.gcode"
+    path.write_text("; a part\n" + "\n".join(program) + "\n")
+    done = run_cli("stream", "--port", sim.port, "--baud", str(sim.config.baud), "--boot-wait", "1", "-q", str(path))
+    assert done.returncode == 0, done.stderr
+    assert "400 lines acknowledged" in done.stdout
+    assert executed_program(sim) == program
+
+
+def test_stream_command_fails_with_the_reason(make_sim, tmp_path: Path) -> None:
+    sim = make_sim(faults=FaultConfig(runaway_after_lines=100))
+    path = tmp_path / "part.gcode"
+    path.write_text("\n".join(moves(1000)) + "\n")
+    done = run_cli("stream", "--port", sim.port, "--baud", str(sim.config.baud), "--boot-wait", "1", "-q", str(path))
+    assert done.returncode == 1
+    assert "Thermal Runaway" in done.stderr
+
+
+def test_stream_command_rejects_a_bad_file_before_connecting(tmp_path: Path) -> None:
+    path = tmp_path / "bad.gcode"
+    path.write_text("G28\nM117 " + "x" * 200 + "\n")
+    done = run_cli("stream", "--port", "/dev/does-not-exist", str(path))
+    assert done.returncode == 2
+    assert "bad.gcode, line 2" in done.stderr
+    missing = run_cli("stream", "--port", "/dev/does-not-exist", str(tmp_path / "nope.gcode"))
+    assert missing.returncode == 2
+
+
+def test_stream_command_reports_a_missing_port(tmp_path: Path) -> None:
+    path = tmp_path / "ok.gcode"
+    path.write_text("G28\n")
+    done = run_cli("stream", "--port", "/dev/does-not-exist", str(path))
+    assert done.returncode == 1
+    assert "/dev/does-not-exist" in done.stderr
