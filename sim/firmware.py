@@ -221,6 +221,7 @@ class Firmware:
         self._next_busy = 0.0
         self.wait_for_user = False
         self.wait_for_heatup = False
+        self.update_thermal()  # the lazy model needs the old target up to now
         self.hotend.target = 0.0
         self.bed.target = 0.0
 
@@ -404,6 +405,7 @@ class Firmware:
         self._stop_motion()
         self._drop_queue()
         self._synced = True
+        self.update_thermal()
         self.hotend.target = self.bed.target = 0.0
         self.autoreport_s = None
         self.wait_for_user = self.wait_for_heatup = False
@@ -600,6 +602,7 @@ class Firmware:
     def _plan(self, start: Position, end: Position, duration: float) -> Iterator[_Cond]:
         if self.planner.moves_free() <= 0:
             yield _PlannerSpace()
+            self.position = end  # an M410 meanwhile reset it; the move still goes to its target
         if self.planner.is_empty() and self._last_motion_end is not None and not self._synced:
             self.stats.starvations += 1
             self.stats.starved_s += max(0.0, self.t - self._last_motion_end)

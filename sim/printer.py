@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import dataclasses
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -30,6 +31,8 @@ from .serialport import PtyPort
 from .stats import Stats
 
 __all__ = ["SimulatedPrinter"]
+
+log = logging.getLogger("sim")
 
 T = TypeVar("T")
 
@@ -65,6 +68,8 @@ class _Core:
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at = float("inf")
         self._replug: asyncio.TimerHandle | None = None
+        self.errors: list[BaseException] = []
+        """Internal failures; public calls re-raise the first so a bug cannot hide."""
 
     def start(self) -> str:
         now = time.monotonic()
@@ -88,11 +93,15 @@ class _Core:
         self._timer = None
         self._timer_at = float("inf")
         now = time.monotonic()
-        for piece, t in self.port.input.take(now):
-            self.fw.advance(t)
-            self.fw.receive(piece, t)
-        self.fw.advance(now)
-        self.port.flush(now)
+        try:
+            for piece, t in self.port.input.take(now):
+                self.fw.advance(t)
+                self.fw.receive(piece, t)
+            self.fw.advance(now)
+            self.port.flush(now)
+        except Exception as exc:  # keep serving, but make the failure visible
+            log.exception("simulated printer step failed")
+            self.errors.append(exc)
         self.reschedule()
 
     def reschedule(self) -> None:
@@ -191,8 +200,9 @@ class _Core:
 
     def is_idle(self) -> bool:
         self.step()
+        # Bytes the host has not read yet do not count: an idle host may not read.
         return (self.fw.is_idle() and self.port.input.pending() == 0
-                and self.port.output_idle())
+                and self.port.output.pending() == 0)
 
 
 class SimulatedPrinter:
@@ -307,7 +317,10 @@ class SimulatedPrinter:
                 fut.set_exception(exc)
 
         self._loop.call_soon_threadsafe(run)
-        return fut.result(timeout=_CALL_TIMEOUT_S)
+        result = fut.result(timeout=_CALL_TIMEOUT_S)
+        if self._core.errors:
+            raise RuntimeError("the simulated printer failed internally") from self._core.errors[0]
+        return result
 
     def _c(self) -> _Core:
         if self._core is None:

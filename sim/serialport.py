@@ -280,6 +280,3 @@ class PtyPort:
         if not self._unwritten:
             self._loop.remove_writer(self._master)
             self._writing = False
-
-    def output_idle(self) -> bool:
-        return not self.output.pending() and not self._unwritten
