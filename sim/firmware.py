@@ -725,9 +725,9 @@ class Firmware:
         self._set_target(self.bed, g)
 
     def _heat_and_wait(self, heater: Heater, g: GCode) -> Iterator[_Cond]:
+        self._synced = True  # a heating wait is a pause the host asked for
         if not self._set_target(heater, g):
             return
-        self._synced = True
         self.wait_for_heatup = True
         yield _HeatWait(heater, wait_cooling=not g.has("S"), t=self.t)
         self.wait_for_heatup = False
