@@ -270,3 +270,32 @@ def test_m114_reports_position() -> None:
             "X:12.50 Y:7.00 Z:0.30 E:0.00 Count X:1000 Y:560 Z:120", "ok P15 B3"]
         host.command("G92 X0 E5")
         assert host.command("M114")[0].startswith("X:0.00 Y:7.00 Z:0.30 E:5.00 ")
+
+
+def test_g28_homes_in_three_physical_seconds() -> None:
+    with connected(SimConfig(time_scale=0.05)) as (sim, host):
+        host.command("G1 X20 Y30 Z5 F60000")
+        t0 = host.send("G28")
+        assert host.readline(2.0) == "ok P15 B3"
+        assert 0.15 <= time.monotonic() - t0 < 0.22  # 3 s physical at 0.05
+        assert host.command("M114")[0].startswith("X:0.00 Y:0.00 Z:0.00 ")
+        host.command("G1 X20 Y30 Z5")
+        host.command("G28 X")
+        assert host.command("M114")[0].startswith("X:0.00 Y:30.00 Z:5.00 ")
+
+
+def test_other_known_commands_just_ok() -> None:
+    with connected() as (sim, host):
+        for command in ("M106 S128", "M107", "M84", "M999", "M17", "M117 hello", "T0"):
+            assert host.command(command) == ["ok P15 B3"], command
+        assert host.command("M118 E1 hi there") == ["echo:hi there", "ok P15 B3"]
+
+
+def test_wait_idle() -> None:
+    with connected(SimConfig(time_scale=0.01)) as (sim, host):
+        host.write("G1 X50 F3000\nG1 X0\n")  # 2 x 1 s physical = 20 ms wall
+        assert sim.wait_idle(2.0)
+        host.write("M0\n")
+        assert not sim.wait_idle(0.2)
+        host.write("M108\n")
+        assert sim.wait_idle(2.0)
