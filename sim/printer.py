@@ -20,7 +20,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import TypeVar
 
 from .config import SimConfig
 from .faults import FaultInjector
@@ -393,7 +393,3 @@ class SimulatedPrinter:
             if time.monotonic() >= deadline:
                 return False
             time.sleep(0.01)
-
-    def run_in_loop(self, fn: Callable[[], Any]) -> Any:
-        """Run ``fn`` on the simulator's loop (for the control interface)."""
-        return self._call(fn)
