@@ -45,6 +45,7 @@ ERR_KILLED = "Error:Printer halted. kill() called!"
 ERR_LINE_NO = "Line Number is not Last Line Number+1, Last Line: "
 ERR_CHECKSUM = "checksum mismatch, Last Line: "
 ERR_NO_CHECKSUM = "No Checksum with line number, Last Line: "
+ERR_NO_LINE_NUMBER = "No Line Number with checksum, Last Line: "
 ERR_RUNAWAY = "Error:Thermal Runaway, system stopped! Heater_ID: 0"
 
 BANNER_SETTINGS = (
@@ -497,6 +498,12 @@ class Firmware:
             line = strtol(text, 1)
             self.queue.append(QueuedCommand(text, line, n_text))
             self._after_numbered_line()
+        elif b"*" in cmd_b:
+            # Marlin: "No '*' without 'N'". A line cut by a receive-buffer flush arrives as its
+            # tail, with the checksum but without the number: it must never run unchecked.
+            self.stats.checksum_errors += 1
+            self._line_error(ERR_NO_LINE_NUMBER)
+            return
         else:
             self.queue.append(QueuedCommand(text, None, None))
         if len(self.queue) > self.stats.queue_peak:

@@ -66,36 +66,34 @@ async def test_ping_pong_keeps_one_line_in_flight() -> None:
     assert result.lines == 3
 
 
-async def test_advanced_ok_counts_queued_lines_out_of_the_receive_buffer() -> None:
-    sender, wire = make(rx=127)
+async def test_window_is_bounded_by_the_queue_slots() -> None:
+    sender, wire = make(rx=4096)
     done = sender.stream(program(40))
-    first = len(wire.lines)
-    # The printer acknowledges line 0 and says its queue is full (B0): of the lines sent after
-    # line 0, the next three sit in its queue, the rest in its receive buffer.
-    feed(sender, "ok N0 P10 B0")
-    assert sender.capabilities.advanced_ok
-    inflight = [n for n, _ in wire.lines if n > 0]
-    buffered = inflight[3:]
-    size = sum(len(codec.encode(n, program(40)[n])) for n in buffered)
-    assert size <= 127
-    assert len(wire.lines) > first + 1  # more than a plain count would allow
+    assert len(wire.lines) == 4, "Marlin's default BUFSIZE until the printer says otherwise"
+    # An ADVANCED_OK acknowledgement reporting 7 free slots shows a queue of at least 8.
+    feed(sender, "ok N0 P15 B7")
+    assert sender.capabilities.queue_slots == 8
+    assert sender.in_flight == 8
     done.cancel()
 
 
-async def test_resend_rewinds_once_and_swallows_stale_requests() -> None:
-    sender, wire = make(rx=127)
+SETTLE = Timeouts(resend_settle_s=0.01)
+
+
+async def test_resend_waits_for_stale_requests_then_resends_once() -> None:
+    sender, wire = make(rx=127, timeouts=SETTLE)
     done = sender.stream(program(10))
     feed(sender, "ok")  # line 0 processed; the window moves on
     first_window = wire.numbers()
     assert first_window[0] == 0 and len(first_window) >= 4
-    # Line 1 arrived corrupted: Marlin flushes its buffer and asks for 1 (then a plain ok).
+    # Line 1 arrived corrupted: Marlin flushes its buffer and asks for 1 (then a plain ok). The
+    # other lines of the window still reach its parser and are refused the same way.
     feed(sender, "Error:checksum mismatch, Last Line: 0", "Resend: 1", "ok")
-    after_rewind = len(wire.lines)
-    assert wire.numbers()[len(first_window)] == 1, "the resend starts at the line asked for"
-    # Every other line of the first window still reaches the parser and is rejected the same way.
     for _ in first_window[2:]:
         feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 0", "Resend: 1", "ok")
-    assert len(wire.lines) == after_rewind, "stale requests must not rewind again"
+    assert wire.numbers() == first_window, "nothing goes out while stale requests may still come"
+    await asyncio.sleep(0.05)
+    assert wire.numbers()[len(first_window)] == 1, "then the resend starts at the line asked for"
     while not done.done():
         feed(sender, "ok")
         await asyncio.sleep(0)
@@ -103,8 +101,34 @@ async def test_resend_rewinds_once_and_swallows_stale_requests() -> None:
     assert result.lines == 10 and result.resends == 1
     sent = wire.numbers()
     assert sorted(set(sent)) == list(range(10))
-    assert all(sent.count(n) == 2 for n in first_window[1:]), "the rejected lines went out again, once"
+    assert all(sent.count(n) == 2 for n in first_window[1:]), "the refused lines went out again, once"
     assert all(sent.count(n) == 1 for n in range(10) if n == 0 or n not in first_window)
+
+
+async def test_a_request_after_the_resend_is_honoured() -> None:
+    """A flush caused by a stale line's tail can destroy the resent lines: asked again, sent again."""
+    sender, wire = make(rx=127, timeouts=SETTLE)
+    done = sender.stream(program(6))
+    feed(sender, "Error:checksum mismatch, Last Line: -1", "Resend: 0", "ok")
+    await asyncio.sleep(0.05)
+    resent = len(wire.lines)
+    feed(sender, "Error:No Line Number with checksum, Last Line: -1", "Resend: 0", "ok")
+    await asyncio.sleep(0.05)
+    assert wire.numbers()[resent] == 0
+    while not done.done():
+        feed(sender, "ok")
+        await asyncio.sleep(0)
+    assert done.result().lines == 6
+
+
+async def test_latest_request_wins_during_the_hold() -> None:
+    sender, wire = make(rx=127, timeouts=SETTLE)
+    done = sender.stream(program(8))
+    feed(sender, "Resend: 0", "ok")  # spurious: the lines in its buffer are still accepted
+    feed(sender, "ok N0 P15 B3", "ok N1 P15 B3", "ok N2 P15 B3")
+    await asyncio.sleep(0.05)
+    assert wire.numbers()[4] == 3, "with ADVANCED_OK the acknowledged lines are not sent again"
+    done.cancel()
 
 
 async def test_resend_of_an_acknowledged_line_means_the_printer_lost_its_state() -> None:
@@ -145,6 +169,7 @@ async def test_probe_finds_a_lost_line() -> None:
     await asyncio.sleep(0.3)  # line 0 never reached the parser
     assert wire.lines[-1] == (1, "M105")
     feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: -1", "Resend: 0", "ok")
+    await asyncio.sleep(0.1)  # the resend waits until stale requests can no longer come
     assert wire.lines[-1] == (0, program(2)[0])
     feed(sender, "ok", "ok T:20.0 /0.0 B:20.0 /0.0 @:0 B@:0", "ok")
     result = await asyncio.wait_for(done, 1)

@@ -72,6 +72,17 @@ def test_missing_checksum() -> None:
             "Error:No Checksum with line number, Last Line: 0", "Resend: 1", "ok"]
 
 
+def test_checksum_without_line_number_is_refused() -> None:
+    """The tail of a line cut by a buffer flush has a checksum but no number: never executed."""
+    with connected() as (sim, host):
+        host.write(b"G1 X10 Y20*45\n")
+        assert host.read_quiet() == [
+            "Error:No Line Number with checksum, Last Line: 0", "Resend: 1", "ok"]
+        assert sim.commands() == []
+        host.write(b"G90\n")  # a line with neither number nor checksum is still accepted
+        assert host.read_quiet() == ["ok P15 B3"]
+
+
 def test_no_ok_after_resend_when_disabled() -> None:
     with connected(SimConfig(ok_after_resend=False)) as (sim, host):
         host.write(b"N1 G90*0\n")

@@ -256,7 +256,7 @@ class PrinterLink:
             self._sender.stop(LinkError("superseded by a new handshake"))
         assert self._transport is not None
         self._sender = Sender(self._transport.write, self.capabilities, timeouts=self.timeouts,
-                              ping_pong=self.ping_pong)
+                              ping_pong=self.ping_pong, baud=self.baud)
         self._sender.start()
 
     async def close(self) -> None:

@@ -4,13 +4,17 @@ It is a go-back-N sender over Marlin's line-number protocol:
 
 * Every command gets the next line number and a checksum and stays in a bounded history until it
   can no longer be asked for again.
-* A line goes out only while the printer can take it: the bytes that may still sit in the printer's
-  receive buffer stay within ``Capabilities.rx_buffer_bytes``. With ADVANCED_OK the estimate uses
-  the free queue slots the printer reports (the first lines after the acknowledged one are in its
-  command queue, not in its receive buffer); without it every unacknowledged byte counts. Ping-pong
+* A line goes out only while the printer can take it: no more lines in flight than its command
+  queue has slots (learned from the free counts ADVANCED_OK reports, Marlin's default of 4
+  otherwise), so that no line waits in its receive buffer, and no more unacknowledged bytes than
+  ``Capabilities.rx_buffer_bytes``, counting every byte as if it were still in that buffer. Ping-pong
   (one line in flight) is the fallback and an option.
-* ``Resend: N`` rewinds the send cursor to N, once: further requests for the same N that come from
-  lines already in flight are swallowed, and so is the plain ``ok`` Marlin sends after each request.
+* ``Resend: N`` rewinds to N, once. The sender first holds for as long as the bytes it already sent
+  need to reach the printer: every request that arrives meanwhile comes from those stale lines (each
+  is rejected, or cut by the buffer flush the error causes) and only moves the target to the latest
+  line asked for. Then it resends from there. No request after the hold is ever ignored, so a
+  resent line destroyed by a later flush is asked for, and sent, again. The plain ``ok`` Marlin
+  prints after each request acknowledges nothing.
   The firmware's line-number check guarantees that a line it accepted is never executed again; the
   sender's part is never to give one command two numbers and never to resend a line the printer
   had already acknowledged (that means the printer lost its state).
@@ -55,6 +59,9 @@ class Timeouts(BaseModel):
     heating_s: float = Field(default=1200.0, gt=0)
     #: Probes sent before the printer is declared silent.
     probes: int = Field(default=3, ge=1)
+    #: After a resend request, wait this long beyond the wire time of the bytes already sent before
+    #: resending (USB serial bridges buffer for up to ~16 ms each way).
+    resend_settle_s: float = Field(default=0.04, ge=0)
 
     def for_command(self, command: str) -> float | None:
         """Seconds of silence allowed while ``command`` is the oldest unacknowledged one; None
@@ -152,14 +159,6 @@ class _Program:
     cancelled: bool = False
 
 
-@dataclass
-class _Swallow:
-    """Resend requests for ``line`` that may still arrive from lines sent before we rewound."""
-
-    line: int
-    budget: int
-
-
 class Sender:
     """Sends commands to a Marlin-style printer with flow control and resends.
 
@@ -175,6 +174,8 @@ class Sender:
         Keep at most one line in flight (the classic host behaviour).
     history
         Lines kept for resends.
+    baud
+        The line's baud rate, to know how long bytes already sent take to reach the printer.
     """
 
     def __init__(
@@ -185,7 +186,9 @@ class Sender:
         timeouts: Timeouts | None = None,
         ping_pong: bool = False,
         history: int = 1024,
+        baud: int = 115200,
     ) -> None:
+        self._byte_time = 10 / baud
         self._write = write
         self.capabilities = capabilities
         self.timeouts = timeouts or Timeouts()
@@ -193,7 +196,6 @@ class Sender:
         self._history_size = history
         self._history: dict[int, _Line] = {}
         self._history_floor = 0  # lowest number that may still be in the history
-        self._recent_sizes: deque[int] = deque(maxlen=256)  # sizes of the latest transmissions
         self._next_number = 0  # number the next new command gets
         self._cursor = 0  # number of the next line to transmit (rewound by resends)
         self._inflight: deque[_Line] = deque()  # transmitted, not acknowledged, ascending numbers
@@ -203,9 +205,9 @@ class Sender:
         self._program: _Program | None = None
         self._paused = False
         self._failure: LinkError | None = None
-        self._swallow: _Swallow | None = None
+        self._resend_target: int | None = None  # latest line asked for while holding
+        self._hold: asyncio.TimerHandle | None = None
         self._resend_ok_due = False
-        self._last_advanced: codec.Ok | None = None
         self._last_heard = time.monotonic()
         self._probes_outstanding = 0
         self._watchdog: asyncio.Task[None] | None = None
@@ -225,7 +227,9 @@ class Sender:
         """Fail everything outstanding with ``reason`` and stop sending."""
         if self._failure is None:
             self._failure = reason
-        for line in list(self._inflight) + list(self._singles):
+        unacknowledged = [self._history[n] for n in range(self._acked_through + 1, self._next_number)
+                          if n in self._history]
+        for line in unacknowledged + list(self._singles):
             if line.future is not None and not line.future.done():
                 line.future.set_exception(reason)
         self._inflight.clear()
@@ -237,6 +241,9 @@ class Sender:
         if self._watchdog is not None:
             self._watchdog.cancel()
             self._watchdog = None
+        if self._hold is not None:
+            self._hold.cancel()
+            self._hold = None
 
     @property
     def failure(self) -> LinkError | None:
@@ -267,9 +274,7 @@ class Sender:
         self._next_number = 0
         self._cursor = 0
         self._acked_through = -1
-        self._swallow = None
         self._resend_ok_due = False
-        self._last_advanced = None
         return self.send(_LINE_NUMBER_RESET)
 
     def send(self, command: str) -> asyncio.Future[Answer]:
@@ -331,8 +336,10 @@ class Sender:
             self._on_ok(event)
         elif isinstance(event, codec.Resend):
             self._on_resend(event.line)
-        elif self._inflight:
-            self._inflight[0].events.append(event)
+        else:
+            oldest = self._history.get(self._acked_through + 1)
+            if oldest is not None and oldest.number < self._next_number:
+                oldest.events.append(event)  # output comes before the ok of the command it answers
 
     def _on_ok(self, ok: codec.Ok) -> None:
         self.capabilities.learn_ok(ok)
@@ -341,17 +348,17 @@ class Sender:
             if not ok.advanced and ok.temperatures is None:
                 return  # the ok Marlin prints right after each Resend: line
         if ok.advanced:
-            self._last_advanced = ok
             if ok.line is not None:
                 self._ack_through(ok.line, ok)
             else:
                 self._ack_oldest(ok)  # an unnumbered command acknowledged in order
         elif ok.temperatures is not None:
-            # The answer to M105, processed in order: everything before the oldest M105 in flight
-            # has been processed too.
-            probe = next((ln for ln in self._inflight if _command_word(ln.command) == "M105"), None)
+            # The answer to M105, processed in order: every line before the oldest unacknowledged
+            # M105 has been processed too.
+            probe = next((n for n in range(self._acked_through + 1, self._next_number)
+                          if n in self._history and _command_word(self._history[n].command) == "M105"), None)
             if probe is not None:
-                self._ack_through(probe.number, ok)
+                self._ack_through(probe, ok)
             else:
                 self._ack_oldest(ok)
         elif self.capabilities.advanced_ok:
@@ -363,25 +370,29 @@ class Sender:
         self._pump()
 
     def _ack_oldest(self, ok: codec.Ok) -> None:
-        if self._inflight:
-            self._acknowledge(self._inflight.popleft(), ok)
+        """A plain ok: the printer processes lines in number order, so it is the oldest's."""
+        self._ack_through(self._acked_through + 1, ok)
 
     def _ack_through(self, number: int, ok: codec.Ok) -> None:
+        """Every line up to ``number`` has been processed, whether it is in flight or was taken out
+        of flight by a resend request that needed no resend."""
+        number = min(number, self._next_number - 1)
+        if number <= self._acked_through:
+            return
+        program_lines = 0
+        for n in range(self._acked_through + 1, number + 1):
+            self._acked_through = n
+            line = self._history.get(n)
+            if line is None:
+                continue
+            if line.future is not None and not line.future.done():
+                line.future.set_result(Answer(line.command, line.number, line.events, ok))
+            if line.program_index is not None:
+                program_lines += 1
         while self._inflight and self._inflight[0].number <= number:
-            self._acknowledge(self._inflight.popleft(), ok)
-        if number > self._acked_through and number < self._next_number:
-            self._acked_through = number
-        if self._swallow is not None and number >= self._swallow.line:
-            self._swallow = None  # the printer has moved past the line it asked for
-
-    def _acknowledge(self, line: _Line, ok: codec.Ok) -> None:
-        self._inflight_bytes -= len(line.data)
-        if line.number > self._acked_through:
-            self._acked_through = line.number
-        if line.future is not None and not line.future.done():
-            line.future.set_result(Answer(line.command, line.number, line.events, ok))
-        if line.program_index is not None and self._program is not None:
-            self._program.acknowledged += 1
+            self._inflight_bytes -= len(self._inflight.popleft().data)
+        if program_lines and self._program is not None:
+            self._program.acknowledged += program_lines
             self._report_progress()
             self._maybe_finish_program()
         self._forget_old_history()
@@ -389,10 +400,6 @@ class Sender:
     def _on_resend(self, number: int) -> None:
         if self.capabilities.ok_after_resend:
             self._resend_ok_due = True
-        swallow = self._swallow
-        if swallow is not None and number == swallow.line and swallow.budget > 0:
-            swallow.budget -= 1  # a stale request from a line sent before we rewound
-            return
         if number > self._next_number:
             self._fail(ProtocolError(f"printer asked to resend line {number}, which was never sent "
                                      f"(last line sent: {self._next_number - 1})"))
@@ -406,19 +413,38 @@ class Sender:
             self._fail(ProtocolError(f"printer asked to resend line {number}, which is no longer in "
                                      f"the history of {self._history_size} lines"))
             return
-        # Lines from `number` on are not in the printer: either flushed with its receive buffer or
-        # still on the way, where each will be rejected with the same request. Any transmission
-        # that may still be between us and the printer's parser can cause such a request.
-        stale = [line for line in self._inflight if line.number >= number]
-        self._swallow = _Swallow(number, self._transmissions_in_the_pipe())
-        for line in stale:
-            self._inflight_bytes -= len(line.data)
-            line.events.clear()
+        # Lines from `number` on are not in the printer: flushed with its receive buffer, or still
+        # on the way, where each will be refused. They will be sent again.
+        for line in self._inflight:
+            if line.number >= number:
+                self._inflight_bytes -= len(line.data)
+                line.events.clear()
         self._inflight = deque(line for line in self._inflight if line.number < number)
         self._cursor = number
-        self.resends += 1
-        log.info("printer asked for line %d again; %d lines rewound", number, len(stale))
+        self._resend_target = number
+        if self._hold is None:
+            self.resends += 1
+            in_transit = self._inflight_bytes + sum(len(line.data) for line in self._history_from(number))
+            hold = self.timeouts.resend_settle_s + (in_transit + codec.MAX_LINE_LENGTH) * self._byte_time
+            self._hold = asyncio.get_running_loop().call_later(hold, self._end_hold)
+            log.info("printer asked for line %d again; resending in %.0f ms", number, hold * 1000)
+
+    def _history_from(self, number: int) -> list[_Line]:
+        return [self._history[n] for n in range(number, self._next_number) if n in self._history]
+
+    def _end_hold(self) -> None:
+        """Every byte sent before the request has reached the printer: resend, once."""
+        self._hold = None
+        target = self._resend_target
+        self._resend_target = None
+        if target is None or self._failure is not None:
+            return
+        # Lines acknowledged meanwhile (a request that came without a flush) need not go again:
+        # acknowledgements counted by line number never run ahead of what the printer processed.
+        target = max(target, min(self._acked_through + 1, self._next_number))
+        self._cursor = target
         self._pump()
+        self._maybe_finish_program()
 
     # ------------------------------------------------------------------ transmitting
 
@@ -427,17 +453,11 @@ class Sender:
             return True
         if self.ping_pong:
             return False
-        return self._receive_buffer_estimate() + size <= self.capabilities.rx_buffer_bytes
-
-    def _receive_buffer_estimate(self) -> int:
-        """Bytes of unacknowledged lines that may still be in the printer's receive buffer."""
-        last = self._last_advanced
-        if not self.capabilities.advanced_ok or last is None or last.queue_free is None:
-            return self._inflight_bytes
-        # At that ok the queue held (slots - B) commands counting the acknowledged one; the lines
-        # sent after it fill the queue first, in order, and only the rest wait in the buffer.
-        in_queue = max(0, self.capabilities.queue_slots - last.queue_free - 1)
-        return sum(len(line.data) for line in list(self._inflight)[in_queue:])
+        # Every line in flight is in the printer's queue or on its way to a free slot of it: a line
+        # left waiting in the receive buffer could be cut in two by the flush after an error.
+        if len(self._inflight) >= self.capabilities.queue_slots:
+            return False
+        return self._inflight_bytes + size <= self.capabilities.rx_buffer_bytes
 
     def _next_fresh(self) -> tuple[_Line, bool] | None:
         """The next command not yet numbered, and whether it is a single (not a program line)."""
@@ -452,7 +472,7 @@ class Sender:
         return _Line(-1, program.commands[index], b"", program_index=index), False
 
     def _pump(self) -> None:
-        if self._failure is not None:
+        if self._failure is not None or self._hold is not None:
             return
         while True:
             if self._cursor < self._next_number:
@@ -484,21 +504,8 @@ class Sender:
             self._last_heard = time.monotonic()  # the silence clock starts with the first line out
         self._inflight.append(line)
         self._inflight_bytes += len(line.data)
-        self._recent_sizes.append(len(line.data))
         self.lines_sent += 1
         self._write(line.data)
-
-    def _transmissions_in_the_pipe(self) -> int:
-        """How many of the latest transmissions fit in the printer's receive buffer plus the line
-        being received: an upper bound on those not yet seen by its parser."""
-        room = self.capabilities.rx_buffer_bytes + 2 * codec.MAX_LINE_LENGTH
-        count = 0
-        for size in reversed(self._recent_sizes):
-            room -= size
-            if room < 0:
-                break
-            count += 1
-        return count
 
     def _forget_old_history(self) -> None:
         oldest_kept = self._acked_through + 1 - self._history_size
@@ -524,9 +531,9 @@ class Sender:
         program = self._program
         if program is None:
             return
-        outstanding = any(line.program_index is not None for line in self._inflight) or (
-            self._cursor < self._next_number
-            and any(self._history[n].program_index is not None for n in range(self._cursor, self._next_number))
+        outstanding = any(
+            n in self._history and self._history[n].program_index is not None
+            for n in range(self._acked_through + 1, self._next_number)
         )
         if program.cancelled and not outstanding:
             self._program = None
@@ -561,7 +568,7 @@ class Sender:
             if limit is None:
                 continue
             silent = time.monotonic() - self._last_heard
-            if silent < limit:
+            if silent < limit or self._hold is not None:
                 continue
             if self._probes_outstanding >= self.timeouts.probes:
                 oldest = self._inflight[0]
