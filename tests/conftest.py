@@ -34,11 +34,11 @@ def make_sim() -> Iterator[Callable[..., SimulatedPrinter]]:
 def moves(count: int, seed: int = 1) -> list[str]:
     """A program of short extruding moves, each line distinct so that order errors show."""
     rng = random.Random(seed)
-    lines = ["G92 E0"]
+    lines = ["G92 E0", "G1 F3000"]  # the feed rate is modal, as in sliced G-code: lines stay short
     e = 0.0
-    for i in range(count - 1):
+    for _ in range(count - 2):
         e += 0.01
-        lines.append(f"G1 X{100 + rng.uniform(-40, 40):.3f} Y{100 + rng.uniform(-40, 40):.3f} E{e:.4f} F{3000 + i % 7}")
+        lines.append(f"G1 X{100 + rng.uniform(-40, 40):.3f} Y{100 + rng.uniform(-40, 40):.3f} E{e:.4f}")
     return lines
 
 

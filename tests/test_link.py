@@ -131,14 +131,17 @@ async def test_without_ok_after_resend(make_sim) -> None:
 async def test_fifty_thousand_lines_under_all_faults_at_once(make_sim) -> None:
     faults = FaultConfig(corrupt_rate=0.003, drop_ok_rate=0.003, spurious_resend_rate=0.002,
                          unsolicited_rate=0.02, slow_rate=0.002, slow_delay_s=0.02)
-    sim = make_sim(faults=faults, baud=2_000_000, seed=2026)
-    link = link_for(sim)
+    # A 32-bit board: a deeper queue and receive buffer keep more lines in flight, so more of them
+    # are caught by each error, flush and resend.
+    sim = make_sim(faults=faults, baud=2_000_000, time_scale=1e-5, bufsize=8, rx_buffer=256, seed=2026)
+    link = link_for(sim, capabilities=Capabilities(rx_buffer_bytes=255))
     await link.connect()
     program = moves(50_000, seed=9)
     result = await link.stream(program)
     assert executed_program(sim) == program
     stats = sim.stats()
     assert stats.checksum_errors + stats.line_number_errors > 0 and stats.oks_dropped > 0
+    assert stats.spurious_resends > 0 and stats.unsolicited_lines > 0 and stats.slow_lines > 0
     assert result.resends > 0
     await link.close()
 
