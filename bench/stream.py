@@ -24,10 +24,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
 
 from ribbond.printer import PrinterLink, Timeouts, codec  # noqa: E402
-from sim import FaultConfig, SimConfig, SimulatedPrinter  # noqa: E402
+from sim.process import SimProcess  # noqa: E402
 
 BALANCED_LOAD = 0.95
 FEED = 6000.0  # mm/min
@@ -77,21 +78,21 @@ async def run(baud: int, ping_pong: bool, kind: str, count: int) -> Row:
         step = FEED / 60 * line_s / BALANCED_LOAD
     lines = program(count, step)
     limit = baud / 10 / mean_encoded_length(lines)
-    config = SimConfig(baud=baud, time_scale=time_scale, faults=FaultConfig())
-    with SimulatedPrinter(config) as sim:
+    # The simulator runs as its own process, as firmware runs on its own board.
+    with SimProcess(["--baud", str(baud), "--time-scale", str(time_scale)], cwd=ROOT) as sim:
         link = PrinterLink(sim.port, baud, ping_pong=ping_pong, boot_wait_s=1.0, timeouts=Timeouts(default_s=5))
         await link.connect()
         await link.send("G28")
         await link.send(f"G1 X100 Y100 F{FEED:.0f}")  # to the program's start, outside the timing
         await link.send("M400")
-        sim.reset_stats()
+        sim.request({"cmd": "reset_stats"})
         started = time.monotonic()
         result = await link.stream(lines)
         elapsed = time.monotonic() - started
         stats = sim.stats()
         await link.close()
     return Row(baud, "ping-pong" if ping_pong else "windowed", kind, count, result.lines / elapsed, limit,
-               stats.starvations, stats.dropped_bytes, result.resends)
+               stats["starvations"], stats["dropped_bytes"], result.resends)
 
 
 async def main() -> int:

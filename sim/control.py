@@ -3,7 +3,7 @@
 One JSON object per line in, one JSON object per line out.  Requests:
   {"cmd": "flip", "dx": 0.5, "dy": -0.2, "rotation_deg": 1.0}
   {"cmd": "reset"} {"cmd": "disconnect"} {"cmd": "runaway"}
-  {"cmd": "stats"} {"cmd": "segments"} {"cmd": "commands"} {"cmd": "port"}
+  {"cmd": "stats"} {"cmd": "reset_stats"} {"cmd": "segments"} {"cmd": "commands"} {"cmd": "port"}
   {"cmd": "render", "path": "/tmp/out.png"}
 Answers are {"ok": true, ...} or {"ok": false, "error": "..."}.
 """
@@ -46,6 +46,9 @@ async def _answer(printer: SimulatedPrinter, req: dict[str, Any]) -> dict[str, A
         return {"ok": True}
     if cmd == "stats":
         return {"ok": True, "stats": dataclasses.asdict(printer.stats())}
+    if cmd == "reset_stats":
+        printer.reset_stats()
+        return {"ok": True}
     if cmd == "segments":
         return {"ok": True, "segments": [dataclasses.asdict(s) for s in printer.segments()]}
     if cmd == "commands":

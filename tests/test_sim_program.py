@@ -122,3 +122,18 @@ def test_sigint_stops_program() -> None:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_sim_process_wrapper_drives_the_control_socket() -> None:
+    from sim.process import SimProcess
+
+    root = Path(__file__).resolve().parent.parent
+    with SimProcess(["--baud", "1000000", "--time-scale", "0.001"], cwd=root) as printer:
+        assert printer.port.startswith("/dev/")
+        assert printer.request({"cmd": "port"})["port"] == printer.port
+        assert printer.stats()["commands_executed"] == 0
+        pose = printer.request({"cmd": "flip", "dx": 0.5, "dy": -0.25, "rotation_deg": 1.0})["pose"]
+        assert pose  # the new pose of the fabric
+        with pytest.raises(RuntimeError, match="render"):
+            printer.request({"cmd": "render"})  # no path: refused with the reason
+    assert not Path(printer.control_path).exists()

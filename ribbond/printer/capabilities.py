@@ -28,10 +28,11 @@ class Capabilities(BaseModel):
     advanced_ok: bool = False
     #: Marlin (and Prusa, Repetier) send a plain ``ok`` after every ``Resend:``.
     ok_after_resend: bool = True
-    #: Bytes the host lets be unacknowledged, as if all were still in the printer's receive buffer.
-    #: Marlin's default RX_BUFFER_SIZE is 128 but boards differ, so stay well under it: 96 bytes
-    #: still keep the link full at 250000 baud (bench/stream.py).
-    rx_buffer_bytes: int = Field(default=96, ge=16, le=65536)
+    #: Bytes the host lets be unacknowledged, counted as if all were still in the printer's receive
+    #: buffer (they are when the firmware is blocked in a long command). Marlin's RX_BUFFER_SIZE is
+    #: 128 by default; set this lower for boards with a smaller buffer. At 96 bytes a window holds
+    #: only two typical lines, which starves the planner now and then at 250000 baud.
+    rx_buffer_bytes: int = Field(default=127, ge=16, le=65536)
     #: Command queue slots (Marlin's BUFSIZE). Raised when ADVANCED_OK reports more free slots.
     queue_slots: int = Field(default=4, ge=1, le=64)
     #: Planner blocks (Marlin's BLOCK_BUFFER_SIZE), learned from the largest ``P`` seen + 1.
