@@ -10,6 +10,7 @@ import sys
 import threading
 import time
 import tty
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -201,22 +202,24 @@ async def test_emergency_stop_halts_within_100ms_with_a_full_queue(make_sim) -> 
     await link.close()
 
 
-class DeadAfterHandshake:
-    """A pty whose 'firmware' acknowledges the handshake and then never answers again, as a
-    board whose firmware crashed while its USB bridge stays up."""
+class ScriptedPrinter:
+    """A pty whose 'firmware' is a function: ``answer(index, line)`` gives the bytes to reply to
+    the index-th line received. For printers the simulator does not play: a board that does not
+    reset on open and is still halted, firmware that crashed behind a live USB bridge."""
 
-    def __init__(self, answers: int) -> None:
+    def __init__(self, answer: Callable[[int, bytes], bytes]) -> None:
         self.master, slave = os.openpty()
         tty.setraw(slave)
         self.port = os.ttyname(slave)
         os.close(slave)
-        self._answers = answers
+        self._answer = answer
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, daemon=True)
         self._thread.start()
 
     def _serve(self) -> None:
         pending = b""
+        index = 0
         while not self._stop.is_set():
             ready, _, _ = select.select([self.master], [], [], 0.05)
             if not ready:
@@ -226,10 +229,11 @@ class DeadAfterHandshake:
             except OSError:
                 continue  # no host has the port open (yet)
             while b"\n" in pending:
-                _, pending = pending.split(b"\n", 1)
-                if self._answers > 0:
-                    self._answers -= 1
-                    os.write(self.master, b"ok\n")
+                line, pending = pending.split(b"\n", 1)
+                reply = self._answer(index, line)
+                index += 1
+                if reply:
+                    os.write(self.master, reply)
 
     def close(self) -> None:
         self._stop.set()
@@ -238,7 +242,8 @@ class DeadAfterHandshake:
 
 
 async def test_silent_printer_is_reported_not_waited_on() -> None:
-    printer = DeadAfterHandshake(answers=2)  # M110 and M115
+    # It acknowledges the handshake (M110, M115) and then never answers again.
+    printer = ScriptedPrinter(lambda index, line: b"ok\n" if index < 2 else b"")
     try:
         link = PrinterLink(printer.port, 250000, timeouts=Timeouts(default_s=0.3, probes=2), boot_wait_s=0.2)
         await link.connect()
@@ -326,3 +331,15 @@ def test_stream_command_reports_a_missing_port(tmp_path: Path) -> None:
     done = run_cli("stream", "--port", "/dev/does-not-exist", str(path))
     assert done.returncode == 1
     assert "/dev/does-not-exist" in done.stderr
+
+
+async def test_connecting_to_a_halted_printer_says_so() -> None:
+    # A board that does not reset on open, still halted from an earlier emergency stop.
+    printer = ScriptedPrinter(lambda index, line: b"Error:Printer halted. kill() called!\n")
+    try:
+        link = PrinterLink(printer.port, 250000, timeouts=FAST, boot_wait_s=0.2)
+        with pytest.raises(PrinterHalted, match="halted"):
+            await link.connect()
+        assert link.state is LinkState.DISCONNECTED
+    finally:
+        printer.close()

@@ -58,6 +58,15 @@ def encode(line_number: int, command: str) -> bytes:
     return (text + "\n").encode("ascii")
 
 
+#: Line numbers the link can reach in one session; a command must fit with the widest of them.
+_WIDEST_LINE_NUMBER = 9_999_999
+
+
+def check_sendable(command: str) -> None:
+    """Raise ValueError (saying why) unless ``command`` can be sent as a numbered line."""
+    encode(_WIDEST_LINE_NUMBER, command)
+
+
 def encode_unnumbered(command: str) -> bytes:
     """Encode a command without line number or checksum (emergency commands such as ``M112``)."""
     command = command.strip()

@@ -88,7 +88,7 @@ def prepare_program(lines: Iterable[str], source: str = "program") -> list[str]:
             raise ValueError(f"{source}, line {index}: {word} cannot be part of a program "
                              f"(the link manages line numbers and the emergency stop)")
         try:
-            codec.encode(9_999_999, command)
+            codec.check_sendable(command)
         except ValueError as exc:
             raise ValueError(f"{source}, line {index}: {exc}") from None
         commands.append(command)
@@ -245,7 +245,8 @@ class PrinterLink:
                                            self.timeouts.default_s * 2)
                 return
             except (LinkError, asyncio.TimeoutError) as exc:
-                if isinstance(exc, Disconnected) or self._transport is None or not self._transport.is_open:
+                if isinstance(exc, (Disconnected, PrinterHalted)) or self._transport is None \
+                        or not self._transport.is_open:
                     raise
                 last_error = exc
                 log.warning("handshake failed (%s); trying again", exc)
@@ -278,7 +279,7 @@ class PrinterLink:
 
     async def send(self, command: str, timeout: float | None = None) -> Answer:
         """Send one command (ahead of any running program) and wait for its acknowledgement."""
-        self._require(LinkState.READY, LinkState.STREAMING, LinkState.PAUSED, LinkState.CONNECTING)
+        self._require(LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
         word = command.split()[0].upper() if command.split() else ""
         if word == "M112":
             self.emergency_stop()

@@ -145,7 +145,6 @@ class _Line:
     program_index: int | None = None  # index in the running program, None for other commands
     future: asyncio.Future[Answer] | None = None
     events: list[codec.Event] = field(default_factory=list)
-    is_probe: bool = False
 
 
 @dataclass
@@ -214,7 +213,6 @@ class Sender:
         # Statistics for reports and benchmarks.
         self.resends = 0
         self.probes = 0
-        self.lines_sent = 0
 
     # ------------------------------------------------------------------ public API
 
@@ -246,18 +244,6 @@ class Sender:
             self._hold = None
 
     @property
-    def failure(self) -> LinkError | None:
-        return self._failure
-
-    @property
-    def streaming(self) -> bool:
-        return self._program is not None
-
-    @property
-    def paused(self) -> bool:
-        return self._paused
-
-    @property
     def in_flight(self) -> int:
         return len(self._inflight)
 
@@ -281,7 +267,7 @@ class Sender:
         """Queue one command ahead of any running program; the future gives its answer."""
         self._raise_if_failed()
         command = codec.strip_comment(command)
-        codec.encode(self._next_number + 10_000, command)  # raises ValueError if it cannot fit
+        codec.check_sendable(command)
         future: asyncio.Future[Answer] = asyncio.get_running_loop().create_future()
         self._singles.append(_Line(-1, command, b"", future=future))
         self._pump()
@@ -420,7 +406,6 @@ class Sender:
                 self._inflight_bytes -= len(line.data)
                 line.events.clear()
         self._inflight = deque(line for line in self._inflight if line.number < number)
-        self._cursor = number
         self._resend_target = number
         if self._hold is None:
             self.resends += 1
@@ -504,7 +489,6 @@ class Sender:
             self._last_heard = time.monotonic()  # the silence clock starts with the first line out
         self._inflight.append(line)
         self._inflight_bytes += len(line.data)
-        self.lines_sent += 1
         self._write(line.data)
 
     def _forget_old_history(self) -> None:
@@ -583,8 +567,7 @@ class Sender:
         self._probes_outstanding += 1
         self.probes += 1
         self._last_heard = time.monotonic()
-        line = _Line(self._next_number, PROBE_COMMAND, codec.encode(self._next_number, PROBE_COMMAND),
-                     is_probe=True)
+        line = _Line(self._next_number, PROBE_COMMAND, codec.encode(self._next_number, PROBE_COMMAND))
         log.info("printer silent; probing with line %d", line.number)
         if self._cursor < self._next_number:
             # Rewound lines are waiting: they go first, and the probe will follow them.
