@@ -52,7 +52,7 @@ def offset(points: np.ndarray, distance: float) -> np.ndarray:
 def program() -> list[str]:
     lines = [
         "; ribbond demo program: staggered ribbons on concentric arcs",
-        "G21 ; millimetres", "G90 ; absolute positions", "M82 ; absolute extrusion",
+        "G90 ; absolute positions", "M82 ; absolute extrusion",
         "M140 S60", "M104 S230", "G28", "M190 S60", "M109 S230", "G92 E0", "G1 Z5 F600",
     ]
     e = 0.0
