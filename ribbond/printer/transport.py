@@ -121,8 +121,10 @@ class SerialTransport:
             self._loop.add_writer(self._fd, self._write_ready)
 
     def write_urgent(self, data: bytes) -> None:
-        """Send ``data`` ahead of anything still queued here (an emergency stop).
+        """Send ``data`` (whole lines) ahead of anything still queued here: an emergency stop.
 
+        It goes in at the first line boundary: the queue may start with the rest of a line whose
+        beginning is already on the wire, and a command spliced into it would not be recognised.
         Bytes already handed to the OS cannot be overtaken; the host keeps that backlog within the
         printer's receive buffer, so it is at most a few milliseconds of wire time.
         """
@@ -131,7 +133,9 @@ class SerialTransport:
         if not self._tx:
             self.write(data)
             return
-        self._tx[:0] = data
+        boundary = self._tx.find(b"\n") + 1  # 0 when no line ends in the queue: append after it
+        at = boundary if boundary > 0 else len(self._tx)
+        self._tx[at:at] = data
 
     @property
     def pending_out(self) -> int:
