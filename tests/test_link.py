@@ -19,6 +19,7 @@ from ribbond.printer import (
     Capabilities,
     Disconnected,
     LinkState,
+    NotReady,
     PrinterHalted,
     PrinterLink,
     PrinterReset,
@@ -343,3 +344,21 @@ async def test_connecting_to_a_halted_printer_says_so() -> None:
         assert link.state is LinkState.DISCONNECTED
     finally:
         printer.close()
+
+
+async def test_recover_after_a_halt(make_sim) -> None:
+    sim = make_sim()
+    link = link_for(sim)
+    await link.connect()
+    link.emergency_stop()
+    await asyncio.sleep(0.05)
+    assert sim.halted_at is not None
+    with pytest.raises(NotReady, match="halted"):
+        await link.send("G28")  # nothing goes to a halted printer
+    await link.recover()  # M999 restarts the firmware; the handshake numbers lines from 1 again
+    assert link.state is LinkState.READY
+    await link.send("G28")
+    assert sim.halted_at is None
+    after_restart = [(c.line, c.command) for c in sim.commands()][-4:]
+    assert after_restart == [(0, "M110 N0"), (1, "M115"), (2, "M155 S2"), (3, "G28")]
+    await link.close()

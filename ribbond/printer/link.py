@@ -351,6 +351,9 @@ class PrinterLink:
         if self._transport is None or not self._transport.is_open:
             raise Disconnected("cannot send the emergency stop: the port is not open")
         self._transport.write_urgent(codec.encode_unnumbered("M112"))
+        if not self.capabilities.emergency_parser:
+            log.warning("the firmware reports no EMERGENCY_PARSER: M112 waits behind the commands "
+                        "it has queued; cut the power if the machine must stop now")
         if self._sender is not None:
             self._sender.stop(PrinterHalted("emergency stop (M112) sent by the host"))
         if self._state is not LinkState.HALTED:
