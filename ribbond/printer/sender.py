@@ -225,9 +225,7 @@ class Sender:
         """Fail everything outstanding with ``reason`` and stop sending."""
         if self._failure is None:
             self._failure = reason
-        unacknowledged = [self._history[n] for n in range(self._acked_through + 1, self._next_number)
-                          if n in self._history]
-        for line in unacknowledged + list(self._singles):
+        for line in self._history_from(self._acked_through + 1) + list(self._singles):
             if line.future is not None and not line.future.done():
                 line.future.set_exception(reason)
         self._inflight.clear()
@@ -341,10 +339,10 @@ class Sender:
         elif ok.temperatures is not None:
             # The answer to M105, processed in order: every line before the oldest unacknowledged
             # M105 has been processed too.
-            probe = next((n for n in range(self._acked_through + 1, self._next_number)
-                          if n in self._history and _command_word(self._history[n].command) == "M105"), None)
+            probe = next((line for line in self._history_from(self._acked_through + 1)
+                          if _command_word(line.command) == "M105"), None)
             if probe is not None:
-                self._ack_through(probe, ok)
+                self._ack_through(probe.number, ok)
             else:
                 self._ack_oldest(ok)
         elif self.capabilities.advanced_ok:
@@ -415,6 +413,7 @@ class Sender:
             log.info("printer asked for line %d again; resending in %.0f ms", number, hold * 1000)
 
     def _history_from(self, number: int) -> list[_Line]:
+        """The lines from ``number`` up to the last one numbered, oldest first."""
         return [self._history[n] for n in range(number, self._next_number) if n in self._history]
 
     def _end_hold(self) -> None:
@@ -515,10 +514,8 @@ class Sender:
         program = self._program
         if program is None:
             return
-        outstanding = any(
-            n in self._history and self._history[n].program_index is not None
-            for n in range(self._acked_through + 1, self._next_number)
-        )
+        outstanding = any(line.program_index is not None
+                          for line in self._history_from(self._acked_through + 1))
         if program.cancelled and not outstanding:
             self._program = None
             if not program.done.done():
