@@ -1,0 +1,144 @@
+"""``ribbonctl``: the command-line client.
+
+``ribbonctl design MESH -o DIR [--size MM] [--params FILE] [--profile NAME]`` runs the design
+engine locally (no daemon) and writes the design folder.
+
+Exit status: 0 the design was written (a design outside its stretch bounds is still written, and
+the summary says so); 1 the design cannot be made as asked; 2 bad input (mesh, parameters);
+130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+from tqdm import tqdm
+
+from .design.errors import DesignError, MeshError
+from .design.params import DesignSettings, SizeSpec, load_settings
+from .design.pipeline import DesignResult, design_mesh, write_design
+from .gcode.profiles import load_profile
+
+
+class TerminalProgress:
+    """Prints one line per stage and a live iteration counter for the flattening (stderr)."""
+
+    def __init__(self, stream: TextIO = sys.stderr, quiet: bool = False) -> None:
+        self.stream = stream
+        self.quiet = quiet
+        self._bar: tqdm | None = None
+
+    def stage_started(self, stage: str, description: str) -> None:
+        if self.quiet:
+            return
+        if stage == "flatten":
+            self._bar = tqdm(desc=f"{stage:<9} iterations", unit="it", file=self.stream,
+                             leave=False, dynamic_ncols=True, mininterval=0.2)
+
+    def iteration(self, stage: str, iteration: int, change: float, energy: float) -> None:
+        if self._bar is not None:
+            self._bar.update(1)
+            if iteration % 10 == 0:
+                self._bar.set_postfix_str(f"mean Δσ {change:.1e}, energy {energy:.3g}", refresh=False)
+
+    def stage_finished(self, stage: str, seconds: float, summary: str) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+        if not self.quiet:
+            print(f"{stage:<9} {seconds:7.2f} s  {summary}", file=self.stream, flush=True)
+
+
+def summary(result: DesignResult, out_dir: Path) -> str:
+    """A one-screen summary of the design's report."""
+    d = result.design
+    r, p = d.report, d.parameters
+    (lo1, hi1), (lo2, hi2) = p.bounds
+    s1, s2 = result.flattening.sigma[:, 0], result.flattening.sigma[:, 1]
+    w, h = result.flat_uv.max(axis=0) - result.flat_uv.min(axis=0)
+    timings = ", ".join(f"{k} {v:.2f}" for k, v in r.timings_s.items())
+    within = r.sigma1_bad_pct == 0 and r.sigma2_bad_pct == 0
+    lines = [
+        f"design      {out_dir}  (target.obj, flat.obj, design.json)",
+        f"surface     {d.source.file}: {r.faces} faces, {p.size.bbox_diagonal:.1f} mm bounding-box "
+        f"diagonal; flat layout {w:.1f} × {h:.1f} mm",
+        f"k1 field    λ = {p.smoothing_lambda:g}; {100 * result.field.umbilic.mean():.1f} % of faces umbilic"
+        + ("" if result.field.aligned else " (no curvature direction: arbitrary smooth field)"),
+        f"flattening  {r.iterations} iterations, "
+        + ("converged" if r.converged else "NOT converged (iteration cap)")
+        + f", {1000 * (r.time_per_iteration_s or 0):.1f} ms per iteration",
+        f"k1 deviation {r.k1_deviation_deg:.3f}° (mean angle to the principal stretch direction)",
+        f"σ1  bounds [{lo1:.2f}, {hi1:.2f}]  range [{s1.min():.3f}, {s1.max():.3f}]  "
+        f"outside {r.sigma1_bad_pct:.2f} % of faces, max deviation {r.sigma1_max_dev:.4f}",
+        f"σ2  bounds [{lo2:.2f}, {hi2:.2f}]  range [{s2.min():.3f}, {s2.max():.3f}]  "
+        f"outside {r.sigma2_bad_pct:.2f} % of faces, max deviation {r.sigma2_max_dev:.4f}",
+        f"energy      {r.avg_energy:.3g} (Eq. 3 over the total area)",
+        f"time        {r.time_s:.2f} s ({timings})",
+        ("verdict     within the stretch bounds everywhere (to 1e-3)" if within else
+         f"verdict     OUTSIDE the stretch bounds on {max(r.sigma1_bad_pct, r.sigma2_bad_pct):.1f} % "
+         "of faces: the fabric cannot stretch as this surface needs there, so the printed surface "
+         "will deviate (a smaller or flatter surface, or cuts, would fit)"),
+    ]
+    return "\n".join(lines)
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    settings = load_settings(args.params) if args.params else DesignSettings()
+    params = settings.parameters
+    updates: dict[str, object] = {}
+    if args.size is not None:
+        updates["size"] = SizeSpec(bbox_diagonal=args.size)
+    if args.profile is not None:
+        updates["printer_profile"] = args.profile
+    if updates:
+        params = params.model_validate({**params.model_dump(), **updates})
+    frame = load_profile(params.printer_profile).frame
+    progress = TerminalProgress(quiet=args.quiet)
+    result = design_mesh(args.mesh, params, settings.solver, frame=frame, progress=progress)
+    out = write_design(result, args.output, progress)
+    print(summary(result, out))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ribbonctl", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    d = sub.add_parser("design", help="compute a design locally (no daemon) and write its folder",
+                       description="Compute the design of a target surface and write the design "
+                                   "folder: target.obj, flat.obj, design.json.")
+    d.add_argument("mesh", type=Path, help="target surface: OBJ, PLY, STL or OFF (a topological disk)")
+    d.add_argument("-o", "--output", type=Path, required=True, help="design folder to write")
+    d.add_argument("--size", type=float, metavar="MM",
+                   help="bounding-box diagonal of the target in mm (default: the largest that fits the frame)")
+    d.add_argument("--params", type=Path, metavar="FILE",
+                   help="TOML or JSON file of design parameters (and an optional [solver] table)")
+    d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
+    d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
+    d.set_defaults(func=_cmd_design)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "size", None) is not None and not (np.isfinite(args.size) and args.size > 0):
+        parser.error(f"--size {args.size}: must be a positive number of millimetres")
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("ribbonctl: interrupted; nothing was written", file=sys.stderr)
+        return 130
+    except DesignError as exc:
+        print(f"ribbonctl {args.command}: cannot make this design: {exc}", file=sys.stderr)
+        return 1
+    except (MeshError, ValueError) as exc:
+        print(f"ribbonctl {args.command}: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,336 @@
+"""``design.json``: the models of the file every consumer of a design reads (``/work/shared/design-format.md``).
+
+The models mirror the format document key for key; they validate on construction, so a ``Design``
+that exists is a consistent one: per-face arrays of one length, finite, σ > 0, unit ribbon
+directions, ``report.faces`` equal to the face count, and each ribbon on the side its curvature asks
+for (``front`` exactly when ``kappa1 > 0``).
+
+``design_to_json`` writes the file (optional sections that are ``None`` are left out, the report's
+``print_`` is written as ``"print"``), ``design_from_json`` reads it back and reports problems as
+``ValueError`` naming the file and the field path. Floats are written losslessly (shortest repr), so
+``design_from_json(design_to_json(d)) == d``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from typing import Any, Literal, Self
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from ribbond.design.params import DesignParameters, SizeSpec
+
+#: The format this module reads and writes; a different ``format`` in a file is refused.
+FORMAT = "ribbond-design/1"
+
+#: Largest tolerated deviation of a ribbon direction from unit length.
+UNIT_TOLERANCE = 1e-6
+
+# Every model: no unknown keys, no NaN or infinity (they are not JSON), immutable once built.
+_CONFIG = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+Point = tuple[float, float]
+
+
+class _Updatable(BaseModel):
+    def updated(self, **changes: Any) -> Self:
+        """A copy with ``changes`` (by field name) applied and validated again.
+
+        Unlike ``model_copy(update=…)``, which does not validate, this runs every check, the
+        cross-checks of ``Design`` included; an unknown name is refused.
+        """
+        return self.model_validate({**dict(self), **changes})
+
+
+class Source(BaseModel):
+    """The mesh file the design was made from, as given (before cleaning)."""
+
+    model_config = _CONFIG
+    file: str = Field(min_length=1, description="file name of the source mesh")
+    sha256: str = Field(pattern=r"^[0-9a-f]{64}$", description="SHA-256 of the source file, lower-case hex")
+    faces: int = Field(ge=1, description="face count of the source file (before cleaning)")
+
+
+class Parameters(DesignParameters):
+    """The ``parameters`` section: ``DesignParameters`` with the size actually used (never null).
+
+    The JSON keys are exactly those of ``DesignParameters``; ``sigma2_bounds`` is always resolved
+    (the validator fills the default), bounds serialize as 2-element arrays.
+    """
+
+    model_config = ConfigDict(allow_inf_nan=False)  # merged with DesignParameters' config
+    size: SizeSpec = Field(description="the physical size the design was made at")
+
+    @field_validator("size")
+    @classmethod
+    def _finite_size(cls, v: SizeSpec) -> SizeSpec:
+        if not np.isfinite(v.bbox_diagonal):
+            raise ValueError(f"size.bbox_diagonal = {v.bbox_diagonal!r}: must be finite")
+        return v
+
+    @classmethod
+    def resolved(cls, params: DesignParameters, bbox_diagonal: float) -> "Parameters":
+        """``params`` with ``size`` set to the size used (``bbox_diagonal`` in mm)."""
+        data = params.model_dump()
+        data["size"] = {"bbox_diagonal": float(bbox_diagonal)}
+        return cls(**data)
+
+
+class Faces(BaseModel):
+    """Per-face fields, in the engine's face order (the order of ``target.obj``/``flat.obj``)."""
+
+    model_config = _CONFIG
+    sigma1: list[float] = Field(description="principal stretch along the ribbons (target -> flat)")
+    sigma2: list[float] = Field(description="principal stretch across the ribbons")
+    ribbon_direction: list[Point] = Field(description="unit vector in flat coordinates: k1 pushed forward")
+    kappa1: list[float] = Field(description="signed normal curvature along the ribbons, 1/mm")
+
+    @model_validator(mode="after")
+    def _check(self) -> "Faces":
+        n = len(self.sigma1)
+        if n == 0:
+            raise ValueError("sigma1 is empty: a design has at least one face")
+        for name in ("sigma2", "ribbon_direction", "kappa1"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"{name} has {len(getattr(self, name))} values but sigma1 has {n}: "
+                                 "all per-face fields have one value per face")
+        s1, s2, d, _ = self.arrays()  # finite already: the config refuses NaN and infinity
+        for name, values in (("sigma1", s1), ("sigma2", s2)):
+            bad = np.flatnonzero(values <= 0)
+            if bad.size:
+                raise ValueError(f"{name}[{bad[0]}] = {float(values[bad[0]])!r}: stretches must be > 0")
+        off = np.abs(np.hypot(d[:, 0], d[:, 1]) - 1.0)
+        bad = np.flatnonzero(off > UNIT_TOLERANCE)
+        if bad.size:
+            i = bad[0]
+            raise ValueError(f"ribbon_direction[{i}] = {d[i].tolist()} has length {float(np.hypot(*d[i])):.9g}: "
+                             f"must be a unit vector (within {UNIT_TOLERANCE:g}); {bad.size} such face(s)")
+        return self
+
+    @classmethod
+    def from_arrays(cls, sigma1: Any, sigma2: Any, ribbon_direction: Any, kappa1: Any) -> "Faces":
+        """Build from numpy arrays (shapes (m,), (m,), (m, 2), (m,))."""
+        d = np.asarray(ribbon_direction, dtype=float)
+        if d.ndim != 2 or d.shape[1] != 2:
+            raise ValueError(f"ribbon_direction must have shape (m, 2), got {d.shape}")
+        return cls(sigma1=np.asarray(sigma1, dtype=float).ravel().tolist(),
+                   sigma2=np.asarray(sigma2, dtype=float).ravel().tolist(),
+                   ribbon_direction=[(x, y) for x, y in d.tolist()],
+                   kappa1=np.asarray(kappa1, dtype=float).ravel().tolist())
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(sigma1 (m,), sigma2 (m,), ribbon_direction (m, 2), kappa1 (m,)) as float arrays."""
+        d = np.asarray(self.ribbon_direction, dtype=float).reshape(-1, 2)
+        return (np.asarray(self.sigma1, dtype=float), np.asarray(self.sigma2, dtype=float), d,
+                np.asarray(self.kappa1, dtype=float))
+
+    @property
+    def count(self) -> int:
+        """The number of faces."""
+        return len(self.sigma1)
+
+
+class Ribbon(BaseModel):
+    """One ribbon: a polyline in front-side print coordinates, printed on ``side``."""
+
+    model_config = _CONFIG
+    side: Literal["front", "back"]
+    points: list[Point] = Field(min_length=2, description="polyline, mm, front-side print coordinates")
+    thickness: float = Field(gt=0, description="printed thickness, mm")
+    kappa1: float = Field(description="target curvature where the ribbon sits, 1/mm")
+    spacing: tuple[float, float] = Field(description="[mu1, mu2] of Eq. 10 where the ribbon sits, mm")
+
+    @field_validator("spacing")
+    @classmethod
+    def _positive_spacing(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if not (v[0] > 0 and v[1] > 0):
+            raise ValueError(f"spacing = {list(v)}: both spacings must be > 0")
+        return v
+
+
+class Quantiles(BaseModel):
+    """A distribution summarized by its median and 95th percentile."""
+
+    model_config = _CONFIG
+    median: float
+    p95: float
+
+
+class RibbonsReport(BaseModel):
+    """``report.ribbons``: what the ribbon stage made."""
+
+    model_config = _CONFIG
+    front: int = Field(ge=0, description="ribbons on the front side")
+    back: int = Field(ge=0, description="ribbons on the back side")
+    dropped_short: int = Field(ge=0, description="ribbons dropped for being shorter than min_ribbon_length")
+    trimmed_angle: int = Field(ge=0, description="ribbons trimmed where they turned beyond max_trim_angle")
+    thickness_clamped: int = Field(ge=0, description="ribbons whose thickness was clamped to the table")
+    direction_deviation_deg: Quantiles
+    spacing_error_pct: Quantiles
+
+
+class SidePrintReport(BaseModel):
+    """One side's G-code program."""
+
+    model_config = _CONFIG
+    lines: int = Field(ge=0)
+    extrusion_mm: float = Field(ge=0, description="length of extruding moves, mm")
+    travel_mm: float = Field(ge=0, description="length of travel moves, mm")
+    time_s: float = Field(ge=0, description="estimated print time, s")
+    filament_mm: float = Field(ge=0, description="filament consumed, mm")
+
+
+class PrintReport(BaseModel):
+    """``report.print``: the G-code programs."""
+
+    model_config = _CONFIG
+    front: SidePrintReport
+    back: SidePrintReport
+
+
+class Report(_Updatable):
+    """``report``: Table 1 of the paper, timings, and (when made) the ribbon and print stages.
+
+    ``converged`` and ``time_per_iteration_s`` are the engine's extra fields; they, ``ribbons`` and
+    ``print`` are left out of the file when ``None``.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, populate_by_name=True)
+    faces: int = Field(ge=1, description="face count of the design (of target.obj)")
+    time_s: float = Field(ge=0, description="total design time, s")
+    iterations: int = Field(ge=0, description="local/global iterations of the flattening")
+    k1_deviation_deg: float = Field(ge=0, description="mean angle between k1 and the principal stretch direction")
+    sigma1_max_dev: float = Field(ge=0, description="σ1 max deviation (Table 1)")
+    sigma2_max_dev: float = Field(ge=0, description="σ2 max deviation (Table 1)")
+    sigma1_bad_pct: float = Field(ge=0, le=100, description="% of faces with σ1 outside its bounds by > 1e-3")
+    sigma2_bad_pct: float = Field(ge=0, le=100, description="% of faces with σ2 outside its bounds by > 1e-3")
+    avg_energy: float = Field(ge=0, description="Eq. 3 divided by the total area")
+    timings_s: dict[str, float] = Field(description="seconds per stage")
+    converged: bool | None = Field(None, description="whether the flattening met its tolerance")
+    time_per_iteration_s: float | None = Field(None, ge=0, description="mean time of one iteration, s")
+    ribbons: RibbonsReport | None = None
+    print_: PrintReport | None = Field(None, alias="print")
+
+
+class Design(_Updatable):
+    """The whole ``design.json``."""
+
+    model_config = _CONFIG
+    format: str = FORMAT
+    units: Literal["mm"] = "mm"
+    source: Source
+    parameters: Parameters
+    faces: Faces
+    ribbons: list[Ribbon] | None = None
+    registration_marks: list[Point] | None = Field(None, description="front-side print coordinates, mm")
+    report: Report
+
+    @field_validator("format")
+    @classmethod
+    def _known_format(cls, v: str) -> str:
+        if v != FORMAT:
+            raise ValueError(f"format {v!r} is not supported: this version reads and writes {FORMAT!r}")
+        return v
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Design":
+        m = self.faces.count
+        if self.report.faces != m:
+            raise ValueError(f"report.faces = {self.report.faces} but faces has {m} faces")
+        if self.ribbons is not None:
+            for i, r in enumerate(self.ribbons):
+                want = "front" if r.kappa1 > 0 else "back"
+                if r.side != want:
+                    raise ValueError(f"ribbons[{i}] has side {r.side!r} but kappa1 = {r.kappa1!r}: "
+                                     "the side is 'front' exactly when kappa1 > 0")
+            rr = self.report.ribbons
+            if rr is not None:
+                front = sum(r.side == "front" for r in self.ribbons)
+                back = len(self.ribbons) - front
+                if (rr.front, rr.back) != (front, back):
+                    raise ValueError(f"report.ribbons counts front = {rr.front}, back = {rr.back} but "
+                                     f"ribbons holds {front} front and {back} back ribbons")
+        return self
+
+
+# ---------------------------------------------------------------------------------------------
+# JSON
+
+
+def design_to_dict(design: Design) -> dict[str, Any]:
+    """The JSON object of ``design``: document keys (``"print"``), ``None`` sections left out."""
+    return design.model_dump(mode="json", by_alias=True, exclude_none=True)
+
+
+def _dump(value: Any, indent: int, level: int) -> str:
+    """Objects one key per line; a list of objects one element per line; other lists on one line."""
+    pad = " " * (indent * (level + 1))
+    end = " " * (indent * level)
+    if isinstance(value, dict) and value:
+        items = (f"{pad}{json.dumps(k)}: {_dump(v, indent, level + 1)}" for k, v in value.items())
+        return "{\n" + ",\n".join(items) + "\n" + end + "}"
+    if isinstance(value, list) and value and isinstance(value[0], dict):
+        items = (pad + json.dumps(v, separators=(",", ":"), allow_nan=False) for v in value)
+        return "[\n" + ",\n".join(items) + "\n" + end + "]"
+    return json.dumps(value, separators=(",", ":"), allow_nan=False)
+
+
+def design_to_json(design: Design) -> str:
+    """The text of ``design.json`` (ends with a newline).
+
+    Objects are indented by one space, each array on one line (a list of ribbons one ribbon per
+    line). Floats are written as their shortest exact representation.
+    """
+    return _dump(design_to_dict(design), 1, 0) + "\n"
+
+
+def _path(loc: Sequence[int | str]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def validation_problems(exc: ValidationError, limit: int = 5) -> str:
+    """``path: message; …`` for the first ``limit`` errors of ``exc``."""
+    errors = exc.errors(include_url=False)
+    parts = []
+    for err in errors[:limit]:
+        msg = str(err["msg"]).removeprefix("Value error, ")
+        parts.append(f"{_path(err['loc'])}: {msg}" if err["loc"] else msg)
+    if len(errors) > limit:
+        parts.append(f"and {len(errors) - limit} more problem(s)")
+    return "; ".join(parts)
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def design_from_json(text: str, *, where: str = "design.json") -> Design:
+    """Parse and validate the text of ``design.json``.
+
+    Raises
+    ------
+    ValueError
+        naming ``where`` and, for invalid content, the path of each offending field
+        (``faces.sigma1[3]: …``).
+    """
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except ValueError as exc:  # JSONDecodeError is a ValueError, as is the NaN refusal
+        raise ValueError(f"{where}: not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{where}: expected a JSON object at the top level")
+    fmt = data.get("format")
+    if fmt != FORMAT:
+        raise ValueError(f"{where}: format: {fmt!r} is not supported: this version reads {FORMAT!r}")
+    try:
+        return Design.model_validate(data)
+    except ValidationError as exc:
+        raise ValueError(f"{where}: invalid design: {validation_problems(exc)}") from None

@@ -1,0 +1,194 @@
+"""The design engine from a mesh file to the design folder, stage by stage.
+
+Stages: ``load`` (read, clean, validate, scale), ``curvature`` (principal curvatures and the k1
+line field), ``flatten`` (the bounded directional flattening, placed in the printer frame) and
+``write`` (the design folder). The arrays stay in the functions of the stage modules; this module
+only wires them together, times them and reports progress.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from ..gcode.profiles import FrameSpec, load_profile
+from .curvature import Curvature, face_curvature
+from .errors import DesignError
+from .flatten import BoundedFlattener, FlatteningResult
+from .folder import write_design_folder
+from .format import Design, Faces, Parameters, Report, Source
+from .frames import face_frames
+from .intake import TargetMesh, load_target
+from .line_field import LineField, curvature_line_field
+from .params import DesignParameters, SolverSettings
+from .placement import fit_scale, place_in_frame
+from .report import flattening_report
+
+#: The size at which a surface is flattened when ``size`` is left to the frame (the flattening
+#: is scale-invariant: the result is scaled afterwards).
+NOMINAL_DIAGONAL = 100.0
+
+
+class DesignProgress(Protocol):
+    """Receives progress from the engine (the CLI prints it, the daemon publishes it)."""
+
+    def stage_started(self, stage: str, description: str) -> None: ...
+
+    def iteration(self, stage: str, iteration: int, change: float, energy: float) -> None: ...
+
+    def stage_finished(self, stage: str, seconds: float, summary: str) -> None: ...
+
+
+class NoProgress:
+    """Progress that goes nowhere."""
+
+    def stage_started(self, stage: str, description: str) -> None:
+        pass
+
+    def iteration(self, stage: str, iteration: int, change: float, energy: float) -> None:
+        pass
+
+    def stage_finished(self, stage: str, seconds: float, summary: str) -> None:
+        pass
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    """Everything the engine computed for one design.
+
+    Attributes
+    ----------
+    target : the cleaned target mesh, scaled to its physical size (V in mm).
+    flat_uv : (n, 2) the flat surface in front-side print coordinates, mm.
+    curvature, field, flattening : the stages' results (κ in 1/mm at the physical size).
+    kappa1 : (m,) signed normal curvature of the target along the ribbon direction, 1/mm.
+    ribbon_direction : (m, 2) unit k̄1 in print coordinates.
+    design : the ``design.json`` content.
+    """
+
+    target: TargetMesh
+    V: np.ndarray
+    F: np.ndarray
+    flat_uv: np.ndarray
+    curvature: Curvature
+    field: LineField
+    flattening: FlatteningResult
+    kappa1: np.ndarray
+    ribbon_direction: np.ndarray
+    design: Design
+
+
+def _bbox_diagonal(V: np.ndarray) -> float:
+    return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+
+
+def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = None,
+                solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
+                progress: DesignProgress | None = None) -> DesignResult:
+    """Run the engine on a mesh file: load, curvature and line field, flattening, placement.
+
+    Parameters
+    ----------
+    mesh_path : an OBJ, PLY, STL or OFF file of the target (deployed) surface.
+    parameters : the design parameters (``size`` None: the largest that fits the frame).
+    solver : the solver settings.
+    frame : the printable rectangle; default: that of ``parameters.printer_profile``.
+
+    Raises
+    ------
+    MeshError
+        when the mesh cannot be used (the message names the problem and where).
+    DesignError
+        when the design cannot be made as asked (it does not fit the frame, it folds).
+    """
+    params = parameters or DesignParameters()
+    solver = solver or SolverSettings()
+    progress = progress or NoProgress()
+    frame = frame or load_profile(params.printer_profile).frame
+    timings: dict[str, float] = {}
+    t_start = time.perf_counter()
+
+    # -- load -----------------------------------------------------------------------------------
+    progress.stage_started("load", f"reading {Path(mesh_path).name}")
+    t = time.perf_counter()
+    target = load_target(mesh_path, max_faces=solver.max_faces, merge_tolerance=solver.merge_tolerance)
+    diag0 = _bbox_diagonal(target.V)
+    size = params.size.bbox_diagonal if params.size is not None else NOMINAL_DIAGONAL
+    V = (target.V - target.V.mean(axis=0)) * (size / diag0)
+    F = target.F
+    timings["load"] = time.perf_counter() - t
+    progress.stage_finished("load", timings["load"],
+                            f"{len(F)} faces, {len(V)} vertices"
+                            + (f", {target.merged} duplicate vertices merged" if target.merged else ""))
+
+    # -- curvature and the k1 line field ---------------------------------------------------------
+    progress.stage_started("curvature", "principal curvatures and the k1 line field")
+    t = time.perf_counter()
+    frames = face_frames(V, F)
+    curvature = face_curvature(V, F, frames)
+    field = curvature_line_field(V, F, frames, curvature, params.smoothing_lambda,
+                                 solver.umbilic_tolerance)
+    timings["curvature"] = time.perf_counter() - t
+    progress.stage_finished("curvature", timings["curvature"],
+                            f"{100 * field.umbilic.mean():.1f} % of the surface umbilic"
+                            + ("" if field.aligned else "; no curvature direction anywhere: "
+                               "smoothest field in an arbitrary direction"))
+
+    # -- flattening -------------------------------------------------------------------------------
+    progress.stage_started("flatten", "bounded directional flattening")
+    t = time.perf_counter()
+    flattener = BoundedFlattener(V, F, field.angle, params.bounds, solver, frames=frames)
+    flat = flattener.solve(boundary=target.boundary,
+                           progress=lambda i, dsig, e: progress.iteration("flatten", i, dsig, e))
+    if flat.folded.any():
+        bad = np.flatnonzero(flat.folded)
+        raise DesignError(f"the flattening folded {len(bad)} faces over (first: face {bad[0]}); "
+                          "the surface cannot be laid flat within the stretch bounds")
+    uv, rotation = place_in_frame(flat.uv, frame, margin=0.0)
+    if params.size is None:
+        scale = fit_scale(uv, frame, solver.layout_margin)
+        V, uv = V * scale, (uv - np.array(frame.center)) * scale + np.array(frame.center)
+        size *= scale
+    else:
+        scale = 1.0
+        fits = fit_scale(uv, frame, solver.layout_margin)
+        if fits < 1.0:
+            w, h = uv.max(axis=0) - uv.min(axis=0)
+            raise DesignError(
+                f"at size {size:.1f} mm (bounding-box diagonal) the flat layout is {w:.0f} × {h:.0f} mm, "
+                f"larger than the frame's {frame.size[0]:.0f} × {frame.size[1]:.0f} mm less a "
+                f"{solver.layout_margin:.0f} mm margin; the largest size that fits is "
+                f"{size * fits:.1f} mm")
+    timings["flatten"] = time.perf_counter() - t
+    progress.stage_finished("flatten", timings["flatten"],
+                            f"{flat.iterations} iterations, "
+                            + ("converged" if flat.converged else "stopped at the iteration cap"))
+
+    c, s = np.cos(rotation), np.sin(rotation)
+    direction = flat.ribbon_direction @ np.array([[c, s], [-s, c]])
+    kappa1 = curvature.normal_curvature(field.local) / scale
+    report = flattening_report(flat, frames.area, params.bounds, timings,
+                               total_time=time.perf_counter() - t_start)
+    design = Design(
+        source=Source(file=target.name, sha256=target.sha256, faces=target.source_faces),
+        parameters=Parameters.resolved(params, size),
+        faces=Faces.from_arrays(flat.sigma[:, 0], flat.sigma[:, 1], direction, kappa1),
+        report=Report(**report))
+    return DesignResult(target=target, V=V, F=F, flat_uv=uv, curvature=curvature, field=field,
+                        flattening=flat, kappa1=kappa1, ribbon_direction=direction, design=design)
+
+
+def write_design(result: DesignResult, out_dir: str | Path,
+                 progress: DesignProgress | None = None) -> Path:
+    """Write the design folder (``target.obj``, ``flat.obj``, ``design.json``) atomically."""
+    progress = progress or NoProgress()
+    progress.stage_started("write", f"writing {out_dir}")
+    t = time.perf_counter()
+    path = write_design_folder(Path(out_dir), target_V=result.V, target_F=result.F,
+                               flat_V=result.flat_uv, design=result.design)
+    progress.stage_finished("write", time.perf_counter() - t, str(path))
+    return path
