@@ -102,8 +102,10 @@ def saddle(size: float = 80.0, kappa_x: float = 1.0 / 40.0, kappa_y: float = 1.0
            rings: int = 24) -> tuple[np.ndarray, np.ndarray]:
     """The disk of diameter ``size`` on z = (κx x² − κy y²) / 2 (n up).
 
-    At the centre the principal curvatures are +κx along x and −κy along y (negative Gaussian
-    curvature); with κx ≠ κy the direction of largest |κ| is defined everywhere near it.
+    At the centre the surface is a valley along x and a ridge along y; with the normal up, the
+    signed curvatures (design-format.md: positive where the surface bulges toward n) are −κx
+    along x and +κy along y (negative Gaussian curvature); with κx ≠ κy the direction of largest
+    |κ| is defined everywhere near it.
     """
     P, F = disk(rings)
     xy = 0.5 * size * P

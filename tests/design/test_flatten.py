@@ -1,0 +1,146 @@
+"""The bounded directional flattening (§4, Appendices A-B) on analytic surfaces."""
+
+import numpy as np
+import pytest
+
+from ribbond.design import surfaces
+from ribbond.design.curvature import face_curvature
+from ribbond.design.flatten import (BoundedFlattener, local_step, optimal_rotation,
+                                    principal_stretches)
+from ribbond.design.frames import face_frames
+from ribbond.design.line_field import curvature_line_field
+from ribbond.design.params import DesignParameters, SolverSettings
+from ribbond.design.report import BAD_TOLERANCE, bounds_deviation
+
+BOUNDS = DesignParameters().bounds
+
+
+def flatten(V, F, **settings):
+    fr = face_frames(V, F)
+    lf = curvature_line_field(V, F, fr, face_curvature(V, F, fr))
+    solver = BoundedFlattener(V, F, lf.angle, BOUNDS, SolverSettings(**settings), frames=fr)
+    return fr, lf, solver, solver.solve()
+
+
+def bad_pct(result):
+    (lo1, hi1), (lo2, hi2) = BOUNDS
+    d1 = bounds_deviation(result.sigma[:, 0], lo1, hi1)
+    d2 = bounds_deviation(result.sigma[:, 1], lo2, hi2)
+    return 100 * np.mean(d1 > BAD_TOLERANCE), 100 * np.mean(d2 > BAD_TOLERANCE)
+
+
+def test_closed_form_rotation_is_eq_7():
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(200, 2, 2))                         # includes reflections (det < 0)
+    cos, sin = optimal_rotation(P[:, 0, 0], P[:, 0, 1], P[:, 1, 0], P[:, 1, 1])
+    for k in range(len(P)):
+        U, _, Vt = np.linalg.svd(P[k])
+        if np.linalg.det(U @ Vt) < 0:                        # flip U's column of the smallest value
+            U[:, 1] *= -1
+        R = U @ Vt
+        assert np.allclose([[cos[k], -sin[k]], [sin[k], cos[k]]], R, atol=1e-9)
+
+
+def test_local_step_clamps_eq_5():
+    # J = R Σ with Σ outside the bounds: σ̂ are the clamped Σ entries and R is recovered.
+    bounds = np.array(BOUNDS)
+    a = 0.4
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    for s1, s2 in [(1.1, 1.4), (0.9, 1.4), (1.5, 1.2), (1.2, 1.8)]:
+        J = R @ np.diag([s1, s2])
+        cos, sin, o1, o2 = local_step(tuple(np.array([x]) for x in J.ravel()), np.ones(1), np.ones(1),
+                                      bounds)
+        assert np.isclose(np.arctan2(sin[0], cos[0]), a)
+        assert np.isclose(o1[0], np.clip(s1, *bounds[0])) and np.isclose(o2[0], np.clip(s2, *bounds[1]))
+
+
+def test_principal_stretches_are_singular_values():
+    rng = np.random.default_rng(5)
+    J = rng.normal(size=(50, 2, 2))
+    smax, smin, _ = principal_stretches(J)
+    sv = np.linalg.svd(J, compute_uv=False)
+    assert np.allclose(smax, sv[:, 0]) and np.allclose(np.abs(smin), sv[:, 1])
+    assert np.all((smin < 0) == (np.linalg.det(J) < 0))
+
+
+def test_cylinder_is_flattened_within_the_bounds_along_the_circumference():
+    V, F = surfaces.cylinder_patch(radius=40.0, n_around=40, n_along=16)
+    fr, lf, solver, res = flatten(V, F)
+    assert res.converged and not res.folded.any()
+    assert bad_pct(res) == (0.0, 0.0)
+    assert np.degrees(res.deviation.mean()) < 0.5
+    assert res.energy / fr.area.sum() < 1e-8                 # developable: Eq. 1 holds exactly
+    # The flat surface is the larger one: σ ≥ 1 and σ2 ≥ 1.3 everywhere.
+    e1, e2 = res.uv[F[:, 1]] - res.uv[F[:, 0]], res.uv[F[:, 2]] - res.uv[F[:, 0]]
+    flat_area = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    assert np.all(flat_area > fr.area * 1.29)
+
+
+def test_small_torus_patch_within_bounds_and_outer_half_not():
+    V, F = surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30), nu=40, nv=20)
+    *_, res = flatten(V, F)
+    assert res.converged and bad_pct(res) == (0.0, 0.0)
+    # Where σ1 ≈ σ2 ≈ 1.3 (both at the shared bound) the stretch is nearly isotropic and its
+    # principal direction barely defined; elsewhere the stretch follows k1 closely.
+    anisotropic = res.sigma[:, 1] / res.sigma[:, 0] > 1.03
+    assert np.degrees(res.deviation[anisotropic].mean()) < 0.2
+    assert np.degrees(res.deviation.mean()) < 1.0
+    # The outer half of the torus: σ2 would have to vary by (R + r)/(R) = 1.4 where the bounds
+    # allow 1.51/1.3 = 1.16, so it cannot be flattened within them; it still converges.
+    V, F = surfaces.torus_patch(50.0, 20.0, u_deg=(0, 180), v_deg=(-90, 90), nu=60, nv=30)
+    *_, res = flatten(V, F)
+    assert res.converged and not res.folded.any()
+    assert sum(bad_pct(res)) > 10
+
+
+def test_shallow_cap_within_bounds_deep_cap_not():
+    *_, shallow = flatten(*surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=14))
+    assert shallow.converged and bad_pct(shallow) == (0.0, 0.0)
+    fr, _, _, deep = flatten(*surfaces.sphere_cap(radius=40.0, half_angle_deg=90, rings=14))
+    assert deep.converged and not deep.folded.any()
+    assert min(bad_pct(deep)) > 10
+    assert deep.energy / fr.area.sum() > 1e3 * shallow.energy / fr.area.sum()
+
+
+def test_saddle_within_bounds():
+    *_, res = flatten(*surfaces.saddle(size=80.0, rings=14))
+    assert res.converged and bad_pct(res) == (0.0, 0.0) and not res.folded.any()
+
+
+def test_plain_local_global_energy_never_rises():
+    V, F = surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30), nu=24, nv=12)
+    *_, plain = flatten(V, F, anderson_window=0, max_iterations=300)
+    energies = np.array([h[0] for h in plain.history])
+    assert np.all(np.diff(energies) <= 1e-12 * energies[0])
+
+
+def test_anderson_reaches_the_same_minimum_in_fewer_iterations():
+    # Outside the bounds the minimum of Eq. 3 is positive and its flattening unique (within the
+    # bounds a whole family has zero energy, and any of them is a solution).
+    V, F = surfaces.sphere_cap(radius=40.0, half_angle_deg=90, rings=8)
+    fr, _, _, plain = flatten(V, F, anderson_window=0, max_iterations=20000)
+    *_, fast = flatten(V, F)
+    assert plain.converged and fast.converged and fast.iterations < plain.iterations / 3
+    assert np.isclose(fast.energy, plain.energy, rtol=1e-3)
+    assert np.abs(plain.sigma - fast.sigma).max() < 5e-3
+
+
+def test_flattening_scales_with_the_target():
+    V, F = surfaces.saddle(size=60.0, rings=8)
+    fr = face_frames(V, F)
+    lf = curvature_line_field(V, F, fr, face_curvature(V, F, fr))
+    plain = SolverSettings(anderson_window=0, max_iterations=60)   # same steps, no AA choices
+    small = BoundedFlattener(V, F, lf.angle, BOUNDS, plain)
+    uv0 = small.initial_map()
+    a = small.solve(uv0)
+    b = BoundedFlattener(3.0 * V, F, lf.angle, BOUNDS, plain).solve(3.0 * uv0)
+    assert np.allclose(a.sigma, b.sigma, atol=1e-9)
+    assert np.allclose(b.uv, 3.0 * a.uv, atol=1e-7)
+
+
+def test_bad_arguments_are_refused():
+    V, F = surfaces.cylinder_patch(n_around=6, n_along=3)
+    with pytest.raises(ValueError, match="k1_angle"):
+        BoundedFlattener(V, F, np.zeros(3), BOUNDS)
+    with pytest.raises(ValueError, match="bounds"):
+        BoundedFlattener(V, F, np.zeros(len(F)), ((1.3, 1.0), (1.3, 1.5)))
