@@ -1,0 +1,124 @@
+"""Benchmark of the bounded directional flattening on meshes of 110k+ faces.
+
+For each surface: the design engine's stages as ``ribbonctl design`` runs them (curvature and
+line field, then the flattening: set-up and factorization, Tutte + SLIM start, iterations to the
+stopping tolerance), and, in the same run on the same mesh and start, libigl's own ARAP
+parameterization (``igl.arap_precomputation`` / ``igl.arap_solve``, elements energy) per
+iteration, the reference of issue 3.
+
+Goals: time per iteration ≤ 0.8 × libigl's; time to tolerance ≤ 10 s for 110k faces.
+
+    python bench/flatten.py [--quick] [--surfaces torus,saddle,shallow_cap]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import igl
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from ribbond.design import surfaces  # noqa: E402
+from ribbond.design.flatten import BoundedFlattener  # noqa: E402
+from ribbond.design.mesh_io import write_obj  # noqa: E402
+from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings  # noqa: E402
+from ribbond.design.pipeline import design_mesh  # noqa: E402
+
+# Resolutions giving about 112k faces each (a quarter of that with --quick).
+SURFACES = {
+    "torus": lambda k: surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30),
+                                            nu=int(330 * k), nv=int(170 * k)),
+    "saddle": lambda k: surfaces.saddle(size=80.0, rings=int(137 * k)),
+    "shallow_cap": lambda k: surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=int(137 * k)),
+    "cylinder": lambda k: surfaces.cylinder_patch(40.0, 120.0, 60.0, n_around=int(330 * k),
+                                                  n_along=int(170 * k)),
+}
+GOAL_RATIO = 0.8
+GOAL_SECONDS = 10.0
+
+
+def libigl_arap_per_iteration(V: np.ndarray, F: np.ndarray, uv0: np.ndarray, iterations: int) -> float:
+    """Seconds per iteration of libigl's ARAP parameterization from ``uv0`` (elements energy)."""
+    data = igl.ARAPData()
+    data.energy = igl.ARAP_ENERGY_TYPE_ELEMENTS
+    data.max_iter = 1
+    b = np.array([0], dtype=np.int32)
+    igl.arap_precomputation(np.ascontiguousarray(V), np.ascontiguousarray(F, dtype=np.int64), 2, b, data)
+    U = np.ascontiguousarray(uv0)
+    bc = U[b].copy()
+    U = igl.arap_solve(bc, data, U)          # warm-up
+    t = time.perf_counter()
+    for _ in range(iterations):
+        U = igl.arap_solve(bc, data, U)
+    return (time.perf_counter() - t) / iterations
+
+
+def run(name: str, scale: float, workdir: Path) -> dict[str, float]:
+    V, F = SURFACES[name](scale)
+    path = workdir / f"{name}.obj"
+    write_obj(path, V, F)
+    params = DesignParameters(size=SizeSpec(bbox_diagonal=110.0))
+    # Large meshes: the frame is no limit here, the benchmark is about the solver.
+    from ribbond.gcode.profiles import FrameSpec
+    frame = FrameSpec(center=(0.0, 0.0), size=(1e4, 1e4))
+    result = design_mesh(path, params, SolverSettings(), frame=frame)
+    rep = result.design.report
+    flat = result.flattening
+    per_iter = flat.time_iterations_s / max(flat.iterations, 1)
+    # libigl on the same mesh, from the same kind of start (our Tutte + SLIM start).
+    start = BoundedFlattener(result.V, result.F, result.field.angle, params.bounds).initial_map(
+        result.target.boundary)
+    igl_per_iter = libigl_arap_per_iteration(result.V, result.F, start, iterations=10)
+    return {
+        "faces": rep.faces, "iterations": flat.iterations, "converged": flat.converged,
+        "curvature_s": rep.timings_s["curvature"], "flatten_s": rep.timings_s["flatten"],
+        "init_s": flat.time_init_s, "iterate_s": flat.time_iterations_s,
+        "setup_s": rep.timings_s["flatten"] - flat.time_init_s - flat.time_iterations_s,
+        "per_iter_ms": 1000 * per_iter, "igl_per_iter_ms": 1000 * igl_per_iter,
+        "ratio": per_iter / igl_per_iter, "total_s": rep.time_s,
+        "accelerated": flat.accelerated_steps, "rejected": flat.rejected_steps,
+        "bad1": rep.sigma1_bad_pct, "bad2": rep.sigma2_bad_pct, "k1dev": rep.k1_deviation_deg,
+        "energy": rep.avg_energy,
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="quarter-size meshes (a smoke run)")
+    ap.add_argument("--surfaces", default="torus,saddle,shallow_cap",
+                    help=f"comma-separated, from {', '.join(SURFACES)}")
+    args = ap.parse_args()
+    scale = 0.5 if args.quick else 1.0
+    names = [s for s in args.surfaces.split(",") if s]
+    unknown = set(names) - set(SURFACES)
+    if unknown:
+        ap.error(f"unknown surfaces: {', '.join(sorted(unknown))}")
+    print(f"{'surface':<12} {'faces':>7} {'iter':>5} {'setup':>6} {'start':>6} {'iterate':>7} "
+          f"{'flatten':>7} {'ms/it':>6} {'igl ms/it':>9} {'ratio':>6} {'curv.':>6} {'total':>6} "
+          f"{'bad σ1/σ2 %':>12} {'k1 dev°':>7}")
+    ok = True
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            r = run(name, scale, Path(tmp))
+            print(f"{name:<12} {r['faces']:>7} {r['iterations']:>5} {r['setup_s']:>6.2f} {r['init_s']:>6.2f} "
+                  f"{r['iterate_s']:>7.2f} {r['flatten_s']:>7.2f} {r['per_iter_ms']:>6.1f} "
+                  f"{r['igl_per_iter_ms']:>9.1f} {r['ratio']:>6.2f} {r['curvature_s']:>6.2f} "
+                  f"{r['total_s']:>6.2f} {r['bad1']:>5.2f}/{r['bad2']:<6.2f} {r['k1dev']:>7.3f}"
+                  + ("" if r["converged"] else "  NOT CONVERGED"), flush=True)
+            ok &= r["converged"] and r["ratio"] <= GOAL_RATIO
+            if r["faces"] >= 110_000:
+                ok &= r["flatten_s"] <= GOAL_SECONDS
+    print(f"\nratio = our time per iteration / libigl ARAP's (goal ≤ {GOAL_RATIO}); flatten = time to "
+          f"tolerance: set-up + start (Tutte + SLIM) + iterations (goal ≤ {GOAL_SECONDS:.0f} s at 110k faces)")
+    print("goals met" if ok else "GOALS NOT MET")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
