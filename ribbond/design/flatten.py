@@ -273,6 +273,35 @@ class BoundedFlattener:
         uv *= np.sqrt(self.area.sum() * mid[0] * mid[1] / flat_area)
         return uv - uv.mean(axis=0)
 
+    def coarse_start(self) -> np.ndarray:
+        """A start from a decimated copy of the mesh, flattened and prolonged (coarse to fine).
+
+        The coarse mesh (``settings.coarse_faces`` faces, libigl's edge-collapse decimation)
+        takes the ribbon direction of the face each of its faces was born from, is flattened
+        from its own Tutte + SLIM start, and every fine vertex is placed by the barycentric
+        coordinates of its closest point on the coarse surface. Low-frequency error, which the
+        local/global iteration removes slowly on a fine mesh, is gone from this start.
+
+        A few fine faces near the boundary can start folded (a fine boundary vertex lands on the
+        coarse boundary edge next to it); the iterations unfold them, and ``solve`` starts again
+        from Tutte + SLIM on the fine mesh if any fold were left at the end.
+        """
+        st = self.settings
+        V, F = self.V, self.F
+        U, G, birth_face, _ = igl.decimate(np.asfortranarray(V), np.asfortranarray(F.astype(np.int32)),
+                                               st.coarse_faces)
+        U, G = np.ascontiguousarray(U), np.ascontiguousarray(G, dtype=np.int64)
+        coarse_frames = face_frames(U, G)
+        direction = self.frames.to_world(np.column_stack([self._ct, self._st]))[birth_face]
+        local = coarse_frames.to_local(direction)
+        coarse = BoundedFlattener(U, G, np.arctan2(local[:, 1], local[:, 0]), self.bounds,
+                                  st.model_copy(update={"coarse_faces": 0}), frames=coarse_frames)
+        uv_coarse = coarse.solve().uv
+        _, face, closest = igl.point_mesh_squared_distance(V, U, G)
+        corners = G[face]
+        bary = igl.barycentric_coordinates(closest, U[corners[:, 0]], U[corners[:, 1]], U[corners[:, 2]])
+        return np.einsum("vk,vkd->vd", bary, uv_coarse[corners])
+
     def _signed_area(self, uv: np.ndarray) -> np.ndarray:
         a, b = uv[self.F[:, 1]] - uv[self.F[:, 0]], uv[self.F[:, 2]] - uv[self.F[:, 0]]
         return 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
@@ -285,7 +314,13 @@ class BoundedFlattener:
         σ2 falls below the tolerance, or the iteration cap.
         """
         t0 = time.perf_counter()
-        uv = self.initial_map(boundary) if uv0 is None else np.array(uv0, dtype=np.float64)
+        coarse = uv0 is None and 0 < self.settings.coarse_faces <= self._m // 4
+        if uv0 is not None:
+            uv = np.array(uv0, dtype=np.float64)
+        elif coarse:
+            uv = self.coarse_start()
+        else:
+            uv = self.initial_map(boundary)
         t_init = time.perf_counter() - t0
         t1 = time.perf_counter()
         st = self.settings
@@ -335,8 +370,14 @@ class BoundedFlattener:
                 converged = True
                 break
         t_iter = time.perf_counter() - t1
-        return self._result(x_acc, e_acc, it, converged, accelerated, rejected, t_init, t_iter,
-                            history)
+        result = self._result(x_acc, e_acc, it, converged, accelerated, rejected, t_init, t_iter,
+                              history)
+        if coarse and result.folded.any():
+            # The coarse start left a fold: start again as the paper does, on the fine mesh.
+            fresh = self.solve(self.initial_map(boundary), progress=progress)
+            fresh.time_init_s += t_init + t_iter
+            return fresh
+        return result
 
     def _result(self, uv: np.ndarray, energy: float, iterations: int,
                 converged: bool, accelerated: int, rejected: int, t_init: float, t_iter: float,

@@ -94,6 +94,9 @@ class SolverSettings(BaseModel):
     local_passes: int = Field(2, ge=1, description="R/Σ alternations per global step (§4.3: twice)")
     anderson_window: int = Field(6, ge=0, description="Anderson acceleration history; 0 turns it off")
     slim_iterations: int = Field(2, ge=0, description="SLIM iterations after the Tutte embedding")
+    coarse_faces: int = Field(
+        12_000, ge=0, description="meshes of 4× more faces start from a flattening of a copy "
+        "decimated to this many faces (coarse to fine); 0 turns it off")
     umbilic_tolerance: float = Field(
         0.1, ge=0, description="a face is umbilic where |κ1| − |κ2| < this × max(|κ1|, κ_flat)")
     max_faces: int = Field(400_000, ge=1, description="meshes with more faces are refused")
