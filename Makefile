@@ -23,6 +23,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) bench/stream.py
+	$(PY) bench/flatten.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache out

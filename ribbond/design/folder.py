@@ -51,17 +51,22 @@ class DesignFolder:
 # reading OBJ files (our own: 'v x y z' and 'f a b c' lines)
 
 
+def _read_text(path: Path, when_missing: str) -> str:
+    """A design file's text; ValueError naming the file when it is missing or unreadable."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError(f"{path}: missing: {when_missing}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: cannot read ({exc})") from None
+
+
 def _read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (n, 3) and 0-based triangles (m, 3) of an OBJ file; ValueError naming the file.
 
     Indices are not checked against the vertex count here (see ``_check_indices``).
     """
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"{path}: missing: not a complete design folder") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read ({exc})") from None
+    text = _read_text(path, "not a complete design folder")
     v_rows: list[str] = []
     f_rows: list[str] = []
     for line in text.splitlines():
@@ -170,12 +175,7 @@ def read_design_folder(path: Path) -> DesignFolder:
     if not path.is_dir():
         raise ValueError(f"{path}: not a directory (a design folder is a directory)")
     json_path = path / "design.json"
-    try:
-        text = json_path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"{json_path}: missing: not a design folder") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{json_path}: cannot read ({exc})") from None
+    text = _read_text(json_path, "not a design folder")
     design = design_from_json(text, where=str(json_path))
     target_path, flat_path = path / "target.obj", path / "flat.obj"
     V, F = _read_obj(target_path)

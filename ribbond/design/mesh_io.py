@@ -183,12 +183,8 @@ def _read_bytes(path: Path, name: str, ext: str, max_faces: int | None) -> bytes
     """The file's bytes; binary STL/PLY headers are checked against ``max_faces`` first."""
     try:
         st = os.stat(path)
-    except FileNotFoundError:
-        raise MeshError("unreadable", f"{name}: no such file ({path})") from None
-    except PermissionError:
-        raise MeshError("unreadable", f"{name}: permission denied ({path})") from None
     except OSError as exc:
-        raise MeshError("unreadable", f"{name}: cannot access the file: {exc.strerror or exc}") from None
+        raise _os_error(name, path, exc, "access") from None
     if stat.S_ISDIR(st.st_mode):
         raise MeshError("unreadable", f"{name}: is a directory, not a mesh file")
     if not stat.S_ISREG(st.st_mode):  # FIFOs and devices could block forever
@@ -209,12 +205,19 @@ def _read_bytes(path: Path, name: str, ext: str, max_faces: int | None) -> bytes
             else:
                 head = b""
             return head + fh.read()
-    except PermissionError:
-        raise MeshError("unreadable", f"{name}: permission denied ({path})") from None
-    except IsADirectoryError:
-        raise MeshError("unreadable", f"{name}: is a directory, not a mesh file") from None
     except OSError as exc:
-        raise MeshError("unreadable", f"{name}: cannot read the file: {exc.strerror or exc}") from None
+        raise _os_error(name, path, exc, "read") from None
+
+
+def _os_error(name: str, path: Path, exc: OSError, doing: str) -> MeshError:
+    """The MeshError for an operating-system error while opening or reading a mesh file."""
+    if isinstance(exc, FileNotFoundError):
+        return MeshError("unreadable", f"{name}: no such file ({path})")
+    if isinstance(exc, PermissionError):
+        return MeshError("unreadable", f"{name}: permission denied ({path})")
+    if isinstance(exc, IsADirectoryError):
+        return MeshError("unreadable", f"{name}: is a directory, not a mesh file")
+    return MeshError("unreadable", f"{name}: cannot {doing} the file: {exc.strerror or exc}")
 
 
 def _check_max_faces(name: str, count: int, max_faces: int | None, what: str) -> None:
@@ -255,6 +258,14 @@ def _floats(tokens: list[bytes] | np.ndarray) -> np.ndarray:
 def _ints(tokens: list[bytes] | np.ndarray) -> np.ndarray:
     """Bulk int conversion (raises ValueError/OverflowError on the first bad token)."""
     return np.fromiter(map(int, tokens), dtype=np.int64, count=len(tokens))
+
+
+def _ints_or_error(tokens: list[bytes] | np.ndarray, describe: Callable[[int], str]) -> np.ndarray:
+    """Tokens as integers, or MeshError("unreadable", describe(index of the first bad token))."""
+    try:
+        return _ints(tokens)
+    except (ValueError, OverflowError):
+        raise MeshError("unreadable", describe(_first_bad(tokens, int))) from None
 
 
 def _first_bad(tokens: list[bytes] | np.ndarray, convert: type) -> int:
@@ -525,12 +536,8 @@ def _parse_off(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
     V = _parse_float_block(rows, vsel, (0, 1, 2), name, "a vertex")
     fsel = np.arange(r + nv, r + nv + nf)
     count_tok = rows.column(fsel, 0)
-    try:
-        counts = _ints(count_tok)
-    except (ValueError, OverflowError):
-        bad = _first_bad(count_tok, int)
-        raise MeshError("unreadable", f"{name}: line {rows.line[fsel[bad]]}: expected a face's "
-                                      f"corner count, found {_show(count_tok[bad])}") from None
+    counts = _ints_or_error(count_tok, lambda bad: f"{name}: line {rows.line[fsel[bad]]}: expected "
+                            f"a face's corner count, found {_show(count_tok[bad])}")
     few = np.flatnonzero(counts < 3)
     if few.size:
         k = int(few[0])
@@ -546,12 +553,8 @@ def _parse_off(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
     poly = np.repeat(np.arange(nf), counts)
     offset = np.arange(len(poly)) - np.repeat(np.cumsum(counts) - counts, counts) + 1
     toks = rows.tokens[rows.start[fsel][poly] + offset]
-    try:
-        flat = _ints(toks)
-    except (ValueError, OverflowError):
-        bad = _first_bad(toks, int)
-        raise MeshError("unreadable", f"{name}: line {rows.line[fsel[poly[bad]]]}: bad face corner "
-                                      f"{_show(toks[bad])} (expected a vertex index)") from None
+    flat = _ints_or_error(toks, lambda bad: f"{name}: line {rows.line[fsel[poly[bad]]]}: bad face "
+                          f"corner {_show(toks[bad])} (expected a vertex index)")
     F, tri_poly = _fan(flat, counts)
     _check_range(F, nv, lambda t: f"{name}: line {rows.line[fsel[tri_poly[t]]]}: ")
     return V, F
