@@ -66,7 +66,7 @@ def summary(result: DesignResult, out_dir: Path) -> str:
     w, h = result.flat_uv.max(axis=0) - result.flat_uv.min(axis=0)
     timings = ", ".join(f"{k} {v:.2f}" for k, v in r.timings_s.items())
     lines = [
-        f"design      {out_dir}  (target.obj, flat.obj, design.json)",
+        f"design      {out_dir}  (target.obj, flat.obj, design.json, preview.svg/.png)",
         f"surface     {d.source.file}: {r.faces} faces, {p.size.bbox_diagonal:.1f} mm bounding-box "
         f"diagonal; flat layout {w:.1f} × {h:.1f} mm",
         f"k1 field    λ = {p.smoothing_lambda:g}; {100 * result.field.umbilic.mean():.1f} % of faces umbilic"
@@ -80,9 +80,22 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         f"σ2  bounds [{lo2:.2f}, {hi2:.2f}]  range [{s2.min():.3f}, {s2.max():.3f}]  "
         f"outside {r.sigma2_bad_pct:.2f} % of faces, max deviation {r.sigma2_max_dev:.4f}",
         f"energy      {r.avg_energy:.3g} (Eq. 3 over the total area)",
-        f"time        {r.time_s:.2f} s ({timings})",
-        verdict(r.sigma1_bad_pct, r.sigma2_bad_pct, max(r.sigma1_max_dev, r.sigma2_max_dev)),
     ]
+    rr = r.ribbons
+    if rr is not None and d.ribbons is not None:
+        tau = np.array([rb.thickness for rb in d.ribbons]) if d.ribbons else np.zeros(1)
+        lines += [
+            f"ribbons     {rr.front} front, {rr.back} back; {rr.dropped_short} dropped (< "
+            f"{p.min_ribbon_length:g} mm), {rr.trimmed_angle} trimmed (> {p.max_trim_angle:g}° off the field)",
+            f"thickness   {tau.min():.2f}–{tau.max():.2f} mm from table {p.curvature_table!r}"
+            + (f"; {rr.thickness_clamped} clamped to its range" if rr.thickness_clamped else ""),
+            f"layout      direction deviation median {rr.direction_deviation_deg.median:.2f}°, "
+            f"p95 {rr.direction_deviation_deg.p95:.2f}°; spacing error median "
+            f"{rr.spacing_error_pct.median:.1f} %, p95 {rr.spacing_error_pct.p95:.1f} % (Eq. 10)",
+        ]
+    lines += [f"preview     {out_dir / 'preview.png'}",
+              f"time        {r.time_s:.2f} s ({timings})",
+              verdict(r.sigma1_bad_pct, r.sigma2_bad_pct, max(r.sigma1_max_dev, r.sigma2_max_dev))]
     return "\n".join(lines)
 
 

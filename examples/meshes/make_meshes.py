@@ -12,7 +12,9 @@ writes into ``examples/meshes/`` (or ``DIR``):
 - ``shallow_cap.obj``  a 20° cap of a sphere of radius 80 mm: within the bounds;
 - ``deep_cap.obj``     a hemisphere of radius 40 mm: outside the bounds (the fabric cannot stretch
                         that much: the design is made, and its report says so);
-- ``saddle.obj``       a saddle disk (κ = +1/40 along x, −1/100 along y at the centre).
+- ``saddle.obj``       a saddle disk (κ = ±1/50 at the centre), like the paper's octopus saddle:
+                        k1 runs along one axis in two opposite quadrants and along the other
+                        axis in the other two, with opposite signs, so both sides are printed.
 
 ``--scale N`` multiplies the resolution parameters (grid cells, disk rings) by N, so the face counts
 grow by about N²: ``--scale 6`` gives ≥ 110,000 faces for the torus patch and the caps (benchmarks).
@@ -60,8 +62,8 @@ def examples(scale: float = 1.0) -> dict[str, tuple[str, Callable[[], Mesh]]]:
             "hemisphere, radius 40 (outside the bounds)",
             lambda: surfaces.sphere_cap(40.0, 90.0, rings=_res(24, scale))),
         "saddle.obj": (
-            "saddle disk, 80 across, κ +1/40 along x, -1/100 along y",
-            lambda: surfaces.saddle(80.0, 1.0 / 40.0, 1.0 / 100.0, rings=_res(24, scale))),
+            "saddle disk, 80 across, κ ±1/50 (both sides printed)",
+            lambda: surfaces.saddle(80.0, 1.0 / 50.0, 1.0 / 50.0, rings=_res(24, scale))),
     }
 
 

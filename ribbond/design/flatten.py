@@ -26,36 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .frames import FaceFrames, face_frames, gradient_operator, jacobians
+from .linalg import SymmetricFactor
 from .params import SolverSettings
-
-try:  # CHOLMOD-grade back-substitution, about 1.6x faster than SuperLU on these systems.
-    from cholespy import CholeskySolverD, MatrixType
-except ImportError:  # pragma: no cover - cholespy is a declared dependency
-    CholeskySolverD = None
-
-
-class _Factor:
-    """A sparse symmetric positive definite matrix, factorized once, solved many times."""
-
-    def __init__(self, L: sp.spmatrix) -> None:
-        L = sp.csc_matrix(L)
-        self.n = L.shape[0]
-        if CholeskySolverD is not None:
-            self._chol = CholeskySolverD(self.n, L.indptr.astype(np.int32), L.indices.astype(np.int32),
-                                         L.data.astype(np.float64), MatrixType.CSC)
-        else:
-            import scipy.sparse.linalg as spla
-            self._lu = spla.splu(L, permc_spec="MMD_AT_PLUS_A")
-            self._chol = None
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        b = np.ascontiguousarray(b, dtype=np.float64)
-        if self._chol is None:
-            return self._lu.solve(b)
-        x = np.empty_like(b)
-        self._chol.solve(b, x)
-        return x
-
 
 def principal_stretches(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Singular values and the direction of the larger one, for (m, 2, 2) Jacobians.
@@ -133,6 +105,7 @@ class FlatteningResult:
     ribbon_direction : (m, 2) k̄1 = J k1 normalized, in flat coordinates (§6).
     energy : Eq. 3 at the end; iterations; converged: the tolerance was met before the cap.
     folded : (m,) True where the flat triangle is reversed (det J ≤ 0).
+    mid_bounds_iterations : iterations of the first phase (Σ fixed at the middle of the bounds).
     """
 
     uv: np.ndarray
@@ -149,6 +122,7 @@ class FlatteningResult:
     time_init_s: float = 0.0
     time_iterations_s: float = 0.0
     history: list[tuple[float, float, float]] = field(default_factory=list)
+    mid_bounds_iterations: int = 0
 
 
 ProgressCallback = Callable[[int, float, float], None]   # (iteration, mean dσ, energy)
@@ -189,7 +163,7 @@ class BoundedFlattener:
         # The energy does not change under translation: pin the last vertex where it starts.
         self.pinned = n - 1
         self._L_fp = np.asarray(L[: n - 1, n - 1].todense()).ravel()
-        self._factor = _Factor(L[: n - 1, : n - 1])
+        self._factor = SymmetricFactor(L[: n - 1, : n - 1])
         self.area = self.frames.area
         self._m = m
 
@@ -199,9 +173,9 @@ class BoundedFlattener:
         """(m, 2, 2) Jacobians of the flat map ``uv`` (n, 2)."""
         return jacobians(self.G, uv)
 
-    def local(self, uv: np.ndarray, sigma1: np.ndarray,
-              sigma2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """Local step at the flat map ``uv`` (n, 2).
+    def local(self, uv: np.ndarray, sigma1: np.ndarray, sigma2: np.ndarray,
+              bounds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Local step at the flat map ``uv`` (n, 2); ``bounds`` (2, 2) replaces the design's.
 
         Returns
         -------
@@ -213,7 +187,8 @@ class BoundedFlattener:
         m, ct, st = self._m, self._ct, self._st
         a, b, c, d = g[:m, 0], g[m:, 0], g[:m, 1], g[m:, 1]        # J = [[a, b], [c, d]]
         JRt = (a * ct + b * st, b * ct - a * st, c * ct + d * st, d * ct - c * st)
-        cos, sin, sigma1, sigma2 = local_step(JRt, sigma1, sigma2, self.bounds,
+        cos, sin, sigma1, sigma2 = local_step(JRt, sigma1, sigma2,
+                                              self.bounds if bounds is None else bounds,
                                               self.settings.local_passes)
         cs1, ss1, cs2, ss2 = cos * sigma1, sin * sigma1, cos * sigma2, sin * sigma2
         targets = np.empty((2 * m, 2))
@@ -259,7 +234,7 @@ class BoundedFlattener:
         uv[boundary] = circle
         if len(interior):
             rhs = -(Lu[interior][:, boundary] @ circle)
-            uv[interior] = _Factor(Lu[interior][:, interior]).solve(rhs)
+            uv[interior] = SymmetricFactor(Lu[interior][:, interior]).solve(rhs)
         if self._signed_area(uv).sum() < 0:
             uv[:, 0] *= -1.0
         if self.settings.slim_iterations > 0:
@@ -312,6 +287,12 @@ class BoundedFlattener:
               progress: ProgressCallback | None = None) -> FlatteningResult:
         """Iterate local/global steps (Anderson-accelerated) until the mean change of σ1 and of
         σ2 falls below the tolerance, or the iteration cap.
+
+        From Tutte + SLIM, a first phase aims every face at the middle of the bounds (Σ fixed,
+        R by Eq. 7) until the map settles: inside the bounds Eq. 3 has a whole family of
+        zero-energy minimizers, and this start leads to the most uniform one, so the ribbon
+        spacing (Eq. 10) varies no more than the surface asks for; a developable surface
+        flattens with one uniform Σ. The paper's iteration (§4.3) follows from there.
         """
         t0 = time.perf_counter()
         coarse = uv0 is None and 0 < self.settings.coarse_faces <= self._m // 4
@@ -321,63 +302,81 @@ class BoundedFlattener:
             uv = self.coarse_start()
         else:
             uv = self.initial_map(boundary)
+        st = self.settings
+        ones = np.ones(self._m)
+        mid_iterations = 0
+        if uv0 is None and not coarse and st.mid_bounds_iterations > 0:
+            mid = self.bounds.mean(axis=1)
+            phase = self._iterate(uv, ones * mid[0], ones * mid[1], np.column_stack([mid, mid]),
+                                  st.mid_bounds_iterations, None)
+            uv, mid_iterations = phase.uv, phase.iterations
         t_init = time.perf_counter() - t0
         t1 = time.perf_counter()
-        st = self.settings
-        pinned_at = uv[self.pinned].copy()
-        n = len(self.V)
-        size = 2 * (n - 1)
-        window = st.anderson_window
-        aa = _Anderson(size, window) if window > 0 else None
-
-        # Initial stretches 1 and R by Eq. 7 (§4.3), then the first local and global steps.
-        ones = np.ones(self._m)
-        targets, s1, s2, energy = self.local(uv, ones, ones)
-        g = self.global_step(targets, pinned_at)
-        x_acc, g_acc, e_acc, s1_acc, s2_acc = uv, g, energy, s1, s2
-        if aa is not None:
-            aa.push(uv[: n - 1].ravel(), g[: n - 1].ravel())
-        history: list[tuple[float, float, float]] = []
-        converged = False
-        accelerated = rejected = 0
-        it = 0
-        for it in range(1, st.max_iterations + 1):
-            uv, used_aa = g_acc, False
-            if aa is not None and aa.ready:
-                uv = np.empty((n, 2))
-                uv[: n - 1] = aa.extrapolate().reshape(-1, 2)
-                uv[n - 1] = pinned_at
-                used_aa = True
-            targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc)
-            if used_aa and not energy <= e_acc:
-                # Safeguard (Peng et al. 2018): the plain step from the last accepted iterate.
-                rejected += 1
-                used_aa = False
-                aa.reset(x_acc[: n - 1].ravel(), g_acc[: n - 1].ravel())
-                uv = g_acc
-                targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc)
-            accelerated += used_aa
-            g = self.global_step(targets, pinned_at)
-            if aa is not None:
-                aa.push(uv[: n - 1].ravel(), g[: n - 1].ravel())
-            change1 = float(np.mean(np.abs(s1 - s1_acc)))
-            change2 = float(np.mean(np.abs(s2 - s2_acc)))
-            x_acc, g_acc, e_acc, s1_acc, s2_acc = uv, g, energy, s1, s2
-            history.append((energy, change1, change2))
-            if progress is not None:
-                progress(it, max(change1, change2), energy)
-            if change1 < st.tolerance and change2 < st.tolerance:
-                converged = True
-                break
+        # Initial stretches 1 and R by Eq. 7 (§4.3).
+        run = self._iterate(uv, ones, ones, None, st.max_iterations, progress)
         t_iter = time.perf_counter() - t1
-        result = self._result(x_acc, e_acc, it, converged, accelerated, rejected, t_init, t_iter,
-                              history)
+        result = self._result(run.uv, run.energy, run.iterations, run.converged, run.accelerated,
+                              run.rejected, t_init, t_iter, run.history)
+        result.mid_bounds_iterations = mid_iterations
         if coarse and result.folded.any():
             # The coarse start left a fold: start again as the paper does, on the fine mesh.
             fresh = self.solve(self.initial_map(boundary), progress=progress)
             fresh.time_init_s += t_init + t_iter
             return fresh
         return result
+
+    def _iterate(self, uv: np.ndarray, s1: np.ndarray, s2: np.ndarray, bounds: np.ndarray | None,
+                 max_iterations: int, progress: ProgressCallback | None) -> "_Run":
+        """Local/global iterations from ``uv`` with Anderson acceleration and Peng's safeguard.
+
+        With the design's bounds (``bounds`` None) the stop is the paper's: the mean change of σ1
+        and of σ2 below the tolerance. With fixed Σ (degenerate ``bounds``) σ does not change, and
+        the stop is the mean vertex motion below the tolerance times the mean edge length.
+        """
+        st = self.settings
+        n = len(self.V)
+        pinned_at = uv[self.pinned].copy()
+        aa = _Anderson(2 * (n - 1), st.anderson_window) if st.anderson_window > 0 else None
+        targets, s1, s2, energy = self.local(uv, s1, s2, bounds)
+        g = self.global_step(targets, pinned_at)
+        x_acc, g_acc, e_acc, s1_acc, s2_acc = uv, g, energy, s1, s2
+        if aa is not None:
+            aa.push(uv[: n - 1].ravel(), g[: n - 1].ravel())
+        scale = float(np.sqrt(self.area.mean()))
+        history: list[tuple[float, float, float]] = []
+        converged = False
+        accelerated = rejected = 0
+        it = 0
+        for it in range(1, max_iterations + 1):
+            uv, used_aa = g_acc, False
+            if aa is not None and aa.ready:
+                uv = np.empty((n, 2))
+                uv[: n - 1] = aa.extrapolate().reshape(-1, 2)
+                uv[n - 1] = pinned_at
+                used_aa = True
+            targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds)
+            if used_aa and not energy <= e_acc:
+                # Safeguard (Peng et al. 2018): the plain step from the last accepted iterate.
+                rejected += 1
+                used_aa = False
+                aa.reset(x_acc[: n - 1].ravel(), g_acc[: n - 1].ravel())
+                uv = g_acc
+                targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds)
+            accelerated += used_aa
+            g = self.global_step(targets, pinned_at)
+            if aa is not None:
+                aa.push(uv[: n - 1].ravel(), g[: n - 1].ravel())
+            change1 = float(np.mean(np.abs(s1 - s1_acc)))
+            change2 = float(np.mean(np.abs(s2 - s2_acc)))
+            motion = float(np.mean(np.linalg.norm(uv - x_acc, axis=1))) / scale
+            x_acc, g_acc, e_acc, s1_acc, s2_acc = uv, g, energy, s1, s2
+            history.append((energy, change1, change2))
+            if progress is not None:
+                progress(it, max(change1, change2), energy)
+            if change1 < st.tolerance and change2 < st.tolerance and (bounds is None or motion < st.tolerance):
+                converged = True
+                break
+        return _Run(x_acc, e_acc, it, converged, accelerated, rejected, history)
 
     def _result(self, uv: np.ndarray, energy: float, iterations: int,
                 converged: bool, accelerated: int, rejected: int, t_init: float, t_iter: float,
@@ -399,6 +398,19 @@ class BoundedFlattener:
                                 converged=converged, folded=det <= 0, accelerated_steps=accelerated,
                                 rejected_steps=rejected, time_init_s=t_init, time_iterations_s=t_iter,
                                 history=history)
+
+
+@dataclass
+class _Run:
+    """What one run of ``_iterate`` reached."""
+
+    uv: np.ndarray
+    energy: float
+    iterations: int
+    converged: bool
+    accelerated: int
+    rejected: int
+    history: list[tuple[float, float, float]]
 
 
 class _Anderson:

@@ -159,7 +159,11 @@ class Quantiles(BaseModel):
 
 
 class RibbonsReport(BaseModel):
-    """``report.ribbons``: what the ribbon stage made."""
+    """``report.ribbons``: what the ribbon stage made.
+
+    ``spacing_error_across_pct`` and ``spacing_error_along_pct`` are the engine's extra fields: the
+    two checks that ``spacing_error_pct`` pools.
+    """
 
     model_config = _CONFIG
     front: int = Field(ge=0, description="ribbons on the front side")
@@ -168,7 +172,11 @@ class RibbonsReport(BaseModel):
     trimmed_angle: int = Field(ge=0, description="ribbons trimmed where they turned beyond max_trim_angle")
     thickness_clamped: int = Field(ge=0, description="ribbons whose thickness was clamped to the table")
     direction_deviation_deg: Quantiles
-    spacing_error_pct: Quantiles
+    spacing_error_pct: Quantiles = Field(description="both spacing checks pooled, %")
+    spacing_error_across_pct: Quantiles | None = Field(
+        None, description="neighbouring centerlines (one from each grid) against μ2, %")
+    spacing_error_along_pct: Quantiles | None = Field(
+        None, description="neighbouring ribbon midpoints on a centerline against μ1, %")
 
 
 class SidePrintReport(BaseModel):

@@ -94,6 +94,12 @@ class SolverSettings(BaseModel):
     local_passes: int = Field(2, ge=1, description="R/Σ alternations per global step (§4.3: twice)")
     anderson_window: int = Field(6, ge=0, description="Anderson acceleration history; 0 turns it off")
     slim_iterations: int = Field(2, ge=0, description="SLIM iterations after the Tutte embedding")
+    mid_bounds_iterations: int = Field(
+        500, ge=0, description="cap on the first phase, which aims every face at the middle of "
+        "the bounds before the bounded iteration (the most uniform flattening); 0 turns it off")
+    stripe_edge_fraction: float = Field(
+        0.2, gt=0, le=1, description="the flat mesh is subdivided until its longest edge is at most "
+        "this share of the shortest stripe period")
     coarse_faces: int = Field(
         12_000, ge=0, description="meshes of 4× more faces start from a flattening of a copy "
         "decimated to this many faces (coarse to fine); 0 turns it off")

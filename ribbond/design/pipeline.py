@@ -1,9 +1,11 @@
 """The design engine from a mesh file to the design folder, stage by stage.
 
 Stages: ``load`` (read, clean, validate, scale), ``curvature`` (principal curvatures and the k1
-line field), ``flatten`` (the bounded directional flattening, placed in the printer frame) and
-``write`` (the design folder). The arrays stay in the functions of the stage modules; this module
-only wires them together, times them and reports progress.
+line field), ``flatten`` (the bounded directional flattening, placed in the printer frame),
+``stripes`` (spacing by Eq. 10 and the two stripe patterns), ``ribbons`` (the staggered ribbons,
+their sides and thicknesses, the registration marks), ``preview`` and ``write`` (the design
+folder). The arrays stay in the functions of the stage modules; this module only wires them
+together, times them and reports progress.
 """
 
 from __future__ import annotations
@@ -14,19 +16,26 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+import shapely
 
 from ..gcode.profiles import FrameSpec, load_profile
 from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
-from .format import Design, Faces, Parameters, Report, Source
+from .format import Design, Faces, Parameters, Quantiles, Report, Ribbon, RibbonsReport, Source
 from .frames import face_frames
 from .intake import TargetMesh, load_target
 from .line_field import LineField, curvature_line_field
 from .params import DesignParameters, SolverSettings
-from .placement import fit_scale, place_in_frame
+from .placement import fit_scale, place_in_frame, registration_marks
+from .preview import render_preview
 from .report import flattening_report
+from .ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
+from .thickness import CurvatureTable, load_curvature_table, ribbon_thickness
+
+#: How far outside the layout's bounding box the registration marks sit, mm.
+MARK_OFFSET = 5.0
 
 #: The size at which a surface is flattened when ``size`` is left to the frame (the flattening
 #: is scale-invariant: the result is scaled afterwards).
@@ -67,7 +76,11 @@ class DesignResult:
     curvature, field, flattening : the stages' results (κ in 1/mm at the physical size).
     kappa1 : (m,) signed normal curvature of the target along the ribbon direction, 1/mm.
     ribbon_direction : (m, 2) unit k̄1 in print coordinates.
+    stripes : the stripe patterns (on the flat mesh, refined where needed).
+    layout : the ribbons before thickness (``design.ribbons`` holds the final ones).
+    frame : the printable rectangle the design was placed in.
     design : the ``design.json`` content.
+    preview_svg, preview_png : the layout preview.
     """
 
     target: TargetMesh
@@ -79,7 +92,12 @@ class DesignResult:
     flattening: FlatteningResult
     kappa1: np.ndarray
     ribbon_direction: np.ndarray
+    stripes: StripeGrid
+    layout: RibbonLayout
+    frame: FrameSpec
     design: Design
+    preview_svg: bytes
+    preview_png: bytes
 
 
 def _bbox_diagonal(V: np.ndarray) -> float:
@@ -109,6 +127,11 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     solver = solver or SolverSettings()
     progress = progress or NoProgress()
     frame = frame or load_profile(params.printer_profile).frame
+    table = load_curvature_table(params.curvature_table)
+    if abs(table.prestretch - params.prestretch) > 1e-9:
+        raise DesignError(f"the curvature table {table.name!r} was measured at pre-stretch s = "
+                          f"{table.prestretch:g}, but the design asks for s = {params.prestretch:g}: "
+                          "give a table measured at that pre-stretch (curvature_table = path of a .toml file)")
     timings: dict[str, float] = {}
     t_start = time.perf_counter()
 
@@ -173,22 +196,88 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     kappa1 = curvature.normal_curvature(field.local) / scale
     report = flattening_report(flat, frames.area, params.bounds, timings,
                                total_time=time.perf_counter() - t_start)
+
+    # -- stripe patterns --------------------------------------------------------------------------
+    progress.stage_started("stripes", "ribbon spacing (Eq. 10) and the stripe patterns θ and ψ")
+    t = time.perf_counter()
+    stripes = stripe_grid(uv, F, flat.sigma, direction, kappa1, params,
+                          edge_fraction=solver.stripe_edge_fraction, max_faces=solver.max_faces)
+    timings["stripes"] = time.perf_counter() - t
+    singular = int(stripes.theta.singular.sum() + stripes.psi.singular.sum())
+    progress.stage_finished("stripes", timings["stripes"],
+                            (f"mesh subdivided to {len(stripes.F)} faces, " if stripes.refinements else "")
+                            + f"inverse iterations θ {stripes.theta.iterations}, ψ {stripes.psi.iterations}, "
+                            f"{singular} singular faces")
+
+    # -- ribbons ----------------------------------------------------------------------------------
+    progress.stage_started("ribbons", "staggered ribbons, sides and thicknesses")
+    t = time.perf_counter()
+    outline = shapely.Polygon(uv[target.boundary])
+    layout = layout_ribbons(stripes, outline, params)
+    ribbons, clamped = _ribbons(layout, table)
+    try:
+        marks = registration_marks(uv, frame, MARK_OFFSET)
+    except ValueError as exc:
+        raise DesignError(str(exc)) from None
+    timings["ribbons"] = time.perf_counter() - t
+    front = int(layout.front.sum())
+    progress.stage_finished("ribbons", timings["ribbons"],
+                            f"{layout.count} ribbons: {front} front, {layout.count - front} back; "
+                            f"{layout.dropped_short} dropped as too short, {layout.trimmed_angle} trimmed, "
+                            f"{clamped} thicknesses clamped to the table")
+
+    q = ribbon_quantiles(layout)
+    report["ribbons"] = RibbonsReport(
+        front=front, back=layout.count - front, dropped_short=layout.dropped_short,
+        trimmed_angle=layout.trimmed_angle, thickness_clamped=clamped,
+        **{key: Quantiles(**value) for key, value in q.items()})
+    parameters = Parameters.resolved(params, size)
+
+    # -- preview ----------------------------------------------------------------------------------
+    progress.stage_started("preview", "rendering the layout preview")
+    t = time.perf_counter()
+    svg, png = render_preview(
+        uv, F, flat.sigma[:, 1], ribbons, params.ribbon_width, marks=marks, frame_bounds=frame.bounds,
+        sigma2_bounds=parameters.bounds[1],
+        title=f"{target.name}: {len(ribbons)} ribbons ({front} front, {len(ribbons) - front} back), "
+              f"size {size:.0f} mm")
+    timings["preview"] = time.perf_counter() - t
+    progress.stage_finished("preview", timings["preview"],
+                            f"{len(png) // 1024} kB PNG, {len(svg) // 1024} kB SVG")
+    report["timings_s"] = dict(timings)
+    report["time_s"] = time.perf_counter() - t_start
     design = Design(
         source=Source(file=target.name, sha256=target.sha256, faces=target.source_faces),
-        parameters=Parameters.resolved(params, size),
+        parameters=parameters,
         faces=Faces.from_arrays(flat.sigma[:, 0], flat.sigma[:, 1], direction, kappa1),
+        ribbons=ribbons,
+        registration_marks=[(float(x), float(y)) for x, y in marks],
         report=Report(**report))
     return DesignResult(target=target, V=V, F=F, flat_uv=uv, curvature=curvature, field=field,
-                        flattening=flat, kappa1=kappa1, ribbon_direction=direction, design=design)
+                        flattening=flat, kappa1=kappa1, ribbon_direction=direction, stripes=stripes,
+                        layout=layout, frame=frame, design=design, preview_svg=svg, preview_png=png)
+
+
+def _ribbons(layout: RibbonLayout, table: CurvatureTable) -> tuple[list[Ribbon], int]:
+    """The ``design.json`` ribbons (side by the sign of κ1, thickness from ``table``) and the
+    number of thicknesses clamped to the table's range."""
+    thick = ribbon_thickness(table, layout.kappa1, layout.spacing[:, 1])
+    ribbons = [Ribbon(side="front" if k > 0 else "back", points=[(float(x), float(y)) for x, y in pts],
+                      thickness=float(tau), kappa1=float(k), spacing=(float(mu[0]), float(mu[1])))
+               for pts, tau, k, mu in zip(layout.points, thick.thickness, layout.kappa1, layout.spacing)]
+    return ribbons, thick.clamped_count
 
 
 def write_design(result: DesignResult, out_dir: str | Path,
                  progress: DesignProgress | None = None) -> Path:
-    """Write the design folder (``target.obj``, ``flat.obj``, ``design.json``) atomically."""
+    """Write the design folder (``target.obj``, ``flat.obj``, ``design.json``, ``preview.svg``,
+    ``preview.png``) atomically."""
     progress = progress or NoProgress()
     progress.stage_started("write", f"writing {out_dir}")
     t = time.perf_counter()
     path = write_design_folder(Path(out_dir), target_V=result.V, target_F=result.F,
-                               flat_V=result.flat_uv, design=result.design)
+                               flat_V=result.flat_uv, design=result.design,
+                               extra_files={"preview.svg": result.preview_svg,
+                                            "preview.png": result.preview_png})
     progress.stage_finished("write", time.perf_counter() - t, str(path))
     return path

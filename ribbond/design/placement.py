@@ -58,3 +58,25 @@ def place_in_frame(uv: np.ndarray, frame: FrameSpec, margin: float = 0.0,
     placed = uv @ R.T
     centre = 0.5 * (placed.max(axis=0) + placed.min(axis=0))
     return placed - centre + np.asarray(frame.center), angle
+
+
+def registration_marks(uv: np.ndarray, frame: FrameSpec, offset: float = 5.0) -> np.ndarray:
+    """Three registration marks (3, 2) outside the layout ``uv`` (n, 2), inside the frame.
+
+    They sit ``offset`` mm diagonally out from three corners of the layout's bounding box (lower
+    left, lower right, upper left): an L that is not symmetric under the flip, so a frame put
+    back the wrong way round cannot be mistaken for a small misalignment.
+
+    Raises
+    ------
+    ValueError
+        when a mark would fall outside the frame (the layout leaves less than ``offset`` mm).
+    """
+    lo, hi = uv.min(axis=0) - offset, uv.max(axis=0) + offset
+    marks = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]]])
+    x0, y0, x1, y1 = frame.bounds
+    out = (marks[:, 0] < x0) | (marks[:, 0] > x1) | (marks[:, 1] < y0) | (marks[:, 1] > y1)
+    if out.any():
+        raise ValueError(f"registration mark at {marks[np.argmax(out)].round(1).tolist()} falls outside the "
+                         f"frame {frame.bounds}: the layout leaves less than {offset} mm around it")
+    return marks

@@ -1,0 +1,457 @@
+"""The staggered ribbon layout on the flat surface (§6.1–6.2).
+
+Spacing comes from the final stretches by Eq. 10; two stripe patterns (``stripes``) give the
+grid: θ advances across the ribbons with period 2μ2, ψ along them with period μ1. The centerlines of
+the two staggered grids are the isolines arg θ = 0 and arg θ = π; along a centerline of grid g the
+ribbon midpoints are where arg ψ = gπ. Each ribbon is the piece of its centerline of length l_r
+centred on its midpoint, then
+
+- clipped to the flat outline shrunk by half the ribbon width (so the plastic stays on the fabric
+  that is kept when the outline is cut),
+- trimmed where its centerline turns more than ``max_trim_angle`` from the direction field,
+- split where κ1 changes sign (front where κ1 > 0, back elsewhere),
+- dropped when shorter than ``min_ribbon_length``.
+
+Everything is done on arc-length intervals of the centerlines, for all ribbons at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from .params import DesignParameters, spacing_for_sigma
+from .refine import subdivide
+from .stripes import Polylines, StripePattern, StripeSolver, chain_segments, vertex_average, vertex_line_field
+
+#: Largest usable stretch as a share of the way from 1 to s: Eq. 10 diverges at σ = s.
+_SIGMA_CAP = 0.98
+
+
+@dataclass(frozen=True)
+class StripeGrid:
+    """The flat mesh (refined where needed) with the spacing fields and the two stripe patterns.
+
+    Attributes
+    ----------
+    uv : (n, 2) flat positions, mm; F : (m, 3) faces; parent : (m,) the design face each face lies in.
+    mu1, mu2 : (n,) spacing along and across the ribbons at the vertices (Eq. 10), mm.
+    kappa1 : (n,) signed curvature along the ribbons at the vertices, 1/mm.
+    direction : (m, 2) the ribbon direction k̄1 per face.
+    theta, psi : the stripe patterns across (period 2μ2) and along (period μ1) the ribbons.
+    refinements : rounds of midpoint subdivision applied to the design mesh.
+    """
+
+    uv: np.ndarray
+    F: np.ndarray
+    parent: np.ndarray
+    mu1: np.ndarray
+    mu2: np.ndarray
+    kappa1: np.ndarray
+    direction: np.ndarray
+    theta: StripePattern
+    psi: StripePattern
+    refinements: int
+
+
+def face_spacing(sigma: np.ndarray, params: DesignParameters) -> np.ndarray:
+    """Eq. 10 per face: (m, 2) μ1 = l_r (s−1)/(s−σ1) σ1 and μ2 = w_r (s−1)/(s−σ2) σ2, mm.
+
+    Stretches are taken within [1, 1 + 0.98 (s − 1)]: below 1 ribbons would overlap, at s the
+    spacing is infinite.
+    """
+    s = params.prestretch
+    sig = np.clip(np.asarray(sigma, dtype=float), 1.0, 1.0 + _SIGMA_CAP * (s - 1.0))
+    return np.column_stack([spacing_for_sigma(sig[:, 0], params.ribbon_length, s),
+                            spacing_for_sigma(sig[:, 1], params.ribbon_width, s)])
+
+
+def _face_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    P = uv[F]
+    return 0.5 * np.abs(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
+
+
+def refinement_rounds(uv: np.ndarray, F: np.ndarray, shortest_period: float, edge_fraction: float,
+                      max_faces: int) -> int:
+    """Midpoint subdivisions needed for every edge to be at most ``edge_fraction`` × the shortest
+    period, within ``max_faces``."""
+    P = uv[F]
+    longest = float(np.max(np.linalg.norm(P - np.roll(P, -1, axis=1), axis=2)))
+    rounds = 0
+    while longest / 2 ** rounds > edge_fraction * shortest_period and len(F) * 4 ** (rounds + 1) <= max_faces:
+        rounds += 1
+    return rounds
+
+
+def stripe_grid(uv: np.ndarray, F: np.ndarray, sigma: np.ndarray, ribbon_direction: np.ndarray,
+                kappa1: np.ndarray, params: DesignParameters, *, edge_fraction: float = 0.3,
+                max_faces: int = 400_000) -> StripeGrid:
+    """Spacing fields and the θ and ψ stripe patterns on the flat surface (§6.1–6.2).
+
+    Parameters
+    ----------
+    uv : (n, 2) the flat surface, mm; F : (m, 3) faces, counter-clockwise.
+    sigma : (m, 2) final principal stretches (σ1 along the ribbons, σ2 across).
+    ribbon_direction : (m, 2) unit k̄1 per face; kappa1 : (m,) signed curvature along it, 1/mm.
+    edge_fraction, max_faces : the mesh is subdivided until its longest edge is at most
+        ``edge_fraction`` × the shortest stripe period, within ``max_faces`` faces.
+    """
+    n = len(uv)
+    area = _face_areas(uv, F)
+    mu_face = face_spacing(sigma, params)
+    mu = vertex_average(F, mu_face, area, n)
+    k1 = vertex_average(F, kappa1, area, n)
+    # the shortest period that matters: a few vertices at the clamps do not set the resolution
+    shortest = float(min(np.percentile(mu[:, 0], 5), 2 * np.percentile(mu[:, 1], 5)))
+    rounds = refinement_rounds(uv, F, shortest, edge_fraction, max_faces)
+    sub = subdivide(F, n, rounds)
+    uv_r, mu_r, k1_r = sub.prolong(uv), sub.prolong(mu), sub.prolong(k1)
+    direction = ribbon_direction[sub.parent]
+    area_r = _face_areas(uv_r, sub.F)
+    X1 = vertex_line_field(sub.F, direction, area_r, len(uv_r))
+    X2 = np.column_stack([-X1[:, 1], X1[:, 0]])
+    solver = StripeSolver(uv_r, sub.F)
+    theta = solver.solve(X2, 2 * np.pi / (2 * mu_r[:, 1]))
+    psi = solver.solve(X1, 2 * np.pi / mu_r[:, 0])
+    return StripeGrid(uv=uv_r, F=sub.F, parent=sub.parent, mu1=mu_r[:, 0], mu2=mu_r[:, 1], kappa1=k1_r,
+                      direction=direction, theta=theta, psi=psi, refinements=rounds)
+
+
+# ---------------------------------------------------------------------------------------------
+# ribbons
+
+
+@dataclass(frozen=True)
+class RibbonLayout:
+    """The ribbons and the layout checks.
+
+    Attributes
+    ----------
+    points : one (k_r, 2) polyline per ribbon, mm, flat (front-side print) coordinates.
+    grid : (R,) 0 or 1, the staggered grid of each ribbon.
+    kappa1 : (R,) mean signed curvature along each ribbon, 1/mm (never changes sign along it).
+    spacing : (R, 2) mean (μ1, μ2) along each ribbon, mm.
+    length : (R,) mm.
+    dropped_short, trimmed_angle : ribbons dropped for length, ribbons trimmed for direction.
+    direction_deviation : (q,) angle between ribbon segments and the direction field, degrees,
+        with ``direction_weight`` (q,) their lengths.
+    spacing_error_across, spacing_error_along : relative spacing errors (fractions) between
+        neighbouring centerlines against μ2 and between neighbouring midpoints against μ1.
+    centerlines : per grid, the centerline polylines (list of (k, 2) arrays).
+    """
+
+    points: list[np.ndarray]
+    grid: np.ndarray
+    kappa1: np.ndarray
+    spacing: np.ndarray
+    length: np.ndarray
+    dropped_short: int
+    trimmed_angle: int
+    direction_deviation: np.ndarray
+    direction_weight: np.ndarray
+    spacing_error_across: np.ndarray
+    spacing_error_along: np.ndarray
+    centerlines: tuple[list[np.ndarray], list[np.ndarray]]
+
+    @property
+    def count(self) -> int:
+        return len(self.points)
+
+    @property
+    def front(self) -> np.ndarray:
+        """(R,) True for ribbons printed on the front (κ1 > 0)."""
+        return self.kappa1 > 0
+
+
+@dataclass(frozen=True)
+class _Centerlines:
+    """The centerlines of one grid, concatenated, with arc length running on across polylines."""
+
+    xy: np.ndarray          # (K, 2) nodes
+    s: np.ndarray           # (K,) arc length, with a gap before each polyline
+    poly: np.ndarray        # (K,) polyline of each node
+    link_face: np.ndarray   # (K,) face of the link to the next node, −1 at a polyline's end
+    mid_range: np.ndarray   # (P, 2) where midpoints of each polyline may lie (the middle copy of a loop)
+    start: np.ndarray       # (P,) first node of each polyline
+    closed_length: np.ndarray  # (P,) the loop length for loops, inf for open polylines
+    edge: np.ndarray        # (K,) mesh edge of each node
+    t: np.ndarray           # (K,) position along it
+
+
+def _unroll(pl: Polylines) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Node order with loops walked three times (so ribbons may straddle a loop's start).
+
+    Returns the nodes, their polyline, the link faces and, per polyline, the copy count.
+    """
+    counts = np.diff(pl.offsets)
+    copies = np.where(pl.closed, 3, 1)
+    # a loop of k + 1 nodes (first repeated) walked three times has 3k + 1 nodes
+    new_counts = np.where(pl.closed, 3 * (counts - 1) + 1, counts)
+    poly = np.repeat(np.arange(pl.count), new_counts)
+    new_off = np.concatenate([[0], np.cumsum(new_counts)])
+    local = np.arange(new_off[-1]) - new_off[poly]
+    period = np.where(pl.closed, counts - 1, counts)[poly]
+    src = pl.offsets[poly] + np.where(pl.closed[poly], local % np.maximum(period, 1), local)
+    last = local == new_counts[poly] - 1
+    src = np.where(last & pl.closed[poly], pl.offsets[poly], src)
+    nodes = pl.nodes[src]
+    link_face = pl.link_face[src]
+    link_face[last] = -1
+    return nodes, poly, link_face, copies
+
+
+def _centerlines(theta: StripePattern, level: float, gap: float) -> _Centerlines:
+    iso = theta.isolines(level)
+    pl = chain_segments(len(iso.points), iso.segments, iso.segment_face)
+    nodes, poly, link_face, copies = _unroll(pl)
+    xy = iso.points[nodes]
+    seg = np.zeros(len(nodes))
+    same = poly[1:] == poly[:-1]
+    seg[1:] = np.where(same, np.linalg.norm(xy[1:] - xy[:-1], axis=1), gap)
+    s = np.cumsum(seg)
+    P = pl.count
+    first = np.searchsorted(poly, np.arange(P))
+    last = np.searchsorted(poly, np.arange(P), side="right") - 1
+    total = s[last] - s[first] if P else np.zeros(0)
+    loop_len = np.where(pl.closed, total / np.maximum(copies, 1), np.inf)
+    lo = np.where(pl.closed, s[first] + loop_len, s[first])
+    hi = np.where(pl.closed, s[first] + 2 * loop_len, s[last])
+    return _Centerlines(xy=xy, s=s, poly=poly, link_face=link_face,
+                        mid_range=np.column_stack([lo, hi]) if P else np.zeros((0, 2)),
+                        start=first, closed_length=loop_len, edge=iso.edge[nodes], t=iso.t[nodes])
+
+
+def _on_edges(values: np.ndarray, edges: np.ndarray, edge: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Vertex ``values`` (n,) linearly interpolated at points ``t`` along mesh ``edge``."""
+    i, j = edges[edge, 0], edges[edge, 1]
+    return (1.0 - t) * values[i] + t * values[j]
+
+
+def _midpoints(c: _Centerlines, psi: StripePattern, X1: np.ndarray, level: float) -> np.ndarray:
+    """Arc lengths (sorted) where the phase of ψ, oriented along the walk, passes ``level`` upward."""
+    if len(c.s) < 2:
+        return np.zeros(0)
+    phase = psi.phase_on_edges(c.edge, c.t)
+    # orient each node's phase along the walk: the phase is in the orientation X_i of the edge's low vertex
+    walk = np.zeros_like(c.xy)
+    same_next = np.append(c.poly[1:] == c.poly[:-1], False)
+    same_prev = np.insert(c.poly[1:] == c.poly[:-1], 0, False)
+    nxt = np.where(same_next, np.arange(len(c.s)) + 1, np.arange(len(c.s)))
+    prv = np.where(same_prev, np.arange(len(c.s)) - 1, np.arange(len(c.s)))
+    walk = c.xy[nxt] - c.xy[prv]
+    low = psi.topology.edges[c.edge, 0]
+    phase = np.where(np.einsum("kc,kc->k", X1[low], walk) < 0, -phase, phase)
+    step = np.angle(np.exp(1j * (phase[1:] - phase[:-1])))
+    step = np.where(same_next[:-1], step, 0.0)
+    # cumulative phase restarting at each polyline's first node
+    cum = np.concatenate([[0.0], np.cumsum(step)])
+    restart = np.flatnonzero(~same_prev)
+    base = phase[restart] - cum[restart]
+    Phi = cum + np.repeat(base, np.diff(np.append(restart, len(cum))))
+    a, b = Phi[:-1], Phi[1:]
+    up = same_next[:-1] & (b > a)
+    k_lo = np.floor((a - level) / (2 * np.pi)).astype(np.int64) + 1
+    k_hi = np.floor((b - level) / (2 * np.pi)).astype(np.int64)
+    count = np.where(up, np.maximum(k_hi - k_lo + 1, 0), 0)
+    link = np.repeat(np.arange(len(a)), count)
+    off = np.concatenate([[0], np.cumsum(count)])
+    k = k_lo[link] + (np.arange(off[-1]) - off[link])
+    L = level + 2 * np.pi * k
+    frac = (L - a[link]) / (b[link] - a[link])
+    s_mid = c.s[link] + frac * (c.s[link + 1] - c.s[link])
+    lo, hi = c.mid_range[c.poly[link], 0], c.mid_range[c.poly[link], 1]
+    keep = (s_mid >= lo) & (s_mid < hi) if len(c.mid_range) else np.zeros(len(s_mid), dtype=bool)
+    return np.sort(s_mid[keep])
+
+
+def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, q: tuple[float, ...]) -> list[float]:
+    """Quantiles of ``values`` weighted by ``weights`` (0 for empty input)."""
+    if len(values) == 0 or np.sum(weights) <= 0:
+        return [0.0 for _ in q]
+    order = np.argsort(values)
+    v, w = values[order], weights[order]
+    cw = np.cumsum(w) - 0.5 * w
+    cw /= np.sum(w)
+    return [float(np.interp(qq, cw, v)) for qq in q]
+
+
+def ribbon_quantiles(layout: RibbonLayout) -> dict[str, dict[str, float]]:
+    """The report's distributions: direction deviation (degrees) and spacing error (%)."""
+    dev = _weighted_quantiles(layout.direction_deviation, layout.direction_weight, (0.5, 0.95))
+    out = {"direction_deviation_deg": {"median": dev[0], "p95": dev[1]}}
+    for key, errs in (("spacing_error_pct", np.concatenate([layout.spacing_error_across,
+                                                            layout.spacing_error_along])),
+                      ("spacing_error_across_pct", layout.spacing_error_across),
+                      ("spacing_error_along_pct", layout.spacing_error_along)):
+        qs = np.percentile(100 * errs, [50, 95]) if len(errs) else [0.0, 0.0]
+        out[key] = {"median": float(qs[0]), "p95": float(qs[1])}
+    return out
+
+
+def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters) -> RibbonLayout:
+    """Cut the ribbons from the staggered grid (§6.2).
+
+    Parameters
+    ----------
+    grid : the stripe patterns and fields (``stripe_grid``).
+    outline : the flat surface's outline, mm.
+    params : ribbon length and width, minimum length, trim angle.
+    """
+    l_r, w_r = params.ribbon_length, params.ribbon_width
+    inset = outline.buffer(-0.5 * w_r)
+    shapely.prepare(inset)
+    X1 = grid.psi.direction
+    edges = grid.theta.topology.edges
+    gap = 10.0 * l_r + 1.0
+    cos_trim = np.cos(np.deg2rad(params.max_trim_angle))
+
+    pts_all: list[np.ndarray] = []
+    grids, kappas, spacings, lengths = [], [], [], []
+    dev_all, devw_all, along_all = [], [], []
+    mids_xy: list[np.ndarray] = [np.zeros((0, 2)), np.zeros((0, 2))]
+    mids_mu2: list[np.ndarray] = [np.zeros(0), np.zeros(0)]
+    centerlines: list[list[np.ndarray]] = [[], []]
+    dropped = trimmed = 0
+    for g, level in enumerate((0.0, np.pi)):
+        c = _centerlines(grid.theta, level, gap)
+        starts = np.append(c.start, len(c.s))
+        centerlines[g] = [c.xy[starts[p]:starts[p + 1]] for p in range(len(c.start))]
+        if len(c.s) < 2:
+            continue
+        k1 = _on_edges(grid.kappa1, edges, c.edge, c.t)
+        mu1 = _on_edges(grid.mu1, edges, c.edge, c.t)
+        mu2 = _on_edges(grid.mu2, edges, c.edge, c.t)
+        s_mid = _midpoints(c, grid.psi, X1, level)
+        if len(s_mid) == 0:
+            continue
+        # ribbon intervals: l_r centred on each midpoint, within the polyline, halfway to neighbours
+        node_of = np.clip(np.searchsorted(c.s, s_mid, side="right") - 1, 0, len(c.s) - 1)
+        pid = c.poly[node_of]
+        half = np.minimum(0.5 * l_r, 0.5 * c.closed_length[pid])
+        first_s = c.s[c.start[pid]]
+        last_s = c.s[np.append(c.start[1:], len(c.s))[pid] - 1]
+        a = np.maximum(s_mid - half, first_s)
+        b = np.minimum(s_mid + half, last_s)
+        same_prev = np.insert(pid[1:] == pid[:-1], 0, False)
+        same_next = np.append(pid[1:] == pid[:-1], False)
+        prev_mid = np.insert(0.5 * (s_mid[1:] + s_mid[:-1]), 0, -np.inf)
+        next_mid = np.append(0.5 * (s_mid[1:] + s_mid[:-1]), np.inf)
+        a = np.where(same_prev, np.maximum(a, prev_mid), a)
+        b = np.where(same_next, np.minimum(b, next_mid), b)
+
+        # breakpoints: nodes, ribbon ends, where the centerlines leave the inset outline, κ1 = 0
+        has_next = c.link_face >= 0
+        li = np.flatnonzero(has_next)
+        d_len = c.s[li + 1] - c.s[li]
+        sign_change = k1[li] * k1[li + 1] < 0
+        zero_s = c.s[li] + d_len * np.where(sign_change, k1[li] / np.where(sign_change, k1[li] - k1[li + 1], 1), 0)
+        lines = shapely.linestrings(c.xy, indices=c.poly)
+        crossings = shapely.intersection(lines, inset.boundary)
+        parts, owner = shapely.get_parts(crossings, return_index=True)
+        parts_pts = shapely.get_coordinates(parts)
+        n_per_part = shapely.get_num_coordinates(parts)
+        cross_owner = np.repeat(owner, n_per_part)
+        cross_s = (shapely.line_locate_point(lines[cross_owner], shapely.points(parts_pts))
+                   + c.s[c.start[cross_owner]]) if len(parts_pts) else np.zeros(0)
+        loop = np.isfinite(c.closed_length[cross_owner])    # a walked-thrice loop crosses thrice
+        cross_s = np.concatenate([cross_s] + [cross_s[loop] + k * c.closed_length[cross_owner][loop]
+                                              for k in (1, 2)])
+        bp = np.unique(np.concatenate([c.s, a, b, zero_s[sign_change], cross_s]))
+        lo, hi = bp[:-1], bp[1:]
+        mid = 0.5 * (lo + hi)
+        r = np.searchsorted(a, mid, side="right") - 1
+        in_ribbon = (r >= 0) & (mid < b[np.maximum(r, 0)])
+        link = np.clip(np.searchsorted(c.s, mid, side="right") - 1, 0, len(c.s) - 1)
+        on_line = has_next[link] & (c.poly[np.minimum(link + 1, len(c.s) - 1)] == c.poly[link])
+        x = np.interp(mid, c.s, c.xy[:, 0])
+        y = np.interp(mid, c.s, c.xy[:, 1])
+        inside = shapely.contains_xy(inset, x, y)
+        vec = c.xy[np.minimum(link + 1, len(c.s) - 1)] - c.xy[link]
+        vlen = np.linalg.norm(vec, axis=1)
+        face = c.link_face[link]
+        fdir = grid.direction[np.maximum(face, 0)]
+        cosang = np.abs(np.einsum("kc,kc->k", vec, fdir)) / np.maximum(vlen, 1e-300)
+        aligned = cosang >= cos_trim
+        positive = np.interp(mid, c.s, k1) > 0
+        candidate = in_ribbon & on_line & inside
+        keep = candidate & aligned
+        trimmed += len(np.unique(r[candidate & ~aligned]))
+
+        # pieces: runs of kept intervals with one ribbon and one sign, without a break
+        brk = np.ones(len(mid), dtype=bool)
+        brk[1:] = ~(keep[:-1] & (r[1:] == r[:-1]) & (positive[1:] == positive[:-1]))
+        start_q = np.flatnonzero(keep & brk)
+        piece = np.cumsum(keep & brk) - 1
+        end_q = np.zeros(len(start_q), dtype=np.int64)
+        np.maximum.at(end_q, piece[keep], np.flatnonzero(keep))
+        A, B = lo[start_q], hi[end_q]
+        long_enough = (B - A) >= params.min_ribbon_length
+        dropped += int(np.sum(~long_enough))
+        A, B = A[long_enough], B[long_enough]
+        pieces_q = np.flatnonzero(long_enough)
+        kept_interval = keep & np.isin(piece, pieces_q)
+        if len(A) == 0:
+            continue
+        dev_all.append(np.degrees(np.arccos(np.clip(cosang[kept_interval], 0.0, 1.0))))
+        devw_all.append((hi - lo)[kept_interval])
+
+        # geometry and means along each piece
+        inner_lo = np.searchsorted(c.s, A, side="right")
+        inner_hi = np.searchsorted(c.s, B, side="left")
+        n_inner = np.maximum(inner_hi - inner_lo, 0)
+        counts = n_inner + 2
+        off = np.concatenate([[0], np.cumsum(counts)])
+        owner_p = np.repeat(np.arange(len(A)), counts)
+        local = np.arange(off[-1]) - off[owner_p]
+        s_pts = np.where(local == 0, A[owner_p],
+                         np.where(local == counts[owner_p] - 1, B[owner_p],
+                                  c.s[np.minimum(inner_lo[owner_p] + local - 1, len(c.s) - 1)]))
+        xy = np.column_stack([np.interp(s_pts, c.s, c.xy[:, 0]), np.interp(s_pts, c.s, c.xy[:, 1])])
+        ds = np.diff(s_pts)
+        same_piece = owner_p[1:] == owner_p[:-1]
+        ds = np.where(same_piece, ds, 0.0)
+        length = np.bincount(owner_p[:-1], weights=ds, minlength=len(A))
+
+        def mean_along(values: np.ndarray) -> np.ndarray:
+            v = np.interp(s_pts, c.s, values)
+            return np.bincount(owner_p[:-1], weights=0.5 * (v[1:] + v[:-1]) * ds,
+                               minlength=len(A)) / length
+
+        kappas.append(mean_along(k1))
+        spacings.append(np.column_stack([mean_along(mu1), mean_along(mu2)]))
+        lengths.append(length)
+        grids.append(np.full(len(A), g))
+        pts_all.extend(np.split(xy, off[1:-1]))
+
+        # spacing checks: midpoints of ribbons that were kept
+        ribbon_of_piece = r[start_q[pieces_q]]
+        kept_mid = np.zeros(len(s_mid), dtype=bool)
+        kept_mid[ribbon_of_piece] = True
+        mu1_mid = np.interp(s_mid, c.s, mu1)
+        pair = kept_mid[:-1] & kept_mid[1:] & (pid[1:] == pid[:-1])
+        along = np.abs(np.diff(s_mid) - 0.5 * (mu1_mid[1:] + mu1_mid[:-1])) / (0.5 * (mu1_mid[1:] + mu1_mid[:-1]))
+        along_all.append(along[pair])
+        mids_xy[g] = np.column_stack([np.interp(s_mid[kept_mid], c.s, c.xy[:, 0]),
+                                      np.interp(s_mid[kept_mid], c.s, c.xy[:, 1])])
+        mids_mu2[g] = np.interp(s_mid[kept_mid], c.s, mu2)
+
+    across = []
+    for g in (0, 1):
+        others = [line for line in centerlines[1 - g] if len(line) >= 2]
+        if len(mids_xy[g]) == 0 or not others:
+            continue
+        tree = shapely.STRtree([shapely.LineString(line) for line in others])
+        _, dist = tree.query_nearest(shapely.points(mids_xy[g]), return_distance=True, all_matches=False)
+        across.append(np.abs(dist - mids_mu2[g]) / mids_mu2[g])
+
+    def cat(parts: list[np.ndarray], shape: tuple[int, ...] = (0,)) -> np.ndarray:
+        return np.concatenate(parts) if parts else np.zeros(shape)
+
+    return RibbonLayout(points=pts_all, grid=cat(grids).astype(np.int64), kappa1=cat(kappas),
+                        spacing=cat(spacings, (0, 2)), length=cat(lengths), dropped_short=dropped,
+                        trimmed_angle=trimmed, direction_deviation=cat(dev_all),
+                        direction_weight=cat(devw_all), spacing_error_across=cat(across),
+                        spacing_error_along=cat(along_all),
+                        centerlines=(centerlines[0], centerlines[1]))
