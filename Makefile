@@ -24,6 +24,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) bench/stream.py
 	$(PY) bench/flatten.py
+	$(PY) bench/design.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache out

@@ -24,7 +24,8 @@ import shapely
 
 from .params import DesignParameters, spacing_for_sigma
 from .refine import subdivide
-from .stripes import Polylines, StripePattern, StripeSolver, chain_segments, vertex_average, vertex_line_field
+from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, vertex_average,
+                      vertex_line_field)
 
 #: Largest usable stretch as a share of the way from 1 to s: Eq. 10 diverges at σ = s.
 _SIGMA_CAP = 0.98
@@ -68,11 +69,6 @@ def face_spacing(sigma: np.ndarray, params: DesignParameters) -> np.ndarray:
                             spacing_for_sigma(sig[:, 1], params.ribbon_width, s)])
 
 
-def _face_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    P = uv[F]
-    return 0.5 * np.abs(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
-
-
 def refinement_rounds(uv: np.ndarray, F: np.ndarray, shortest_period: float, edge_fraction: float,
                       max_faces: int) -> int:
     """Midpoint subdivisions needed for every edge to be at most ``edge_fraction`` × the shortest
@@ -99,7 +95,7 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, sigma: np.ndarray, ribbon_directi
         ``edge_fraction`` × the shortest stripe period, within ``max_faces`` faces.
     """
     n = len(uv)
-    area = _face_areas(uv, F)
+    area = face_areas(uv, F)
     mu_face = face_spacing(sigma, params)
     mu = vertex_average(F, mu_face, area, n)
     k1 = vertex_average(F, kappa1, area, n)
@@ -109,7 +105,7 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, sigma: np.ndarray, ribbon_directi
     sub = subdivide(F, n, rounds)
     uv_r, mu_r, k1_r = sub.prolong(uv), sub.prolong(mu), sub.prolong(k1)
     direction = ribbon_direction[sub.parent]
-    area_r = _face_areas(uv_r, sub.F)
+    area_r = face_areas(uv_r, sub.F)
     X1 = vertex_line_field(sub.F, direction, area_r, len(uv_r))
     X2 = np.column_stack([-X1[:, 1], X1[:, 0]])
     solver = StripeSolver(uv_r, sub.F)

@@ -87,6 +87,12 @@ def vertex_line_field(F: np.ndarray, directions: np.ndarray, face_area: np.ndarr
     return np.column_stack([np.cos(half), np.sin(half)])
 
 
+def face_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m,) unsigned areas of the flat triangles."""
+    a, b = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
+    return 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+
+
 def cotangent_weights(uv: np.ndarray, F: np.ndarray, topology: EdgeTopology) -> np.ndarray:
     """w_ij = ½ Σ cot of the angles opposite each edge (E,), raised to at least ``_MIN_WEIGHT``."""
     P = uv[F]                                            # (m, 3, 2)
@@ -208,8 +214,7 @@ class StripeSolver:
         self.uv, self.F, self.n = uv, F, len(uv)
         self.topology = edge_topology(F)
         self.weights = cotangent_weights(uv, F, self.topology)
-        P = uv[F]
-        area = 0.5 * np.abs(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
+        area = face_areas(uv, F)
         self.vertex_area = np.bincount(F.ravel(), weights=np.repeat(area / 3.0, 3), minlength=self.n)
         self.edge_vector = uv[self.topology.edges[:, 1]] - uv[self.topology.edges[:, 0]]
         self.mass = sp.diags(np.repeat(self.vertex_area, 2)).tocsc()
