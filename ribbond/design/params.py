@@ -98,8 +98,10 @@ class SolverSettings(BaseModel):
         500, ge=0, description="cap on the first phase, which aims every face at the middle of "
         "the bounds before the bounded iteration (the most uniform flattening); 0 turns it off")
     stripe_edge_fraction: float = Field(
-        0.2, gt=0, le=1, description="the flat mesh is subdivided until its longest edge is at most "
-        "this share of the shortest stripe period")
+        0.15, gt=0, le=1, description="the stripe patterns are computed on a triangulation of the flat "
+        "surface with edges of this share of the shortest stripe period")
+    stripe_max_faces: int = Field(
+        150_000, ge=100, description="that triangulation is made coarser rather than exceed this many faces")
     coarse_faces: int = Field(
         12_000, ge=0, description="meshes of 4× more faces start from a flattening of a copy "
         "decimated to this many faces (coarse to fine); 0 turns it off")

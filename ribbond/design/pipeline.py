@@ -200,14 +200,13 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     # -- stripe patterns --------------------------------------------------------------------------
     progress.stage_started("stripes", "ribbon spacing (Eq. 10) and the stripe patterns θ and ψ")
     t = time.perf_counter()
-    stripes = stripe_grid(uv, F, flat.sigma, direction, kappa1, params,
-                          edge_fraction=solver.stripe_edge_fraction, max_faces=solver.max_faces)
+    stripes = stripe_grid(uv, F, target.boundary, flat.sigma, direction, kappa1, params,
+                          edge_fraction=solver.stripe_edge_fraction, max_faces=solver.stripe_max_faces)
     timings["stripes"] = time.perf_counter() - t
     singular = int(stripes.theta.singular.sum() + stripes.psi.singular.sum())
     progress.stage_finished("stripes", timings["stripes"],
-                            (f"mesh subdivided to {len(stripes.F)} faces, " if stripes.refinements else "")
-                            + f"inverse iterations θ {stripes.theta.iterations}, ψ {stripes.psi.iterations}, "
-                            f"{singular} singular faces")
+                            f"on {len(stripes.F)} faces of {stripes.spacing:.2f} mm, inverse iterations "
+                            f"θ {stripes.theta.iterations}, ψ {stripes.psi.iterations}, {singular} singular faces")
 
     # -- ribbons ----------------------------------------------------------------------------------
     progress.stage_started("ribbons", "staggered ribbons, sides and thicknesses")

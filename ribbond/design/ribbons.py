@@ -23,7 +23,7 @@ import numpy as np
 import shapely
 
 from .params import DesignParameters, spacing_for_sigma
-from .refine import subdivide
+from .remesh import remesh_flat
 from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, vertex_average,
                       vertex_line_field)
 
@@ -33,7 +33,7 @@ _SIGMA_CAP = 0.98
 
 @dataclass(frozen=True)
 class StripeGrid:
-    """The flat mesh (refined where needed) with the spacing fields and the two stripe patterns.
+    """The flat domain (triangulated for the stripes) with the spacing fields and the two patterns.
 
     Attributes
     ----------
@@ -42,7 +42,7 @@ class StripeGrid:
     kappa1 : (n,) signed curvature along the ribbons at the vertices, 1/mm.
     direction : (m, 2) the ribbon direction k̄1 per face.
     theta, psi : the stripe patterns across (period 2μ2) and along (period μ1) the ribbons.
-    refinements : rounds of midpoint subdivision applied to the design mesh.
+    spacing : the edge length of the stripe mesh, mm.
     """
 
     uv: np.ndarray
@@ -54,7 +54,7 @@ class StripeGrid:
     direction: np.ndarray
     theta: StripePattern
     psi: StripePattern
-    refinements: int
+    spacing: float
 
 
 def face_spacing(sigma: np.ndarray, params: DesignParameters) -> np.ndarray:
@@ -69,50 +69,46 @@ def face_spacing(sigma: np.ndarray, params: DesignParameters) -> np.ndarray:
                             spacing_for_sigma(sig[:, 1], params.ribbon_width, s)])
 
 
-def refinement_rounds(uv: np.ndarray, F: np.ndarray, shortest_period: float, edge_fraction: float,
-                      max_faces: int) -> int:
-    """Midpoint subdivisions needed for every edge to be at most ``edge_fraction`` × the shortest
-    period, within ``max_faces``."""
-    P = uv[F]
-    longest = float(np.max(np.linalg.norm(P - np.roll(P, -1, axis=1), axis=2)))
-    rounds = 0
-    while longest / 2 ** rounds > edge_fraction * shortest_period and len(F) * 4 ** (rounds + 1) <= max_faces:
-        rounds += 1
-    return rounds
+def stripe_spacing(shortest_period: float, area: float, edge_fraction: float, max_faces: int) -> float:
+    """Edge length of the stripe mesh: ``edge_fraction`` × the shortest period, coarser if the
+    domain of ``area`` mm² would need more than ``max_faces`` equilateral faces."""
+    h = edge_fraction * shortest_period
+    h_cap = np.sqrt(area / (max_faces * np.sqrt(3.0) / 4.0))
+    return float(max(h, h_cap))
 
 
-def stripe_grid(uv: np.ndarray, F: np.ndarray, sigma: np.ndarray, ribbon_direction: np.ndarray,
-                kappa1: np.ndarray, params: DesignParameters, *, edge_fraction: float = 0.3,
-                max_faces: int = 400_000) -> StripeGrid:
+def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.ndarray,
+                ribbon_direction: np.ndarray, kappa1: np.ndarray, params: DesignParameters, *,
+                edge_fraction: float = 0.15, max_faces: int = 150_000) -> StripeGrid:
     """Spacing fields and the θ and ψ stripe patterns on the flat surface (§6.1–6.2).
 
     Parameters
     ----------
-    uv : (n, 2) the flat surface, mm; F : (m, 3) faces, counter-clockwise.
+    uv : (n, 2) the flat surface, mm; F : (m, 3) faces, counter-clockwise; boundary : (b,) its
+        boundary loop.
     sigma : (m, 2) final principal stretches (σ1 along the ribbons, σ2 across).
     ribbon_direction : (m, 2) unit k̄1 per face; kappa1 : (m,) signed curvature along it, 1/mm.
-    edge_fraction, max_faces : the mesh is subdivided until its longest edge is at most
-        ``edge_fraction`` × the shortest stripe period, within ``max_faces`` faces.
+    edge_fraction, max_faces : the stripes are computed on a triangulation of the flat domain with
+        edges of ``edge_fraction`` × the shortest stripe period (5th percentile), within
+        ``max_faces`` faces (``remesh``).
     """
     n = len(uv)
     area = face_areas(uv, F)
-    mu_face = face_spacing(sigma, params)
-    mu = vertex_average(F, mu_face, area, n)
+    mu = vertex_average(F, face_spacing(sigma, params), area, n)
     k1 = vertex_average(F, kappa1, area, n)
     # the shortest period that matters: a few vertices at the clamps do not set the resolution
     shortest = float(min(np.percentile(mu[:, 0], 5), 2 * np.percentile(mu[:, 1], 5)))
-    rounds = refinement_rounds(uv, F, shortest, edge_fraction, max_faces)
-    sub = subdivide(F, n, rounds)
-    uv_r, mu_r, k1_r = sub.prolong(uv), sub.prolong(mu), sub.prolong(k1)
-    direction = ribbon_direction[sub.parent]
-    area_r = face_areas(uv_r, sub.F)
-    X1 = vertex_line_field(sub.F, direction, area_r, len(uv_r))
+    h = stripe_spacing(shortest, float(area.sum()), edge_fraction, max_faces)
+    mesh = remesh_flat(uv, F, boundary, h)
+    mu_r, k1_r = mesh.vertex_values(mu), mesh.vertex_values(k1)
+    direction = ribbon_direction[mesh.parent]
+    X1 = vertex_line_field(mesh.F, direction, face_areas(mesh.uv, mesh.F), len(mesh.uv))
     X2 = np.column_stack([-X1[:, 1], X1[:, 0]])
-    solver = StripeSolver(uv_r, sub.F)
+    solver = StripeSolver(mesh.uv, mesh.F)
     theta = solver.solve(X2, 2 * np.pi / (2 * mu_r[:, 1]))
     psi = solver.solve(X1, 2 * np.pi / mu_r[:, 0])
-    return StripeGrid(uv=uv_r, F=sub.F, parent=sub.parent, mu1=mu_r[:, 0], mu2=mu_r[:, 1], kappa1=k1_r,
-                      direction=direction, theta=theta, psi=psi, refinements=rounds)
+    return StripeGrid(uv=mesh.uv, F=mesh.F, parent=mesh.parent, mu1=mu_r[:, 0], mu2=mu_r[:, 1],
+                      kappa1=k1_r, direction=direction, theta=theta, psi=psi, spacing=h)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -374,15 +374,22 @@ class Polylines:
 
 
 def chain_segments(n_points: int, segments: np.ndarray, segment_face: np.ndarray) -> Polylines:
-    """Join segments (S, 2) of crossings into polylines (every crossing is on at most two segments).
+    """Join segments (S, 2) of crossings into polylines.
 
-    Open chains start at their lower-numbered end; a closed loop starts at its lowest crossing.
+    Every crossing lies on at most two segments of a regular pattern; segments at a crossing that
+    would join more (a degenerate tie) are left out. Open chains start at their lower-numbered
+    end; a closed loop starts at its lowest crossing.
     """
     N = n_points
     a, b = segments[:, 0], segments[:, 1]
     degree = np.bincount(np.concatenate([a, b]), minlength=N)
-    if np.any(degree > 2):
-        raise ValueError("an isoline crossing joins more than two segments: the isolines are not manifold")
+    branch = degree > 2
+    if branch.any():
+        # only a phase exactly on a level at a vertex can make a crossing branch: leave such a
+        # crossing out, so the isolines through it end there instead of joining wrongly
+        keep_seg = ~(branch[a] | branch[b])
+        a, b, segment_face = a[keep_seg], b[keep_seg], segment_face[keep_seg]
+        degree = np.bincount(np.concatenate([a, b]), minlength=N)
     G = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(N, N)).tocsr()
     n_comp, label = csgraph.connected_components(G, directed=False)
     used = degree > 0

@@ -224,6 +224,8 @@ def test_chain_segments_orders_paths_and_closes_loops() -> None:
         assert [lookup[frozenset((a, b))] for a, b in zip(nodes[:-1], nodes[1:])] == list(links[:-1])
 
 
-def test_chain_segments_refuses_branching() -> None:
-    with pytest.raises(ValueError, match="more than two segments"):
-        chain_segments(4, np.array([[0, 1], [0, 2], [0, 3]]), np.zeros(3, dtype=np.int64))
+def test_chain_segments_leaves_out_a_branching_crossing() -> None:
+    # 0 would join three segments; the chain 3-4-5 is untouched
+    pl = chain_segments(6, np.array([[0, 1], [0, 2], [0, 3], [3, 4], [4, 5]]), np.arange(5))
+    got = [tuple(pl.nodes[pl.offsets[p]:pl.offsets[p + 1]]) for p in range(pl.count)]
+    assert got == [(3, 4, 5)]
