@@ -76,7 +76,7 @@ class DesignResult:
     curvature, field, flattening : the stages' results (κ in 1/mm at the physical size).
     kappa1 : (m,) signed normal curvature of the target along the ribbon direction, 1/mm.
     ribbon_direction : (m, 2) unit k̄1 in print coordinates.
-    stripes : the stripe patterns (on the flat mesh, refined where needed).
+    stripes : the stripe patterns (on a triangulation of the flat domain at their own resolution).
     layout : the ribbons before thickness (``design.ribbons`` holds the final ones).
     frame : the printable rectangle the design was placed in.
     design : the ``design.json`` content.

@@ -14,20 +14,14 @@ file of the same shape, given by path.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import (
-    BaseModel,
-    ConfigDict,
-    Field,
-    ValidationError,
-    ValidationInfo,
-    field_validator,
-)
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+
+from ..datafiles import load_toml_model, shipped_names
 
 TABLE_DIR = Path(__file__).with_name("tables")
 
@@ -102,7 +96,7 @@ class CurvatureTable(BaseModel):
 
 def available_tables() -> list[str]:
     """Names of the curvature tables shipped with ribbond."""
-    return sorted(p.stem for p in TABLE_DIR.glob("*.toml"))
+    return shipped_names(TABLE_DIR)
 
 
 def load_curvature_table(name_or_path: str | Path) -> CurvatureTable:
@@ -113,22 +107,7 @@ def load_curvature_table(name_or_path: str | Path) -> CurvatureTable:
     ValueError
         naming the table file and what is wrong with it (the field path for invalid values).
     """
-    path = Path(name_or_path)
-    if path.suffix != ".toml":
-        path = TABLE_DIR / f"{name_or_path}.toml"
-        if not path.is_file():
-            raise ValueError(f"unknown curvature table {str(name_or_path)!r}; shipped tables: "
-                             f"{', '.join(available_tables())}, or give the path of a .toml file")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the curvature table: {exc}") from None
-    try:
-        return CurvatureTable(**data)
-    except ValidationError as exc:
-        problems = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or '(table)'}: {e['msg']}"
-                             for e in exc.errors())
-        raise ValueError(f"{path}: invalid curvature table: {problems}") from None
+    return load_toml_model(name_or_path, TABLE_DIR, CurvatureTable, "curvature table")
 
 
 @dataclass(frozen=True)

@@ -7,11 +7,12 @@ same shape, given by path. (The G-code stage adds the extrusion and motion setti
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from ..datafiles import load_toml_model, shipped_names
 
 PROFILE_DIR = Path(__file__).with_name("profiles")
 
@@ -49,7 +50,7 @@ class PrinterProfile(BaseModel):
 
 def available_profiles() -> list[str]:
     """Names of the profiles shipped with ribbond."""
-    return sorted(p.stem for p in PROFILE_DIR.glob("*.toml"))
+    return shipped_names(PROFILE_DIR)
 
 
 def load_profile(name_or_path: str | Path) -> PrinterProfile:
@@ -60,18 +61,4 @@ def load_profile(name_or_path: str | Path) -> PrinterProfile:
     ValueError
         naming the profile and what is wrong with it.
     """
-    path = Path(name_or_path)
-    if path.suffix != ".toml":
-        path = PROFILE_DIR / f"{name_or_path}.toml"
-        if not path.is_file():
-            raise ValueError(f"unknown printer profile {str(name_or_path)!r}; shipped profiles: "
-                             f"{', '.join(available_profiles())}, or give the path of a .toml file")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the printer profile: {exc}") from None
-    try:
-        return PrinterProfile(**data)
-    except ValidationError as exc:
-        problems = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())
-        raise ValueError(f"{path}: invalid printer profile: {problems}") from None
+    return load_toml_model(name_or_path, PROFILE_DIR, PrinterProfile, "printer profile")

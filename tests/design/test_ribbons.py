@@ -18,6 +18,7 @@ import pytest
 import shapely
 
 from ribbond.design import surfaces
+from ribbond.design.errors import DesignError
 from ribbond.design.folder import read_design_folder
 from ribbond.design.mesh_io import write_obj
 from ribbond.design.params import DesignParameters, SizeSpec, spacing_for_sigma
@@ -270,3 +271,12 @@ def test_a_plane_gets_back_ribbons_of_the_least_thickness(tmp_path_factory: pyte
     assert {r.side for r in design.ribbons} == {"back"}
     assert {r.thickness for r in design.ribbons} == {table.thickness[0]}
     assert design.report.ribbons.thickness_clamped == len(design.ribbons)
+
+
+def test_an_unknown_or_mismatched_curvature_table_is_refused_before_any_work(tmp_path: Path) -> None:
+    mesh = tmp_path / "cyl.obj"
+    write_obj(mesh, *surfaces.cylinder_patch(40.0, 120.0, 60.0, 8, 4))
+    with pytest.raises(ValueError, match="unknown curvature table 'nope'.*tpu95a-lycra-default"):
+        design_mesh(mesh, DesignParameters(curvature_table="nope"))
+    with pytest.raises(DesignError, match="measured at pre-stretch s = 1.6.*s = 1.5"):
+        design_mesh(mesh, DesignParameters(prestretch=1.5, sigma2_bounds=(1.3, 1.45)))
