@@ -66,7 +66,8 @@ def summary(result: DesignResult, out_dir: Path) -> str:
     w, h = result.flat_uv.max(axis=0) - result.flat_uv.min(axis=0)
     timings = ", ".join(f"{k} {v:.2f}" for k, v in r.timings_s.items())
     lines = [
-        f"design      {out_dir}  (target.obj, flat.obj, design.json, preview.svg/.png)",
+        f"design      {out_dir}  (target.obj, flat.obj, design.json, front/back/combined.gcode, "
+        "preview.svg/.png)",
         f"surface     {d.source.file}: {r.faces} faces, {p.size.bbox_diagonal:.1f} mm bounding-box "
         f"diagonal; flat layout {w:.1f} × {h:.1f} mm",
         f"k1 field    λ = {p.smoothing_lambda:g}; {100 * result.field.umbilic.mean():.1f} % of faces umbilic"
@@ -93,6 +94,12 @@ def summary(result: DesignResult, out_dir: Path) -> str:
             f"p95 {rr.direction_deviation_deg.p95:.2f}°; spacing error median "
             f"{rr.spacing_error_pct.median:.1f} %, p95 {rr.spacing_error_pct.p95:.1f} % (Eq. 10)",
         ]
+    pr = r.print_
+    if pr is not None:
+        for side, sp in (("front", pr.front), ("back", pr.back)):
+            lines.append(f"{side + ' G-code':<11} {sp.lines} lines, ~{sp.time_s / 60:.1f} min, "
+                         f"{sp.extrusion_mm:.0f} mm printed, {sp.travel_mm:.0f} mm travel, "
+                         f"{sp.filament_mm:.0f} mm filament" if sp.lines else f"{side + ' G-code':<11} nothing to print")
     lines += [f"preview     {out_dir / 'preview.png'}",
               f"time        {r.time_s:.2f} s ({timings})",
               verdict(r.sigma1_bad_pct, r.sigma2_bad_pct, max(r.sigma1_max_dev, r.sigma2_max_dev))]

@@ -3,8 +3,8 @@
 Stages: ``load`` (read, clean, validate, scale), ``curvature`` (principal curvatures and the k1
 line field), ``flatten`` (the bounded directional flattening, placed in the printer frame),
 ``stripes`` (spacing by Eq. 10 and the two stripe patterns), ``ribbons`` (the staggered ribbons,
-their sides and thicknesses, the registration marks), ``preview`` and ``write`` (the design
-folder). The arrays stay in the functions of the stage modules; this module only wires them
+their sides and thicknesses, the registration marks), ``gcode`` (the print programs), ``preview``
+and ``write`` (the design folder). The arrays stay in the functions of the stage modules; this module only wires them
 together, times them and reports progress.
 """
 
@@ -18,12 +18,14 @@ from typing import Protocol
 import numpy as np
 import shapely
 
-from ..gcode.profiles import FrameSpec, load_profile
+from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
+from ..gcode.program import GcodeError, Programs, make_programs
 from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
-from .format import Design, Faces, Parameters, Quantiles, Report, Ribbon, RibbonsReport, Source
+from .format import (Design, Faces, Parameters, PrintReport, Quantiles, Report, Ribbon, RibbonsReport,
+                     SidePrintReport, Source)
 from .frames import face_frames
 from .intake import TargetMesh, load_target
 from .line_field import LineField, curvature_line_field
@@ -80,6 +82,7 @@ class DesignResult:
     layout : the ribbons before thickness (``design.ribbons`` holds the final ones).
     frame : the printable rectangle the design was placed in.
     design : the ``design.json`` content.
+    programs : the G-code programs (front, back, combined) and their plans.
     preview_svg, preview_png : the layout preview.
     """
 
@@ -96,6 +99,7 @@ class DesignResult:
     layout: RibbonLayout
     frame: FrameSpec
     design: Design
+    programs: Programs
     preview_svg: bytes
     preview_png: bytes
 
@@ -126,7 +130,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     params = parameters or DesignParameters()
     solver = solver or SolverSettings()
     progress = progress or NoProgress()
-    frame = frame or load_profile(params.printer_profile).frame
+    profile = load_profile(params.printer_profile)
+    frame = frame or profile.frame
     table = load_curvature_table(params.curvature_table)
     if abs(table.prestretch - params.prestretch) > 1e-9:
         raise DesignError(f"the curvature table {table.name!r} was measured at pre-stretch s = "
@@ -231,6 +236,25 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
         trimmed_angle=layout.trimmed_angle, thickness_clamped=clamped,
         **{key: Quantiles(**value) for key, value in q.items()})
     parameters = Parameters.resolved(params, size)
+    design = Design(
+        source=Source(file=target.name, sha256=target.sha256, faces=target.source_faces),
+        parameters=parameters,
+        faces=Faces.from_arrays(flat.sigma[:, 0], flat.sigma[:, 1], direction, kappa1),
+        ribbons=ribbons,
+        registration_marks=[(float(x), float(y)) for x, y in marks],
+        report=Report(**report))
+
+    # -- G-code -----------------------------------------------------------------------------------
+    progress.stage_started("gcode", f"print programs for {profile.name}")
+    t = time.perf_counter()
+    programs = _programs(design, profile if frame == profile.frame else profile.model_copy(update={"frame": frame}))
+    timings["gcode"] = time.perf_counter() - t
+    fs, bs = programs.front.stats, programs.back.stats
+    progress.stage_finished("gcode", timings["gcode"],
+                            f"front {fs.lines} lines, ~{fs.time_s / 60:.0f} min; back {bs.lines} lines, "
+                            f"~{bs.time_s / 60:.0f} min; travel {fs.travel_mm + bs.travel_mm:.0f} mm for "
+                            f"{fs.extrusion_mm + bs.extrusion_mm:.0f} mm printed")
+    report["print"] = PrintReport(front=SidePrintReport(**fs.report()), back=SidePrintReport(**bs.report()))
 
     # -- preview ----------------------------------------------------------------------------------
     progress.stage_started("preview", "rendering the layout preview")
@@ -245,16 +269,18 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                             f"{len(png) // 1024} kB PNG, {len(svg) // 1024} kB SVG")
     report["timings_s"] = dict(timings)
     report["time_s"] = time.perf_counter() - t_start
-    design = Design(
-        source=Source(file=target.name, sha256=target.sha256, faces=target.source_faces),
-        parameters=parameters,
-        faces=Faces.from_arrays(flat.sigma[:, 0], flat.sigma[:, 1], direction, kappa1),
-        ribbons=ribbons,
-        registration_marks=[(float(x), float(y)) for x, y in marks],
-        report=Report(**report))
+    design = design.updated(report=Report(**report))
     return DesignResult(target=target, V=V, F=F, flat_uv=uv, curvature=curvature, field=field,
                         flattening=flat, kappa1=kappa1, ribbon_direction=direction, stripes=stripes,
-                        layout=layout, frame=frame, design=design, preview_svg=svg, preview_png=png)
+                        layout=layout, frame=frame, design=design, programs=programs,
+                        preview_svg=svg, preview_png=png)
+
+
+def _programs(design: Design, profile: PrinterProfile) -> Programs:
+    try:
+        return make_programs(design, profile)
+    except GcodeError as exc:
+        raise DesignError(f"the print programs cannot be made: {exc}") from None
 
 
 def _ribbons(layout: RibbonLayout, table: CurvatureTable) -> tuple[list[Ribbon], int]:
@@ -269,14 +295,17 @@ def _ribbons(layout: RibbonLayout, table: CurvatureTable) -> tuple[list[Ribbon],
 
 def write_design(result: DesignResult, out_dir: str | Path,
                  progress: DesignProgress | None = None) -> Path:
-    """Write the design folder (``target.obj``, ``flat.obj``, ``design.json``, ``preview.svg``,
-    ``preview.png``) atomically."""
+    """Write the design folder (``target.obj``, ``flat.obj``, ``design.json``, ``front.gcode``,
+    ``back.gcode``, ``combined.gcode``, ``preview.svg``, ``preview.png``) atomically."""
     progress = progress or NoProgress()
     progress.stage_started("write", f"writing {out_dir}")
     t = time.perf_counter()
     path = write_design_folder(Path(out_dir), target_V=result.V, target_F=result.F,
                                flat_V=result.flat_uv, design=result.design,
                                extra_files={"preview.svg": result.preview_svg,
-                                            "preview.png": result.preview_png})
+                                            "preview.png": result.preview_png,
+                                            "front.gcode": result.programs.front.text.encode(),
+                                            "back.gcode": result.programs.back.text.encode(),
+                                            "combined.gcode": result.programs.combined.text.encode()})
     progress.stage_finished("write", time.perf_counter() - t, str(path))
     return path

@@ -61,22 +61,41 @@ def place_in_frame(uv: np.ndarray, frame: FrameSpec, margin: float = 0.0,
 
 
 def registration_marks(uv: np.ndarray, frame: FrameSpec, offset: float = 5.0) -> np.ndarray:
-    """Three registration marks (3, 2) outside the layout ``uv`` (n, 2), inside the frame.
+    """Three registration marks (3, 2) just outside the layout ``uv`` (n, 2), inside the frame.
 
-    They sit ``offset`` mm diagonally out from three corners of the layout's bounding box (lower
-    left, lower right, upper left): an L that is not symmetric under the flip, so a frame put
-    back the wrong way round cannot be mistaken for a small misalignment.
+    Candidates are the layout's convex-hull corners pushed ``offset`` mm outward (so a mark is at
+    least that far from the outline, and close to the ribbons: the print head passes by anyway);
+    the three spanning the largest triangle are kept, so a small rotation of the flipped frame
+    moves them as much as anything in the layout. A triangle of three distinct marks is not
+    symmetric under the flip, so a frame put back the wrong way round is not mistaken for a small
+    misalignment.
 
     Raises
     ------
     ValueError
-        when a mark would fall outside the frame (the layout leaves less than ``offset`` mm).
+        when fewer than three marks fit in the frame.
     """
-    lo, hi = uv.min(axis=0) - offset, uv.max(axis=0) + offset
-    marks = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]]])
+    hull = _hull(uv)
+    if len(hull) < 3:
+        raise ValueError("the layout is degenerate (no area): no place for registration marks")
+    prev, nxt = np.roll(hull, 1, axis=0), np.roll(hull, -1, axis=0)
+
+    def outward(edge: np.ndarray) -> np.ndarray:
+        n = np.column_stack([edge[:, 1], -edge[:, 0]])          # right of a CCW edge: outside
+        return n / np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    bis = outward(hull - prev) + outward(nxt - hull)
+    bis /= np.maximum(np.linalg.norm(bis, axis=1), 1e-12)[:, None]
+    cand = hull + offset * bis
     x0, y0, x1, y1 = frame.bounds
-    out = (marks[:, 0] < x0) | (marks[:, 0] > x1) | (marks[:, 1] < y0) | (marks[:, 1] > y1)
-    if out.any():
-        raise ValueError(f"registration mark at {marks[np.argmax(out)].round(1).tolist()} falls outside the "
-                         f"frame {frame.bounds}: the layout leaves less than {offset} mm around it")
-    return marks
+    fits = (cand[:, 0] >= x0) & (cand[:, 0] <= x1) & (cand[:, 1] >= y0) & (cand[:, 1] <= y1)
+    cand = cand[fits]
+    if len(cand) < 3:
+        raise ValueError(f"fewer than three registration marks fit in the frame {frame.bounds} at "
+                         f"{offset} mm outside the layout")
+    if len(cand) > 48:                                           # keep the search small
+        cand = cand[np.linspace(0, len(cand) - 1, 48).round().astype(int)]
+    idx = np.array(np.meshgrid(*(np.arange(len(cand)),) * 3, indexing="ij")).reshape(3, -1).T
+    idx = idx[(idx[:, 0] < idx[:, 1]) & (idx[:, 1] < idx[:, 2])]
+    a, b, c = cand[idx[:, 0]], cand[idx[:, 1]], cand[idx[:, 2]]
+    area = np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    return cand[idx[int(np.argmax(area))]]

@@ -1,8 +1,10 @@
 """Printer profiles: validated models loaded from TOML files.
 
-A profile describes the printer and the reversible fabric frame on its bed. The files shipped
-with ribbond live in ``ribbond/gcode/profiles/``; a user's own profile is a TOML file of the
-same shape, given by path. (The G-code stage adds the extrusion and motion settings.)
+A profile describes the printer and the reversible fabric frame on its bed: the frame's printable
+rectangle and flip axis, the extruder, temperatures, speeds and accelerations with the firmware's
+maxima, layer heights, retraction, z-hop, fan, and the start/end snippets. The files shipped with
+ribbond live in ``ribbond/gcode/profiles/``; a user's own profile is a TOML file of the same shape,
+given by path. Everything but ``name`` and ``frame`` has a default (the paper's setup, §7).
 """
 
 from __future__ import annotations
@@ -39,6 +41,89 @@ class FrameSpec(BaseModel):
         return cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2
 
 
+_STRICT = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class Extruder(BaseModel):
+    """Nozzle and filament."""
+
+    model_config = _STRICT
+    nozzle_diameter: float = Field(0.8, gt=0, description="mm")
+    filament_diameter: float = Field(2.85, gt=0, description="mm")
+    extrusion_multiplier: float = Field(1.0, gt=0, le=2, description="flow correction for this filament")
+
+
+class Temperatures(BaseModel):
+    """Target temperatures and the firmware's maxima, °C (a target of 0 leaves that heater off)."""
+
+    model_config = _STRICT
+    nozzle: float = Field(225.0, ge=0)
+    bed: float = Field(0.0, ge=0, description="the fabric lies on a base, not on the bed: usually off")
+    nozzle_max: float = Field(260.0, gt=0)
+    bed_max: float = Field(100.0, gt=0)
+
+    @model_validator(mode="after")
+    def _within(self) -> "Temperatures":
+        if self.nozzle > self.nozzle_max:
+            raise ValueError(f"nozzle = {self.nozzle} °C exceeds nozzle_max = {self.nozzle_max} °C")
+        if self.bed > self.bed_max:
+            raise ValueError(f"bed = {self.bed} °C exceeds bed_max = {self.bed_max} °C")
+        return self
+
+
+class Motion(BaseModel):
+    """Speeds (mm/s) and accelerations (mm/s²), with the firmware's maximum feed rates."""
+
+    model_config = _STRICT
+    print_speed: float = Field(15.0, gt=0, description="extruding moves (the paper: 15 mm/s)")
+    travel_speed: float = Field(120.0, gt=0)
+    z_speed: float = Field(10.0, gt=0)
+    retract_speed: float = Field(25.0, gt=0, description="filament speed of retractions")
+    max_xy_speed: float = Field(300.0, gt=0)
+    max_z_speed: float = Field(40.0, gt=0)
+    max_e_speed: float = Field(45.0, gt=0)
+    acceleration: float = Field(1000.0, gt=0, description="for the time estimate")
+    junction_deviation: float = Field(0.05, gt=0, description="mm, for the time estimate (Marlin's)")
+
+    @model_validator(mode="after")
+    def _within(self) -> "Motion":
+        for name, limit in (("print_speed", "max_xy_speed"), ("travel_speed", "max_xy_speed"),
+                            ("z_speed", "max_z_speed"), ("retract_speed", "max_e_speed")):
+            if getattr(self, name) > getattr(self, limit):
+                raise ValueError(f"{name} = {getattr(self, name)} mm/s exceeds {limit} = {getattr(self, limit)} mm/s")
+        return self
+
+
+class Layers(BaseModel):
+    """Heights above the fabric, mm."""
+
+    model_config = _STRICT
+    fabric_z: float = Field(0.0, description="machine z of the fabric's surface")
+    first_layer_height: float = Field(0.2, gt=0, description="nozzle above the fabric for the first layer")
+    max_layer_height: float = Field(0.3, gt=0, description="a ribbon's thickness is split into equal layers "
+                                    "no thicker than this")
+    safe_height: float = Field(2.0, gt=0, description="above the fabric, for moves between parts")
+
+
+class Retraction(BaseModel):
+    """Retraction and z-hop on travels longer than ``min_travel``."""
+
+    model_config = _STRICT
+    length: float = Field(1.0, ge=0, description="mm of filament")
+    min_travel: float = Field(2.0, ge=0, description="mm: shorter travels neither retract nor hop")
+    z_hop: float = Field(0.6, ge=0, description="mm lifted for those travels")
+
+
+class Snippets(BaseModel):
+    """G-code inserted after heating (``start``) and before the heaters go off (``end``)."""
+
+    model_config = _STRICT
+    start: str = ""
+    end: str = ""
+    emit_units: bool = Field(False, description="send G21: Marlin without INCH_MODE_SUPPORT "
+                             "answers it as an unknown command")
+
+
 class PrinterProfile(BaseModel):
     """A printer and its fabric frame."""
 
@@ -46,6 +131,14 @@ class PrinterProfile(BaseModel):
     name: str = Field(min_length=1)
     description: str = ""
     frame: FrameSpec
+    extruder: Extruder = Extruder()
+    temperatures: Temperatures = Temperatures()
+    motion: Motion = Motion()
+    layers: Layers = Layers()
+    retraction: Retraction = Retraction()
+    fan_percent: float = Field(50.0, ge=0, le=100, description="part cooling fan while printing")
+    park_lift: float = Field(20.0, ge=0, description="mm lifted above the fabric when parked")
+    gcode: Snippets = Snippets()
 
 
 def available_profiles() -> list[str]:

@@ -130,8 +130,8 @@ def cylinder(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     proc, out, F = cylinder["proc"], cylinder["out"], cylinder["F"]
     assert proc.returncode == 0, proc.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["design.json", "flat.obj", "preview.png", "preview.svg",
-                                                     "target.obj"]
+    assert sorted(p.name for p in out.iterdir()) == ["back.gcode", "combined.gcode", "design.json", "flat.obj",
+                                                     "front.gcode", "preview.png", "preview.svg", "target.obj"]
     folder = read_design_folder(out)
     assert len(folder.target_F) == len(F)
     assert np.array_equal(folder.target_F, F)          # a clean mesh keeps its faces and order

@@ -1,0 +1,170 @@
+"""The order of the ribbons and the direction each is printed in, for short travel.
+
+Each ribbon can be printed from either end; it is entered at one point and left at another (the
+same end when its passes come back, the far end otherwise). The tour starts at a given point and
+is open. A greedy nearest-neighbour tour over a k-d tree of the entry points (both directions of
+every ribbon) is improved by 2-opt moves, each reversing a stretch of the tour and the direction
+of every ribbon in it, and Or-opt moves, each moving one ribbon to the best gap in the better
+direction, until neither helps or a time budget runs out. The gains of all moves from one position
+are computed at once (prefix sums of the link lengths in both directions for 2-opt).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+@dataclass(frozen=True)
+class Tour:
+    """Order (R,) of the ribbons, whether each is reversed (R,), and travel lengths, mm."""
+
+    order: np.ndarray
+    reversed: np.ndarray
+    travel_before: float
+    travel_after: float
+    improvements: int
+
+
+def tour_length(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: np.ndarray,
+                start: np.ndarray) -> float:
+    """Travel of the tour: from ``start`` to the first entry, then exit to entry.
+
+    order : (R,) ribbons in tour order; rev : (R,) per ribbon, True when printed reversed.
+    entry, exit_ : (R, 2, 2) the entry and exit points of each ribbon, forward [:, 0] and reversed [:, 1].
+    """
+    if len(order) == 0:
+        return 0.0
+    d = rev[order].astype(int)
+    e_in, e_out = entry[order, d], exit_[order, d]
+    return float(np.linalg.norm(e_in[0] - start) + np.linalg.norm(e_in[1:] - e_out[:-1], axis=1).sum())
+
+
+def _greedy(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    R = len(entry)
+    points = entry.reshape(-1, 2)                      # index 2 r + d: ribbon r in direction d
+    tree = cKDTree(points)
+    visited = np.zeros(R, dtype=bool)
+    order = np.empty(R, dtype=np.int64)
+    rev = np.zeros(R, dtype=bool)
+    here = np.asarray(start, dtype=float)
+    for step in range(R):                              # one step per ribbon, not per vertex
+        k = min(8, 2 * R)
+        while True:
+            _, idx = tree.query(here, k=k)
+            idx = np.atleast_1d(idx)
+            free = idx[(idx < 2 * R) & ~visited[np.minimum(idx, 2 * R - 1) // 2]]
+            if len(free) or k >= 2 * R:
+                break
+            k = min(2 * k, 2 * R)
+        pick = int(free[0])
+        r, d = divmod(pick, 2)
+        order[step], rev[r] = r, bool(d)
+        visited[r] = True
+        here = exit_[r, d]
+    return order, rev
+
+
+def _two_opt_sweep(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: np.ndarray,
+                   start: np.ndarray, deadline: float) -> int:
+    """One pass of 2-opt over the tour positions (in place); the number of moves made."""
+    R = len(order)
+    moves = 0
+    for i in range(-1, R - 1):                         # reverse tour[i + 1 .. j]; i = −1: from the start
+        d = rev[order].astype(int)
+        e_in, e_out = entry[order, d], exit_[order, d]          # (R, 2) as the tour has it
+        f_in, f_out = entry[order, 1 - d], exit_[order, 1 - d]  # if the ribbon were turned
+        fwd = np.linalg.norm(e_in[1:] - e_out[:-1], axis=1)     # link k -> k+1 as is
+        bwd = np.linalg.norm(f_in[:-1] - f_out[1:], axis=1)     # link k+1 -> k, both turned
+        cf = np.concatenate([[0.0], np.cumsum(fwd)])
+        cb = np.concatenate([[0.0], np.cumsum(bwd)])
+        j = np.arange(i + 1, R)
+        prev_out = start if i < 0 else e_out[i]
+        old_head = np.linalg.norm(e_in[i + 1] - prev_out)
+        new_head = np.linalg.norm(f_in[j] - prev_out, axis=1)
+        nxt = np.minimum(j + 1, R - 1)
+        has_next = j + 1 < R
+        old_tail = np.where(has_next, np.linalg.norm(e_in[nxt] - e_out[j], axis=1), 0.0)
+        new_tail = np.where(has_next, np.linalg.norm(e_in[nxt] - f_out[i + 1], axis=1), 0.0)
+        gain = old_head + old_tail + (cf[j] - cf[i + 1]) - (new_head + new_tail + (cb[j] - cb[i + 1]))
+        best = int(np.argmax(gain))
+        if gain[best] > 1e-9:
+            jj = j[best]
+            seg = order[i + 1: jj + 1]
+            rev[seg] = ~rev[seg]
+            order[i + 1: jj + 1] = seg[::-1]
+            moves += 1
+        if time.perf_counter() >= deadline:
+            break
+    return moves
+
+
+def _or_opt_sweep(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: np.ndarray,
+                  start: np.ndarray, deadline: float) -> int:
+    """One pass of Or-opt (in place): move single ribbons to the best gap, in the better direction."""
+    R = len(order)
+    moves = 0
+    if R < 3:
+        return 0
+    for pos in range(R):
+        d = rev[order].astype(int)
+        e_in, e_out = entry[order, d], exit_[order, d]
+        r = order[pos]
+        prev_out = start if pos == 0 else e_out[pos - 1]
+        removal = np.linalg.norm(e_in[pos] - prev_out)
+        if pos + 1 < R:
+            removal += np.linalg.norm(e_in[pos + 1] - e_out[pos]) - np.linalg.norm(e_in[pos + 1] - prev_out)
+        # the tour without r: gaps after position k (k = −1: from the start), links out_k -> in_{k+1}
+        keep = np.delete(np.arange(R), pos)
+        outs = np.vstack([start[None, :], e_out[keep]])           # (R, 2): before each gap
+        ins = np.vstack([e_in[keep], np.full((1, 2), np.nan)])      # after each gap (none at the end)
+        link = np.where(np.isnan(ins[:, 0]), 0.0, np.linalg.norm(ins - outs, axis=1))
+        best_cost, best_gap, best_dir = np.inf, -1, 0
+        for dd in (0, 1):
+            a, b = entry[r, dd], exit_[r, dd]
+            tail = np.where(np.isnan(ins[:, 0]), 0.0, np.linalg.norm(np.nan_to_num(ins) - b, axis=1))
+            cost = np.linalg.norm(outs - a, axis=1) + tail - link
+            k = int(np.argmin(cost))
+            if cost[k] < best_cost:
+                best_cost, best_gap, best_dir = float(cost[k]), k, dd
+        if best_cost < removal - 1e-9:
+            rest = order[keep]
+            order[:] = np.concatenate([rest[:best_gap], [r], rest[best_gap:]])
+            rev[r] = bool(best_dir)
+            moves += 1
+        if time.perf_counter() >= deadline:
+            break
+    return moves
+
+
+def order_ribbons(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray,
+                  time_budget: float = 1.0) -> Tour:
+    """Order the ribbons and choose their directions for short travel.
+
+    Parameters
+    ----------
+    entry, exit_ : (R, 2, 2) entry and exit points of each ribbon printed forward ([:, 0]) and
+        reversed ([:, 1]), mm.
+    start : (2,) where the nozzle is before the first ribbon.
+    time_budget : seconds for the 2-opt improvement.
+    """
+    R = len(entry)
+    identity = np.arange(R)
+    before = tour_length(identity, np.zeros(R, dtype=bool), entry, exit_, start)
+    if R == 0:
+        return Tour(identity, np.zeros(0, dtype=bool), 0.0, 0.0, 0)
+    order, rev = _greedy(entry, exit_, start)
+    improvements = 0
+    deadline = time.perf_counter() + time_budget
+    while time.perf_counter() < deadline:
+        moved = _two_opt_sweep(order, rev, entry, exit_, start, deadline)
+        moved += _or_opt_sweep(order, rev, entry, exit_, start, deadline)
+        improvements += moved
+        if not moved:
+            break
+    after = tour_length(order, rev, entry, exit_, start)
+    return Tour(order=order, reversed=rev, travel_before=before, travel_after=after,
+                improvements=improvements)

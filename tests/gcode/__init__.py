@@ -1,0 +1,1 @@
+"""Tests of the G-code the writer produces, read back by an independent reader (`reader.py`)."""
