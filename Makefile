@@ -25,6 +25,7 @@ bench: $(STAMP)
 	$(PY) bench/stream.py
 	$(PY) bench/flatten.py
 	$(PY) bench/design.py
+	$(PY) bench/gcode.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache out

@@ -4,7 +4,8 @@ Spacing comes from the final stretches by Eq. 10; two stripe patterns (``stripes
 grid: θ advances across the ribbons with period 2μ2, ψ along them with period μ1. The centerlines of
 the two staggered grids are the isolines arg θ = 0 and arg θ = π; along a centerline of grid g the
 ribbon midpoints are where arg ψ = gπ. Each ribbon is the piece of its centerline of length l_r
-centred on its midpoint, then
+centred on its midpoint (where two midpoints come closer than l_r: cut halfway, a ribbon width
+apart), then
 
 - clipped to the flat outline shrunk by half the ribbon width (so the plastic stays on the fabric
   that is kept when the outline is cut),
@@ -258,6 +259,19 @@ def _midpoints(c: _Centerlines, psi: StripePattern, X1: np.ndarray, level: float
     return np.sort(s_mid[keep])
 
 
+#: Ribbon polylines are simplified within this distance, mm: the isoline crossings are dense (one per
+#: stripe-mesh edge, some a few µm apart), far denser than a printer resolves.
+SIMPLIFY_TOLERANCE = 0.005
+
+
+def _simplified(xy: np.ndarray, owner: np.ndarray) -> list[np.ndarray]:
+    """The polylines ``xy`` (k, 2) (``owner`` (k,) their index, ascending), each simplified
+    (Douglas–Peucker within ``SIMPLIFY_TOLERANCE``), as a list of arrays."""
+    lines = shapely.simplify(shapely.linestrings(xy, indices=owner), SIMPLIFY_TOLERANCE, preserve_topology=False)
+    coords, index = shapely.get_coordinates(lines, return_index=True)
+    return np.split(coords, np.flatnonzero(np.diff(index)) + 1)
+
+
 def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, q: tuple[float, ...]) -> list[float]:
     """Quantiles of ``values`` weighted by ``weights`` (0 for empty input)."""
     if len(values) == 0 or np.sum(weights) <= 0:
@@ -330,8 +344,10 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
         same_next = np.append(pid[1:] == pid[:-1], False)
         prev_mid = np.insert(0.5 * (s_mid[1:] + s_mid[:-1]), 0, -np.inf)
         next_mid = np.append(0.5 * (s_mid[1:] + s_mid[:-1]), np.inf)
-        a = np.where(same_prev, np.maximum(a, prev_mid), a)
-        b = np.where(same_next, np.minimum(b, next_mid), b)
+        # midpoints closer than l_r (where stripes merge): cut halfway, a ribbon width apart
+        a = np.where(same_prev, np.maximum(a, prev_mid + 0.5 * w_r), a)
+        b = np.where(same_next, np.minimum(b, next_mid - 0.5 * w_r), b)
+        b = np.maximum(a, b)
 
         # breakpoints: nodes, ribbon ends, where the centerlines leave the inset outline, κ1 = 0
         has_next = c.link_face >= 0
@@ -415,7 +431,7 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
         spacings.append(np.column_stack([mean_along(mu1), mean_along(mu2)]))
         lengths.append(length)
         grids.append(np.full(len(A), g))
-        pts_all.extend(np.split(xy, off[1:-1]))
+        pts_all.extend(_simplified(xy, owner_p))
 
         # spacing checks: midpoints of ribbons that were kept
         ribbon_of_piece = r[start_q[pieces_q]]

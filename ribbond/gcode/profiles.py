@@ -99,7 +99,9 @@ class Layers(BaseModel):
 
     model_config = _STRICT
     fabric_z: float = Field(0.0, description="machine z of the fabric's surface")
-    first_layer_height: float = Field(0.2, gt=0, description="nozzle above the fabric for the first layer")
+    first_layer_height: float = Field(
+        0.2, gt=0, description="nozzle above the fabric for a ribbon's first layer; each layer is "
+        "extruded for the ribbon's layer height, so a thicker first bead is pressed into the fabric")
     max_layer_height: float = Field(0.3, gt=0, description="a ribbon's thickness is split into equal layers "
                                     "no thicker than this")
     safe_height: float = Field(2.0, gt=0, description="above the fabric, for moves between parts")

@@ -273,7 +273,9 @@ class _Writer:
         xy = np.linalg.norm(end[:, :2] - start[:, :2], axis=1)
         mo = self.profile.motion
         t = move_times(start, end, e, speed, mo.acceleration, mo.junction_deviation, mo.retract_speed)
-        lo, hi = end.min(axis=0), end.max(axis=0)        # where the program goes (not the home position)
+        # extents of where the program goes: from its first move in XY on (not the home position)
+        first = int(np.argmax(xy > 0)) if np.any(xy > 0) else 0
+        lo, hi = end[first:].min(axis=0), end[first:].max(axis=0)
         commands = sum(1 for line in self.lines if line and not line.startswith(";"))
         return ProgramStats(lines=commands, extrusion_mm=float(xy[extruding].sum()),
                             travel_mm=float(xy[~extruding].sum()), time_s=float(t.sum()),
