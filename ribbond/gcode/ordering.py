@@ -5,8 +5,10 @@ same end when its passes come back, the far end otherwise). The tour starts at a
 is open. A greedy nearest-neighbour tour over a k-d tree of the entry points (both directions of
 every ribbon) is improved by 2-opt moves, each reversing a stretch of the tour and the direction
 of every ribbon in it, and Or-opt moves, each moving one ribbon to the best gap in the better
-direction, until neither helps or a time budget runs out. The gains of all moves from one position
-are computed at once (prefix sums of the link lengths in both directions for 2-opt).
+direction, until neither helps; then, while the time budget lasts, the best tour is kicked (a
+random double bridge within 30 positions) and improved again, and kept if shorter (iterated local
+search). The gains of all moves from one position are computed at once (prefix sums of the link
+lengths in both directions for 2-opt).
 """
 
 from __future__ import annotations
@@ -140,6 +142,19 @@ def _or_opt_sweep(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: 
     return moves
 
 
+def _local_search(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: np.ndarray,
+                  start: np.ndarray, deadline: float) -> int:
+    """2-opt and Or-opt sweeps (in place) until neither improves or the deadline; moves made."""
+    total = 0
+    while time.perf_counter() < deadline:
+        moved = _two_opt_sweep(order, rev, entry, exit_, start, deadline)
+        moved += _or_opt_sweep(order, rev, entry, exit_, start, deadline)
+        total += moved
+        if not moved:
+            break
+    return total
+
+
 def order_ribbons(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray,
                   time_budget: float = 1.0) -> Tour:
     """Order the ribbons and choose their directions for short travel.
@@ -157,14 +172,21 @@ def order_ribbons(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray,
     if R == 0:
         return Tour(identity, np.zeros(0, dtype=bool), 0.0, 0.0, 0)
     order, rev = _greedy(entry, exit_, start)
-    improvements = 0
     deadline = time.perf_counter() + time_budget
-    while time.perf_counter() < deadline:
-        moved = _two_opt_sweep(order, rev, entry, exit_, start, deadline)
-        moved += _or_opt_sweep(order, rev, entry, exit_, start, deadline)
-        improvements += moved
-        if not moved:
-            break
+    improvements = _local_search(order, rev, entry, exit_, start, deadline)
+    # iterated local search: kick the best tour (a double bridge) and descend again while time lasts
+    best = tour_length(order, rev, entry, exit_, start)
+    rng = np.random.default_rng(0)
+    while R >= 8 and time.perf_counter() < deadline:
+        cand_order, cand_rev = order.copy(), rev.copy()
+        lo = int(rng.integers(1, R - 3))                     # a local kick: within 30 positions
+        a, b, c = np.sort(rng.choice(np.arange(lo, min(lo + 30, R)), size=3, replace=False))
+        cand_order[:] = np.concatenate([order[:a], order[c:], order[b:c], order[a:b]])
+        moves = _local_search(cand_order, cand_rev, entry, exit_, start, deadline)
+        length = tour_length(cand_order, cand_rev, entry, exit_, start)
+        if length < best - 1e-9:
+            order[:], rev[:], best = cand_order, cand_rev, length
+            improvements += moves + 1
     after = tour_length(order, rev, entry, exit_, start)
     return Tour(order=order, reversed=rev, travel_before=before, travel_after=after,
                 improvements=improvements)
