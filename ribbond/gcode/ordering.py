@@ -177,7 +177,9 @@ def order_ribbons(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray,
     # iterated local search: kick the best tour (a double bridge) and descend again while time lasts
     best = tour_length(order, rev, entry, exit_, start)
     rng = np.random.default_rng(0)
-    while R >= 8 and time.perf_counter() < deadline:
+    idle = 0
+    while R >= 8 and time.perf_counter() < deadline and idle < max(20, R):   # stop when kicks stop paying
+        idle += 1
         cand_order, cand_rev = order.copy(), rev.copy()
         lo = int(rng.integers(1, R - 3))                     # a local kick: within 30 positions
         a, b, c = np.sort(rng.choice(np.arange(lo, min(lo + 30, R)), size=3, replace=False))
@@ -187,6 +189,7 @@ def order_ribbons(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray,
         if length < best - 1e-9:
             order[:], rev[:], best = cand_order, cand_rev, length
             improvements += moves + 1
+            idle = 0
     after = tour_length(order, rev, entry, exit_, start)
     return Tour(order=order, reversed=rev, travel_before=before, travel_after=after,
                 improvements=improvements)
