@@ -1,61 +1,123 @@
-"""`make demo`: stream an example print program to the simulated printer over a real pty.
+"""`make demo`: a two-sided job, end to end, on the simulated printer.
 
-Starts the simulator (`python -m sim`) as its own process, as firmware runs on its own board;
-streams the example program with the operator command (`python -m ribbond.printer stream`); then
-prints what the simulator executed and the path of a PNG of what it deposited. Everything lands in
-``out/demo/``.
+Starts the simulator (`python -m sim`, its own process on a pty, as firmware runs on its own board)
+and the daemon (`ribbond`, its own process, in a temporary state directory), then as an operator
+would:
+
+1. `ribbonctl submit examples/meshes/saddle.obj --start`: upload, compile, heat, print the front;
+2. turns the simulated frame over with a small known misalignment and says `ribbonctl flip-done`;
+3. the alignment check: the head goes above each registration mark, and the operator reports the
+   jog that puts it on the mark (`ribbonctl align --mark i --jog dx dy`; here computed from the
+   known misalignment, as a person would read it off the machine);
+4. ribbond fits the correction, prints the back, and the demo prints the job's summary and the path
+   of a PNG of what the simulator deposited, front and back, in machine and fabric coordinates.
+
+Everything lands in ``out/demo/``.
 """
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
 from sim.process import SimProcess  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "demo"
-BAUD = 250000
-TIME_SCALE = 0.05  # 20× faster than the real machine, so the demo takes seconds
+MESH = ROOT / "examples" / "meshes" / "saddle.obj"
+SIZE_MM = 90.0
+TIME_SCALE = 0.05                      # 20× faster than the real machine
+MISALIGNMENT = {"dx": 0.6, "dy": -0.4, "rotation_deg": 0.8}   # how the frame is put back
+CENTER = (110.0, 110.0)                # the profile's frame centre; flip about the y axis
+
+
+def ribbonctl(url: str, *args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
+    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", url],
+                          cwd=ROOT, text=True, stdout=subprocess.PIPE)
+    if check and proc.returncode != 0:
+        raise SystemExit(f"demo: ribbonctl {' '.join(args)} failed ({proc.returncode})")
+    return proc
+
+
+def wait_for(url: str, job: str, states: set[str], timeout: float = 300.0) -> dict[str, object]:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        status = json.loads(ribbonctl(url, "status", job, "--json").stdout)
+        if status["state"] in states:
+            return status
+        if status["state"] in ("failed", "cancelled", "interrupted"):
+            raise SystemExit(f"demo: the job {status['state']}: {status.get('error')}")
+        time.sleep(0.3)
+    raise SystemExit(f"demo: the job did not reach {states} in {timeout:.0f} s")
 
 
 def main() -> int:
+    started = time.monotonic()
     OUT.mkdir(parents=True, exist_ok=True)
-    program = OUT / "ribbons.gcode"
-    subprocess.run([sys.executable, str(ROOT / "examples" / "demo_program.py"), str(program)], check=True)
-    lines = sum(1 for line in program.read_text().splitlines() if line.split(";")[0].strip())
-    png = OUT / "deposits.png"
-    args = ["--baud", str(BAUD), "--time-scale", str(TIME_SCALE), "--record", str(OUT / "record.jsonl")]
-    with SimProcess(args, cwd=ROOT) as printer:
-        print(f"simulated printer on {printer.port} ({BAUD} baud, time scale {TIME_SCALE})")
-        print(f"streaming {program.relative_to(ROOT)} ({lines} commands)")
-        started = time.monotonic()
-        streamed = subprocess.run(
-            [sys.executable, "-m", "ribbond.printer", "stream", "--port", printer.port, "--baud", str(BAUD),
-             str(program)],
-            cwd=ROOT,
-        )
-        elapsed = time.monotonic() - started
-        if streamed.returncode != 0:
-            print(f"error: streaming failed (exit {streamed.returncode})", file=sys.stderr)
-            return streamed.returncode
-        stats = printer.stats()
-        printer.request({"cmd": "render", "path": str(png)})
-    print()
-    print("what the simulator executed")
-    for key in ("commands_executed", "lines_received", "resends_requested", "checksum_errors",
-                "dropped_bytes", "starvations", "segments", "extruded_mm"):
-        if key in stats:
-            print(f"  {key.replace('_', ' ')}: {stats[key]}")
-    print(f"  wall time: {elapsed:.1f} s")
-    print(f"deposits: {png.relative_to(ROOT) if png.is_relative_to(ROOT) else png}")
-    return 0
+    if not MESH.exists():
+        subprocess.run([sys.executable, str(ROOT / "examples" / "meshes" / "make_meshes.py")], check=True)
+    state = Path(tempfile.mkdtemp(prefix="ribbond-demo-"))
+    sim = SimProcess(["--time-scale", str(TIME_SCALE), "--baud", "250000"], cwd=ROOT).start()
+    config = state / "ribbond.toml"
+    config.write_text(f'state_dir = "{state}"\n[serial]\nport = "{sim.port}"\nbaud = 250000\n'
+                      '[api]\nport = 0\n', encoding="utf-8")
+    log = (OUT / "ribbond.log").open("w")
+    daemon = subprocess.Popen([sys.executable, "-m", "ribbond", "--config", str(config)], cwd=ROOT,
+                              stderr=log, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        for _ in range(300):
+            if (state / "api.url").exists():
+                break
+            time.sleep(0.1)
+        url = (state / "api.url").read_text().strip()
+        print(f"simulator on {sim.port}, ribbond on {url} (state in {state})")
+        print(f"$ ribbonctl submit {MESH.relative_to(ROOT)} --size {SIZE_MM:g} --start")
+        submit = ribbonctl(url, "submit", str(MESH), "--size", str(SIZE_MM), "--start")
+        print(submit.stdout.rstrip())
+        job = submit.stdout.split()[1]
+        wait_for(url, job, {"awaiting_flip", "done"})
+        print("front printed; the job awaits the flip")
+        sim.request({"cmd": "flip", **MISALIGNMENT})
+        print(f"frame turned over about its y axis and put back off by ({MISALIGNMENT['dx']}, "
+              f"{MISALIGNMENT['dy']}) mm and {MISALIGNMENT['rotation_deg']}°")
+        ribbonctl(url, "flip-done", job)
+        wait_for(url, job, {"aligning"})
+        design = json.loads((Path(json.loads(ribbonctl(url, "status", job, "--json").stdout)["design_dir"])
+                             / "design.json").read_text())
+        a = math.radians(MISALIGNMENT["rotation_deg"])
+        cx, cy = CENTER
+        for i, (x, y) in enumerate(design["registration_marks"]):
+            px, py = 2 * cx - x, y                             # where the mark should be: mirrored
+            mx = cx + math.cos(a) * (px - cx) - math.sin(a) * (py - cy) + MISALIGNMENT["dx"]
+            my = cy + math.sin(a) * (px - cx) + math.cos(a) * (py - cy) + MISALIGNMENT["dy"]
+            jog = (f"{mx - px:.3f}", f"{my - py:.3f}")
+            print(f"$ ribbonctl align {job} --mark {i} --jog {jog[0]} {jog[1]}")
+            print("  " + ribbonctl(url, "align", job, "--mark", str(i), "--jog", *jog).stdout.strip())
+        final = wait_for(url, job, {"done"})
+        png = OUT / "deposits.png"
+        sim.request({"cmd": "render", "path": str(png)})
+        stats = sim.stats()
+        print(f"job {job}: {final['state']}; the simulator executed {stats['commands_executed']} commands, "
+              f"{stats['starvations']} planner starvations, {stats['resends_requested']} resends")
+        print(f"deposits: {png.relative_to(ROOT)}  (front red, back blue; machine and fabric coordinates)")
+        print(f"demo took {time.monotonic() - started:.0f} s")
+        return 0
+    finally:
+        daemon.terminate()
+        try:
+            daemon.wait(15)
+        except subprocess.TimeoutExpired:
+            daemon.kill()
+        sim.stop()
+        log.close()
 
 
 if __name__ == "__main__":
-    os.chdir(ROOT)
     sys.exit(main())

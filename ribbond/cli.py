@@ -1,11 +1,13 @@
 """``ribbonctl``: the command-line client.
 
 ``ribbonctl design MESH -o DIR [--size MM] [--params FILE] [--profile NAME]`` runs the design
-engine locally (no daemon) and writes the design folder.
+engine locally (no daemon) and writes the design folder. The daemon commands (``submit``,
+``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``align``,
+``printer``, ``stop``) are in ``client.py``.
 
-Exit status: 0 the design was written (a design outside its stretch bounds is still written, and
-the summary says so); 1 the design cannot be made as asked; 2 bad input (mesh, parameters);
-130 interrupted.
+Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still
+written, and the summary says so); 1 the design cannot be made as asked; 2 bad input (mesh,
+parameters); 130 interrupted. The daemon commands: see ``client.py``.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from tqdm import tqdm
 from .design.errors import DesignError, MeshError
 from .design.params import DesignSettings, SizeSpec, load_settings
 from .design.pipeline import DesignResult, design_mesh, write_design
+from .client import ClientError, add_commands
 from .gcode.profiles import load_profile
 
 
@@ -159,6 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.set_defaults(func=_cmd_design)
+    add_commands(sub)
     return parser
 
 
@@ -170,8 +174,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except KeyboardInterrupt:
-        print("ribbonctl: interrupted; nothing was written", file=sys.stderr)
+        print("ribbonctl: interrupted" + ("; nothing was written" if args.command == "design" else ""),
+              file=sys.stderr)
         return 130
+    except ClientError as exc:
+        print(f"ribbonctl {args.command}: {exc}", file=sys.stderr)
+        return exc.code
     except DesignError as exc:
         print(f"ribbonctl {args.command}: cannot make this design: {exc}", file=sys.stderr)
         return 1

@@ -116,6 +116,15 @@ class Retraction(BaseModel):
     z_hop: float = Field(0.6, ge=0, description="mm lifted for those travels")
 
 
+class AlignmentTolerance(BaseModel):
+    """How far the flipped frame may sit from where it should before the back is refused."""
+
+    model_config = _STRICT
+    max_residual: float = Field(0.3, gt=0, description="mm a mark may be off a rigid fit of all marks")
+    max_rotation_deg: float = Field(2.0, gt=0, description="degrees the frame may be turned")
+    max_offset: float = Field(5.0, gt=0, description="mm any mark may be moved")
+
+
 class Snippets(BaseModel):
     """G-code inserted after heating (``start``) and before the heaters go off (``end``)."""
 
@@ -140,6 +149,7 @@ class PrinterProfile(BaseModel):
     retraction: Retraction = Retraction()
     fan_percent: float = Field(50.0, ge=0, le=100, description="part cooling fan while printing")
     park_lift: float = Field(20.0, ge=0, description="mm lifted above the fabric when parked")
+    alignment: AlignmentTolerance = AlignmentTolerance()
     gcode: Snippets = Snippets()
 
 

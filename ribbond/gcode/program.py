@@ -19,6 +19,7 @@ temperature against the profile's maxima; a violation raises ``GcodeError`` nami
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -85,6 +86,35 @@ class SidePlan:
     index: np.ndarray
     tour: Tour
     source: str
+
+    def save(self, path: "str | os.PathLike[str]") -> None:
+        """Write the plan to an ``.npz`` file (the daemon re-renders the back side from it after the
+        flip without planning again)."""
+        paths = [p for part in self.parts for p in part.paths]
+        np.savez(path, side=self.side, source=self.source, kind=np.array(self.kind, dtype=str),
+                 index=self.index, order=self.tour.order, reversed=self.tour.reversed,
+                 travel=np.array([self.tour.travel_before, self.tour.travel_after, self.tour.improvements]),
+                 passes=np.array([len(p.paths) for p in self.parts], dtype=np.int64),
+                 points=np.array([len(q) for q in paths], dtype=np.int64),
+                 xy=np.concatenate(paths) if paths else np.zeros((0, 2)),
+                 layer=np.concatenate([p.layer for p in self.parts]) if self.parts else np.zeros(0, dtype=np.int64),
+                 widths=np.array([[p.line_width, p.layer_height] for p in self.parts]).reshape(-1, 2))
+
+    @classmethod
+    def load(cls, path: "str | os.PathLike[str]") -> "SidePlan":
+        """Read a plan written by ``save``."""
+        with np.load(path) as z:
+            xy = np.split(z["xy"], np.cumsum(z["points"])[:-1]) if len(z["points"]) else []
+            cuts = np.cumsum(z["passes"])
+            paths = [xy[a:b] for a, b in zip(np.concatenate([[0], cuts[:-1]]), cuts)] if len(cuts) else []
+            layers = np.split(z["layer"], cuts[:-1]) if len(cuts) else []
+            parts = [RibbonPasses(paths=list(p), layer=lay, line_width=float(w[0]), layer_height=float(w[1]))
+                     for p, lay, w in zip(paths, layers, z["widths"])]
+            travel = z["travel"]
+            tour = Tour(order=z["order"], reversed=z["reversed"], travel_before=float(travel[0]),
+                        travel_after=float(travel[1]), improvements=int(travel[2]))
+            return cls(side=str(z["side"]), parts=parts, kind=[str(k) for k in z["kind"]], index=z["index"],
+                       tour=tour, source=str(z["source"]))
 
     @property
     def ribbons(self) -> list[RibbonPasses]:

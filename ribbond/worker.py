@@ -1,0 +1,98 @@
+"""The compile worker: one design, in its own process, reporting progress as JSON lines.
+
+    python -m ribbond.worker MESH OUT_DIR [--params JSON] [--plans DIR]
+
+The daemon runs it with ``asyncio.create_subprocess_exec`` so that a 160k-face compile runs beside
+the event loop that streams to the printer, never in it (and at a lower CPU priority). Every line
+on stdout is one JSON object:
+
+- ``{"event": "stage", "stage": …, "description": …}`` when a stage starts,
+- ``{"event": "iteration", "stage": …, "iteration": …, "change": …}`` (at most a few per second),
+- ``{"event": "finished", "stage": …, "seconds": …, "summary": …}`` when it ends,
+- ``{"event": "done", "design_dir": …, "ribbons": {"front": …, "back": …}, "report": {…}}`` last,
+- ``{"event": "error", "kind": "mesh" | "design" | "internal", "message": …}`` instead, exit status 2/1/3.
+
+With ``--plans DIR`` the front and back plans (``SidePlan.save``) are written there too, so the
+back side can be re-rendered with the alignment correction without planning again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from .design.errors import DesignError, MeshError
+from .design.format import design_to_dict
+from .design.params import DesignParameters
+from .design.pipeline import design_mesh, write_design
+
+
+def _emit(obj: dict[str, object]) -> None:
+    sys.stdout.write(json.dumps(obj, allow_nan=False, default=str) + "\n")
+    sys.stdout.flush()
+
+
+class JsonProgress:
+    """``DesignProgress`` that prints JSON lines (iterations throttled to 4 a second)."""
+
+    def __init__(self) -> None:
+        self._last = 0.0
+
+    def stage_started(self, stage: str, description: str) -> None:
+        _emit({"event": "stage", "stage": stage, "description": description})
+
+    def iteration(self, stage: str, iteration: int, change: float, energy: float) -> None:
+        now = time.monotonic()
+        if now - self._last >= 0.25:
+            self._last = now
+            _emit({"event": "iteration", "stage": stage, "iteration": iteration, "change": change})
+
+    def stage_finished(self, stage: str, seconds: float, summary: str) -> None:
+        _emit({"event": "finished", "stage": stage, "seconds": seconds, "summary": summary})
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m ribbond.worker", description=__doc__.split("\n\n")[0])
+    parser.add_argument("mesh", type=Path)
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--params", default="{}", help="design parameters as a JSON object")
+    parser.add_argument("--plans", type=Path, help="also write the front and back plans into this folder")
+    parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
+    args = parser.parse_args(argv)
+    if args.nice > 0 and hasattr(os, "nice"):
+        try:
+            os.nice(args.nice)
+        except OSError:
+            pass
+    try:
+        params = DesignParameters.model_validate(json.loads(args.params))
+        result = design_mesh(args.mesh, params, progress=JsonProgress())
+        path = write_design(result, args.out, JsonProgress())
+        if args.plans is not None:
+            args.plans.mkdir(parents=True, exist_ok=True)
+            result.programs.front_plan.save(args.plans / "front-plan.npz")
+            result.programs.back_plan.save(args.plans / "back-plan.npz")
+    except MeshError as exc:
+        _emit({"event": "error", "kind": "mesh", "message": str(exc)})
+        return 2
+    except (DesignError, ValueError) as exc:
+        _emit({"event": "error", "kind": "design", "message": str(exc)})
+        return 1
+    except Exception as exc:  # noqa: BLE001 - reported to the daemon, which keeps running
+        _emit({"event": "error", "kind": "internal", "message": f"{type(exc).__name__}: {exc}"})
+        return 3
+    d = result.design
+    ribbons = d.ribbons or []
+    _emit({"event": "done", "design_dir": str(path),
+           "ribbons": {"front": sum(r.side == "front" for r in ribbons),
+                       "back": sum(r.side == "back" for r in ribbons)},
+           "report": design_to_dict(d)["report"]})
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
