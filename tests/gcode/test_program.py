@@ -449,3 +449,19 @@ def test_every_line_is_known_and_every_position_defined(saddle_design: SaddleDes
     for m in program.moves:
         if m.line > homed:
             assert not any(math.isnan(v) for v in (*m.start, *m.end, m.e)), f"line {m.line}: NaN"
+
+
+def test_a_plan_round_trips_through_its_file(saddle_design, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The daemon re-renders the back from the plan the compile saved: it must be the same plan."""
+    from ribbond.gcode.program import Correction, SidePlan, render_side
+
+    profile = saddle_design.profile
+    programs = saddle_design.result.programs
+    c = Correction(rotation_deg=0.4, center=(100.0, 90.0), offset=(0.2, -0.1))
+    for plan in (programs.front_plan, programs.back_plan):
+        path = tmp_path / f"{plan.side}.npz"
+        plan.save(path)
+        again = SidePlan.load(path)
+        assert again.side == plan.side and again.kind == plan.kind
+        assert render_side(again, profile).text == render_side(plan, profile).text
+        assert render_side(again, profile, correction=c).text == render_side(plan, profile, correction=c).text

@@ -1,0 +1,75 @@
+"""The job state machine's table and the modal state a pause must restore."""
+
+from __future__ import annotations
+
+import pytest
+
+from ribbond.jobs import TRANSITIONS, IllegalTransition, JobState, check_transition
+from ribbond.service import modal_state
+
+J = JobState
+HAPPY_PATH = [J.SUBMITTED, J.COMPILING, J.READY, J.HEATING, J.PRINTING_FRONT, J.AWAITING_FLIP,
+              J.ALIGNING, J.PRINTING_BACK, J.DONE]
+
+
+def test_the_two_sided_path_is_allowed_step_by_step() -> None:
+    for a, b in zip(HAPPY_PATH[:-1], HAPPY_PATH[1:]):
+        check_transition(a, b)
+
+
+def test_a_one_sided_job_goes_from_the_front_to_done() -> None:
+    check_transition(J.PRINTING_FRONT, J.DONE)
+
+
+@pytest.mark.parametrize("state", [J.PRINTING_FRONT, J.PRINTING_BACK])
+def test_pause_from_either_printing_state_and_back(state: JobState) -> None:
+    check_transition(state, J.PAUSED)
+    check_transition(J.PAUSED, state)
+
+
+def test_every_state_is_in_the_table_and_every_target_is_a_state() -> None:
+    assert set(TRANSITIONS) == set(JobState)
+    for targets in TRANSITIONS.values():
+        assert targets <= set(JobState)
+
+
+@pytest.mark.parametrize("state", [J.DONE, J.CANCELLED, J.FAILED])
+def test_finished_jobs_go_nowhere(state: JobState) -> None:
+    assert state.terminal
+    for other in JobState:
+        with pytest.raises(IllegalTransition):
+            check_transition(state, other)
+
+
+def test_only_jobs_on_the_printer_can_be_interrupted() -> None:
+    can = {s for s, targets in TRANSITIONS.items() if J.INTERRUPTED in targets}
+    assert can == {s for s in JobState if s.holds_printer} | {J.COMPILING}
+
+
+def test_cancel_and_fail_from_every_unfinished_state() -> None:
+    for state in JobState:
+        if state.terminal or state is J.INTERRUPTED:
+            continue
+        check_transition(state, J.CANCELLED)
+        check_transition(state, J.FAILED)
+
+
+def test_an_illegal_request_names_the_state_and_what_is_allowed() -> None:
+    with pytest.raises(IllegalTransition) as info:
+        check_transition(J.READY, J.PRINTING_BACK)
+    err = info.value
+    assert err.current is J.READY
+    assert set(err.allowed) == {s.value for s in TRANSITIONS[J.READY]}
+    assert "ready" in str(err) and "heating" in str(err)
+
+
+def test_modal_state_follows_the_program_up_to_the_pause() -> None:
+    program = ["G90", "M83", "M104 S225", "M140 S60", "M106 S127", "G1 X1 E0.1 F900", "G91", "G1 X1",
+               "M82", "G0 X5 F9000", "M107", "M109 S210"]
+    s = modal_state(program, 6)
+    assert s == {"absolute": True, "e_absolute": False, "feed": 900.0, "fan": 127, "nozzle": 225.0, "bed": 60.0}
+    s = modal_state(program, 8)
+    assert s["absolute"] is False and s["e_absolute"] is False           # G91 sets E relative too
+    s = modal_state(program, len(program))
+    assert s["e_absolute"] is True and s["feed"] == 9000.0 and s["fan"] == 0 and s["nozzle"] == 210.0
+    assert modal_state(program, 0)["absolute"] is True                    # Marlin's power-on state
