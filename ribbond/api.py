@@ -170,6 +170,10 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         service.emergency_stop()
         return service.printer_status()
 
+    @app.post("/printer/recover", dependencies=auth)
+    async def recover() -> dict[str, Any]:
+        return await service.recover()
+
     @app.get("/events", dependencies=auth)
     async def events(request: Request) -> StreamingResponse:
         queue = service.bus.subscribe()

@@ -281,10 +281,12 @@ class RibbonService:
         params = {**job.parameters, "printer_profile": job.parameters.get("printer_profile",
                                                                          self.config.printer_profile)}
         self._transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
-        proc = await asyncio.create_subprocess_exec(
-            self.python, "-m", "ribbond.worker", job.mesh_path, str(folder / "design"),
-            "--params", json.dumps(params), "--plans", str(folder / "plans"),
-            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+        log_path = folder / "compile.log"
+        with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
+            proc = await asyncio.create_subprocess_exec(
+                self.python, "-m", "ribbond.worker", job.mesh_path, str(folder / "design"),
+                "--params", json.dumps(params), "--plans", str(folder / "plans"),
+                stdout=asyncio.subprocess.PIPE, stderr=errors)
         self._compiling[job_id] = proc
         last: dict[str, Any] = {}
         try:
@@ -299,7 +301,6 @@ class RibbonService:
                     self._publish(self.store.update(job_id, stage=event["stage"], progress=None))
                 elif event.get("event") == "iteration":
                     self._publish(self.job(job_id), progress_event=event)
-            stderr = await proc.stderr.read() if proc.stderr else b""
             code = await proc.wait()
         finally:
             self._compiling.pop(job_id, None)
@@ -314,7 +315,7 @@ class RibbonService:
         elif code < 0:
             self._transition(job_id, JobState.CANCELLED, reason="the compile was stopped")
         else:
-            tail = stderr.decode(errors="replace").strip().splitlines()[-1:] or ["no output"]
+            tail = log_path.read_text(errors="replace").strip().splitlines()[-1:] or ["no output"]
             self._transition(job_id, JobState.FAILED, reason=f"the compiler stopped ({code}): {tail[0]}",
                              error=tail[0])
 
@@ -593,6 +594,14 @@ class RibbonService:
     def emergency_stop(self) -> None:
         link = self._require_link()
         link.emergency_stop()
+
+    async def recover(self) -> dict[str, Any]:
+        """After an emergency stop or a halt: restart the firmware (``M999``) and shake hands again."""
+        link = self._require_link()
+        if link.state is not LinkState.HALTED:
+            raise ServiceError(f"the printer is {link.state.value}, not halted: nothing to recover")
+        await link.recover()
+        return self.printer_status()
 
 
 def _allowed(state: JobState) -> frozenset[JobState]:
