@@ -454,7 +454,7 @@ class PrinterLink:
 
     def _on_lost(self, reason: Exception) -> None:
         acked = self._sender.last_acknowledged_line if self._sender else -1
-        error = Disconnected(f"{reason} (last acknowledged line: {acked})")
+        error = Disconnected(f"printer disconnected: {reason} (last acknowledged line: {acked})")
         if self._sender is not None:
             self._sender.stop(error)
         self._transport = None
