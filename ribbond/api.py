@@ -9,6 +9,7 @@ but the documentation needs ``Authorization: Bearer <token>``, compared in const
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import secrets
 import tempfile
@@ -31,6 +32,58 @@ JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "d
              "front.gcode": "design", "back.gcode": "design", "combined.gcode": "design",
              "target.obj": "design", "flat.obj": "design", "back-corrected.gcode": "job"}
 _CHUNK = 1 << 20
+
+
+class BodyLimit:
+    """ASGI middleware: a request body larger than ``limit`` bytes is answered 413 as soon as it
+    passes the limit, whether or not it announced its length (the multipart parser would otherwise
+    spool a chunked upload to disk whole before the route sees it)."""
+
+    def __init__(self, app: Any, limit: int) -> None:
+        self.app, self.limit = app, limit
+
+    async def __call__(self, scope: dict[str, Any], receive: Any, send: Any) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        headers = dict(scope.get("headers") or [])
+        length = headers.get(b"content-length", b"")
+        if length.isdigit() and int(length) > self.limit:
+            await self._refuse(send, int(length))
+            return
+        seen = 0
+        refused = False
+
+        async def counted() -> dict[str, Any]:
+            nonlocal seen, refused
+            message = await receive()
+            seen += len(message.get("body", b""))
+            if seen > self.limit:
+                refused = True
+                raise _TooLarge()
+            return message
+
+        try:
+            await self.app(scope, counted, send)
+        except _TooLarge:
+            await self._refuse(send, seen)
+        except Exception:
+            if not refused:
+                raise
+            await self._refuse(send, seen)
+
+    async def _refuse(self, send: Any, size: int) -> None:
+        body = json.dumps({"detail": f"upload of {size} bytes or more exceeds the limit of {self.limit} "
+                                     "bytes (limits.max_upload_mb)"}).encode()
+        with contextlib.suppress(Exception):
+            await send({"type": "http.response.start", "status": 413,
+                        "headers": [(b"content-type", b"application/json"), (b"connection", b"close"),
+                                    (b"content-length", str(len(body)).encode())]})
+            await send({"type": "http.response.body", "body": body})
+
+
+class _TooLarge(Exception):
+    pass
 
 
 class AlignRequest(BaseModel):
@@ -83,13 +136,9 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         return JSONResponse(status_code=422, content={"detail": str(exc)})
 
     @app.post("/jobs", status_code=201, response_model=JobRecord, dependencies=auth)
-    async def submit(request: Request, mesh: Annotated[UploadFile, File(description="OBJ, PLY, STL or OFF")],
+    async def submit(mesh: Annotated[UploadFile, File(description="OBJ, PLY, STL or OFF")],
                      parameters: Annotated[str, Form(description="design parameters, JSON")] = "{}",
                      start: Annotated[bool, Form(description="print as soon as compiled")] = False) -> JobRecord:
-        length = request.headers.get("content-length")
-        if length is not None and length.isdigit() and int(length) > limit:
-            raise HTTPException(413, f"upload of {int(length)} bytes exceeds the limit of {limit} bytes "
-                                     "(limits.max_upload_mb)")
         try:
             params = json.loads(parameters)
         except ValueError as exc:
@@ -195,4 +244,6 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
                                  headers={"Cache-Control": "no-cache"})
 
     app.state.instance_id = secrets.token_hex(4)
+    # the file may take the whole limit; its multipart framing and form fields get 64 kB more
+    app.add_middleware(BodyLimit, limit=limit + 65536)
     return app

@@ -109,9 +109,10 @@ class _Run:
 
 def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
     """The modal state after ``commands[:upto]``: positioning and extrusion modes, feed rate,
-    fan and heater targets (what a resumed program must restore)."""
+    fan and heater targets, and the last commanded X, Y, Z (what a resumed program must restore;
+    the commanded position is exact, where ``M114`` reports it rounded to 10 µm)."""
     state: dict[str, Any] = {"absolute": True, "e_absolute": True, "feed": None, "fan": 0,
-                             "nozzle": None, "bed": None}
+                             "nozzle": None, "bed": None, "x": None, "y": None, "z": None}
     for cmd in commands[:upto]:
         words = cmd.split()
         code = words[0].upper()
@@ -124,8 +125,18 @@ def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
             state["e_absolute"] = True
         elif code == "M83":
             state["e_absolute"] = False
-        elif code in ("G0", "G1") and "F" in args:
-            state["feed"] = float(args["F"])
+        elif code in ("G0", "G1"):
+            if "F" in args:
+                state["feed"] = float(args["F"])
+            for axis in "XYZ":                     # last commanded position (absolute moves only)
+                if axis in args:
+                    key = axis.lower()
+                    if state["absolute"]:
+                        state[key] = float(args[axis])
+                    elif state[key] is not None:
+                        state[key] += float(args[axis])
+        elif code == "G28":
+            state["x"] = state["y"] = state["z"] = None
         elif code == "M106":
             state["fan"] = int(float(args.get("S", "255")))
         elif code == "M107":
@@ -544,7 +555,8 @@ class RibbonService:
         await link.send("M400", timeout=300)
         pos = await link.query_position()
         modal = modal_state(self._run_commands, max(self._acked, 0))
-        run.pause_snapshot = {"x": pos.x, "y": pos.y, "z": pos.z, **modal}
+        exact = {k: modal[k] if modal[k] is not None else getattr(pos, k) for k in ("x", "y", "z")}
+        run.pause_snapshot = {**modal, **exact}
         lay, mo, r = self.profile.layers, self.profile.motion, self.profile.retraction
         x0, _, _, y1 = self.profile.frame.bounds
         for command in ("G90", "M83", f"G1 E{-r.length:.5f} F{mo.retract_speed * 60:.0f}",

@@ -67,9 +67,12 @@ def test_modal_state_follows_the_program_up_to_the_pause() -> None:
     program = ["G90", "M83", "M104 S225", "M140 S60", "M106 S127", "G1 X1 E0.1 F900", "G91", "G1 X1",
                "M82", "G0 X5 F9000", "M107", "M109 S210"]
     s = modal_state(program, 6)
-    assert s == {"absolute": True, "e_absolute": False, "feed": 900.0, "fan": 127, "nozzle": 225.0, "bed": 60.0}
+    assert s == {"absolute": True, "e_absolute": False, "feed": 900.0, "fan": 127, "nozzle": 225.0, "bed": 60.0,
+                 "x": 1.0, "y": None, "z": None}
     s = modal_state(program, 8)
     assert s["absolute"] is False and s["e_absolute"] is False           # G91 sets E relative too
+    assert s["x"] == 2.0                                                   # a relative move adds
     s = modal_state(program, len(program))
     assert s["e_absolute"] is True and s["feed"] == 9000.0 and s["fan"] == 0 and s["nozzle"] == 210.0
+    assert s["x"] == 7.0
     assert modal_state(program, 0)["absolute"] is True                    # Marlin's power-on state

@@ -1,0 +1,260 @@
+"""Fixtures for the daemon's end-to-end tests: real processes only.
+
+A simulated printer (``python -m sim`` on a real pty, driven through its control socket), a real
+``ribbond`` process reading a TOML configuration, and real HTTP with httpx. Nothing is mocked.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from ribbond.design.mesh_io import write_obj
+from ribbond.design.surfaces import saddle
+from sim.process import SimProcess
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: Simulator speed: 50× faster than the machine (heating takes ~1.6 s, a 145 s front ~3 s).
+TIME_SCALE = 0.02
+BAUD = 250000
+#: Small designs: fewer ribbons, short programs.
+PARAMETERS = {"size": {"bbox_diagonal": 70}}
+#: The profile's frame centre (ultimaker2-tpu): the flip is about the line x = 110.
+CENTER = (110.0, 110.0)
+#: Commands the link sends on its own (handshake, probes): not program lines.
+HOST_COMMANDS = ("M110", "M115", "M155", "M105", "M114")
+TERMINAL = {"done", "cancelled", "failed"}
+
+
+# ---------------------------------------------------------------------------------- the printer
+
+
+class Sim:
+    """A simulator process, and which side of its frame is up (its flip toggles sides)."""
+
+    def __init__(self) -> None:
+        self.process = SimProcess(["--time-scale", str(TIME_SCALE), "--baud", str(BAUD)], cwd=ROOT).start()
+        self.port = self.process.port
+        self.side = "front"
+
+    def request(self, request: dict[str, Any]) -> dict[str, Any]:
+        return self.process.request(request)
+
+    def flip(self, dx: float = 0.0, dy: float = 0.0, rotation_deg: float = 0.0) -> dict[str, Any]:
+        pose = self.request({"cmd": "flip", "dx": dx, "dy": dy, "rotation_deg": rotation_deg})["pose"]
+        self.side = pose["side"]
+        return pose
+
+    def ensure_front(self) -> None:
+        """Front side up, no misalignment (the identity pose the simulator starts with)."""
+        if self.side != "front":
+            self.flip()
+        assert self.side == "front"
+
+    def segments(self) -> list[dict[str, Any]]:
+        return list(self.request({"cmd": "segments"})["segments"])
+
+    def commands(self) -> list[dict[str, Any]]:
+        return list(self.request({"cmd": "commands"})["commands"])
+
+    def program_commands(self) -> list[str]:
+        """Executed commands, without the link's own handshake and probes."""
+        return [c["command"] for c in self.commands() if c["command"].split()[0].upper() not in HOST_COMMANDS]
+
+    def stop(self) -> None:
+        self.process.stop()
+
+
+# ---------------------------------------------------------------------------------- the daemon
+
+
+class Daemon:
+    """``python -m ribbond --config FILE`` in its own process, with an httpx client on its API."""
+
+    def __init__(self, state_dir: Path, port: str, *, api: str = "", extra: str = "",
+                 token: str | None = None) -> None:
+        """``api``: more lines of the ``[api]`` table; ``extra``: more tables (TOML text)."""
+        self.state_dir = state_dir
+        self.state_dir.mkdir(parents=True, exist_ok=True)
+        self.config = state_dir / "ribbond.toml"
+        self.config.write_text(
+            f'state_dir = "{state_dir}"\nlog_level = "info"\n'
+            f'[serial]\nport = "{port}"\nbaud = {BAUD}\n'
+            f'[api]\nhost = "127.0.0.1"\nport = 0\n{api}\n{extra}\n', encoding="utf-8")
+        self.log_path = state_dir / "ribbond.log"
+        self.token = token
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.url = ""
+        self.client: httpx.Client | None = None
+        self.runs = 0
+
+    def start(self, timeout: float = 30.0) -> Daemon:
+        url_file = self.state_dir / "api.url"
+        url_file.unlink(missing_ok=True)          # a killed daemon leaves its address behind
+        self.runs += 1
+        log = self.log_path.open("ab")
+        log.write(f"\n===== run {self.runs} =====\n".encode())
+        log.flush()
+        self.proc = subprocess.Popen([sys.executable, "-m", "ribbond", "--config", str(self.config)],
+                                     cwd=ROOT, stdout=log, stderr=log,
+                                     env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        log.close()
+        deadline = time.monotonic() + timeout
+        while not url_file.exists():
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"ribbond exited with {self.proc.returncode}:\n{self.log_tail()}")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"ribbond did not write api.url in {timeout:.0f} s:\n{self.log_tail()}")
+            time.sleep(0.05)
+        # The file is written in one call; wait until the line is complete.
+        while not (text := url_file.read_text(encoding="utf-8")).endswith("\n"):
+            time.sleep(0.01)
+        self.url = text.strip()
+        headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
+        self.client = httpx.Client(base_url=self.url, timeout=60.0, headers=headers)
+        return self
+
+    def wait_printer(self, timeout: float = 30.0) -> None:
+        """Until the daemon's link to the printer is up."""
+        assert self.client is not None
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            status = self.client.get("/printer").json()
+            if status.get("state") in ("ready", "streaming", "paused"):
+                return
+            time.sleep(0.1)
+        raise RuntimeError(f"the printer did not connect in {timeout:.0f} s: {status}\n{self.log_tail()}")
+
+    def log_tail(self, chars: int = 4000) -> str:
+        try:
+            return self.log_path.read_text(encoding="utf-8", errors="replace")[-chars:]
+        except OSError:
+            return "(no log)"
+
+    def _close_client(self) -> None:
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+
+    def kill(self) -> None:
+        """SIGKILL: no shutdown code runs, as in a crash or a power cut."""
+        assert self.proc is not None
+        self._close_client()
+        self.proc.send_signal(signal.SIGKILL)
+        self.proc.wait(10)
+        self.proc = None
+
+    def stop(self) -> None:
+        self._close_client()
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(15)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.proc = None
+
+
+# ---------------------------------------------------------------------------------- API helpers
+
+
+def submit(client: httpx.Client, mesh: Path, *, start: bool, parameters: dict[str, Any] | None = None) -> str:
+    with mesh.open("rb") as handle:
+        r = client.post("/jobs", files={"mesh": (mesh.name, handle)},
+                        data={"parameters": json.dumps(parameters or PARAMETERS), "start": str(start).lower()})
+    assert r.status_code == 201, r.text
+    return str(r.json()["id"])
+
+
+def wait_for(client: httpx.Client, job: str, states: set[str] | str, *, timeout: float = 60.0,
+             poll: float = 0.05, until: Any = None) -> dict[str, Any]:
+    """Poll the job until its state is in ``states`` (and ``until(job)`` holds); fail on a
+    terminal state that was not asked for."""
+    wanted = {states} if isinstance(states, str) else set(states)
+    deadline = time.monotonic() + timeout
+    seen: list[str] = []
+    while True:
+        j = client.get(f"/jobs/{job}").json()
+        if not seen or seen[-1] != j["state"]:
+            seen.append(j["state"])
+        if j["state"] in wanted and (until is None or until(j)):
+            return dict(j)
+        if j["state"] in (TERMINAL | {"interrupted"}) - wanted:
+            raise AssertionError(f"job {job} ended {j['state']} ({j.get('error')}) waiting for {wanted}; "
+                                 f"states seen {seen}")
+        if time.monotonic() > deadline:
+            raise AssertionError(f"job {job} did not reach {wanted} in {timeout:.0f} s; states seen {seen}: {j}")
+        time.sleep(poll)
+
+
+def cancel_leftovers(client: httpx.Client) -> None:
+    """Cancel whatever a test left queued or holding the printer, so the next test has it free."""
+    for j in client.get("/jobs").json():
+        if j["state"] not in TERMINAL:
+            client.post(f"/jobs/{j['id']}/cancel")
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        if all(j["state"] in TERMINAL for j in client.get("/jobs").json()):
+            return
+        time.sleep(0.1)
+
+
+# ---------------------------------------------------------------------------------- fixtures
+
+
+@pytest.fixture(scope="session")
+def meshes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """``two_sided``: a saddle with 2 front and 17 back ribbons at 70 mm (front 268 lines, back
+    ~1800). ``one_sided``: a saddle whose ribbons are all on the front (~1800 lines, ~3 s here)."""
+    folder = tmp_path_factory.mktemp("meshes")
+    out = {}
+    for name, (kx, ky) in {"two_sided": (1 / 50, 1 / 50), "one_sided": (1 / 80, 1 / 40)}.items():
+        V, F = saddle(80.0, kx, ky, rings=12)
+        path = folder / f"{name}.obj"
+        write_obj(path, V, F)
+        out[name] = path
+    return out
+
+
+@pytest.fixture(scope="module")
+def shared_sim() -> Iterator[Sim]:
+    sim = Sim()
+    try:
+        yield sim
+    finally:
+        sim.stop()
+
+
+@pytest.fixture(scope="module")
+def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
+    daemon = Daemon(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port)
+    try:
+        daemon.start()
+        daemon.wait_printer()
+        yield daemon
+    finally:
+        daemon.stop()
+
+
+@pytest.fixture
+def api(shared_daemon: Daemon, shared_sim: Sim) -> Iterator[httpx.Client]:
+    """The shared daemon's client; the frame front up before, no job left running after."""
+    shared_sim.ensure_front()
+    assert shared_daemon.client is not None
+    try:
+        yield shared_daemon.client
+    finally:
+        if shared_daemon.client is not None:
+            cancel_leftovers(shared_daemon.client)
