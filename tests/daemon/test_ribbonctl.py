@@ -67,3 +67,18 @@ def test_a_mesh_the_engine_refuses_fails_the_job_with_the_reason(shared_daemon: 
     assert proc.returncode == 1
     assert "failed" in proc.stdout and "closed" in proc.stdout
     assert api.get("/printer").json()["state"] == "ready"     # the daemon is fine
+
+
+def test_watch_follows_a_job_to_the_end_over_server_sent_events(shared_daemon: Daemon, api: httpx.Client,
+                                                                meshes: dict[str, Path]) -> None:
+    submitted = ctl(shared_daemon, "submit", str(meshes["one_sided"]), "--size", "70", "--start", "--no-wait",
+                    "--json")
+    job = json.loads(submitted.stdout)["id"]
+    watched = ctl(shared_daemon, "watch", job)
+    assert watched.returncode == 0, watched.stderr
+    states = [line.split()[1] for line in watched.stdout.splitlines() if line.startswith(job)]
+    assert states[-1] == "done"
+    # the states arrive in the order of the table
+    order = ["submitted", "compiling", "ready", "heating", "printing_front", "done"]
+    seen = [s for s in order if s in states]
+    assert seen == sorted(seen, key=order.index) and "printing_front" in seen
