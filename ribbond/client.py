@@ -125,21 +125,37 @@ def _out(args: argparse.Namespace, obj: Any, text: str) -> None:
     print(json.dumps(obj, indent=1) if args.json else text)
 
 
+#: The compile's stages in order (``ribbond.design.pipeline``), for the progress bar.
+COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "preview", "write")
+
+
 def _wait(c: Client, job_id: str, until: set[str], show: bool) -> dict[str, Any]:
-    """Poll the job until its state is in ``until``, printing stage changes."""
+    """Poll the job until its state is in ``until``: a progress bar over the compile's stages and
+    the printed lines on a terminal, one line per stage otherwise."""
     last = None
     bar: tqdm | None = None
+    tty = show and sys.stderr.isatty()
     try:
         while True:
             job = c.request("GET", f"/jobs/{job_id}")
             key = (job["state"], job.get("stage"))
-            if show and key != last:
+            if tty and job["state"] == "compiling":
+                if bar is None:
+                    bar = tqdm(total=len(COMPILE_STAGES), desc="compiling", unit="stage", file=sys.stderr,
+                               leave=False)
+                stage = job.get("stage")
+                if stage in COMPILE_STAGES:
+                    bar.n = COMPILE_STAGES.index(stage)
+                    bar.set_postfix_str(stage, refresh=False)
+                    bar.refresh()
+                last = key
+            elif show and key != last:
                 if bar is not None:
                     bar.close()
                     bar = None
                 print(f"{job['state']:<15} {job.get('stage') or ''}", file=sys.stderr, flush=True)
                 last = key
-            if show and sys.stderr.isatty() and job.get("lines_total") and job["state"].startswith("printing"):
+            if tty and job.get("lines_total") and job["state"].startswith("printing"):
                 if bar is None:
                     bar = tqdm(total=job["lines_total"], unit="line", desc=job["state"], file=sys.stderr,
                                leave=False)
