@@ -64,6 +64,7 @@ bench: $(STAMP)
 	$(PY) bench/flatten.py
 	$(PY) bench/design.py
 	$(PY) bench/gcode.py
+	$(PY) bench/daemon.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache out

@@ -25,10 +25,9 @@ import sys
 import time
 from pathlib import Path
 
-from .design.errors import DesignError, MeshError
-from .design.format import design_to_dict
-from .design.params import DesignParameters
-from .design.pipeline import design_mesh, write_design
+# The engine (numpy, scipy, libigl) is imported in ``main`` after the priority is lowered: on Linux
+# a thread's nice value is its own, and the BLAS threads those imports start inherit it only if
+# they are created after ``os.nice``.
 
 
 def _emit(obj: dict[str, object]) -> None:
@@ -68,6 +67,11 @@ def main(argv: list[str] | None = None) -> int:
             os.nice(args.nice)
         except OSError:
             pass
+    from .design.errors import DesignError, MeshError
+    from .design.format import design_to_dict
+    from .design.params import DesignParameters
+    from .design.pipeline import design_mesh, write_design
+
     try:
         params = DesignParameters.model_validate(json.loads(args.params))
         result = design_mesh(args.mesh, params, progress=JsonProgress())
