@@ -52,7 +52,7 @@ from stream import BALANCED_LOAD, FEED, mean_encoded_length, program  # noqa: E4
 
 from ribbond.printer import PrinterLink, Timeouts  # noqa: E402
 from ribbond.printer.sender import StreamProgress  # noqa: E402
-from ribbond.service import ACK_INTERVAL_S, EventBus  # noqa: E402
+from ribbond.service import ACK_INTERVAL_S, EventBus, worker_command, worker_environment  # noqa: E402
 from ribbond.store import JobStore  # noqa: E402
 from sim.process import SimProcess  # noqa: E402
 
@@ -150,9 +150,8 @@ async def compile_like_daemon(mesh: Path, workdir: Path, book: Bookkeeping, resu
     result.started = time.monotonic()
     with (out / "compile.log").open("wb") as errors:
         proc = await asyncio.create_subprocess_exec(
-            sys.executable, "-m", "ribbond.worker", str(mesh), str(out / "design"),
-            "--params", "{}", "--plans", str(out / "plans"),
-            stdout=asyncio.subprocess.PIPE, stderr=errors, cwd=ROOT)
+            *worker_command(sys.executable, str(mesh), out / "design", {}, out / "plans"),
+            stdout=asyncio.subprocess.PIPE, stderr=errors, cwd=ROOT, env=worker_environment())
     assert proc.stdout is not None
     async for raw in proc.stdout:
         result.lines += 1

@@ -52,6 +52,20 @@ ACK_INTERVAL_S = 0.5
 MESH_SUFFIXES = (".obj", ".off", ".stl", ".ply")
 
 
+def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path) -> list[str]:
+    """The command line of one compile (``python -m ribbond.worker``)."""
+    return [python, "-m", "ribbond.worker", mesh, str(out), "--params", json.dumps(parameters),
+            "--plans", str(plans)]
+
+
+def worker_environment() -> dict[str, str]:
+    """The compile's environment: its numeric libraries use all cores but one, which is left to
+    the event loop that feeds the printer (the worker also runs at nice +10)."""
+    threads = str(max(1, (os.cpu_count() or 2) - 1))
+    limits = {name: threads for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    return {**os.environ, **limits}
+
+
 class ServiceError(Exception):
     """A request that cannot be done now, with the reason (the API answers 409)."""
 
@@ -295,9 +309,8 @@ class RibbonService:
         log_path = folder / "compile.log"
         with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
             proc = await asyncio.create_subprocess_exec(
-                self.python, "-m", "ribbond.worker", job.mesh_path, str(folder / "design"),
-                "--params", json.dumps(params), "--plans", str(folder / "plans"),
-                stdout=asyncio.subprocess.PIPE, stderr=errors)
+                *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans"),
+                stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
         self._compiling[job_id] = proc
         last: dict[str, Any] = {}
         try:

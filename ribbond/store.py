@@ -394,17 +394,23 @@ class JobStore:
     def record_ack(self, job_id: str, line: int) -> None:
         """Raise ``last_acked_line`` to ``line`` (never lowers it), committed.
 
-        Each call is one fsynced transaction: call it per batch of acknowledgements, not per line.
-        A new program (the back side) starts its numbering over: reset ``last_acked_line`` with
-        ``transition`` or ``update``.
+        Committed without waiting for the disk (``synchronous=NORMAL`` for this one write): it
+        survives the daemon being killed, and it is written every half second while streaming, when
+        an fsync on the event loop could keep the printer waiting (tens of ms on an SD card). State
+        changes and checkpoints stay fsynced. A new program (the back side) starts its numbering
+        over: reset ``last_acked_line`` with ``transition`` or ``update``.
         """
         if isinstance(line, bool) or not isinstance(line, int) or line < -1:
             raise ValueError(f"job {job_id}: acknowledged line {line!r}: must be an integer >= -1")
-        with self._transaction() as db:
-            current = self._row(job_id)
-            if line > current["last_acked_line"]:
-                db.execute("UPDATE jobs SET last_acked_line = ?, updated = ? WHERE id = ?",
-                           (line, self._now(current["updated"]), job_id))
+        self._db.execute("PRAGMA synchronous = NORMAL")
+        try:
+            with self._transaction() as db:
+                current = self._row(job_id)
+                if line > current["last_acked_line"]:
+                    db.execute("UPDATE jobs SET last_acked_line = ?, updated = ? WHERE id = ?",
+                               (line, self._now(current["updated"]), job_id))
+        finally:
+            self._db.execute("PRAGMA synchronous = FULL")
 
     def checkpoint(self, job_id: str, name: str, line: int) -> JobRecord:
         """Record the synchronized (M400) checkpoint ``name`` reached at line ``line``, committed.
