@@ -34,6 +34,12 @@ JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "d
 _CHUNK = 1 << 20
 
 
+class JobStatus(JobRecord):
+    """A job as the API shows it: the stored record and, while it streams, the time left."""
+
+    eta_s: float | None = Field(None, description="seconds left of the program being streamed")
+
+
 class BodyLimit:
     """ASGI middleware: a request body larger than ``limit`` bytes is answered 413 as soon as it
     passes the limit, whether or not it announced its length (the multipart parser would otherwise
@@ -165,9 +171,9 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     async def jobs() -> list[JobRecord]:
         return service.jobs()
 
-    @app.get("/jobs/{job_id}", response_model=JobRecord, dependencies=auth)
-    async def job(job_id: str) -> JobRecord:
-        return service.job(job_id)
+    @app.get("/jobs/{job_id}", response_model=JobStatus, dependencies=auth)
+    async def job(job_id: str) -> JobStatus:
+        return JobStatus(**service.job(job_id).model_dump(), eta_s=service.eta(job_id))
 
     @app.get("/jobs/{job_id}/transitions", response_model=list[Transition], dependencies=auth)
     async def transitions(job_id: str) -> list[Transition]:
@@ -211,13 +217,14 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         return await service.align_mark(job_id, body.mark, body.jog)
 
     @app.get("/printer", dependencies=auth)
-    async def printer() -> dict[str, Any]:
-        return service.printer_status()
+    async def printer(refresh: bool = False) -> dict[str, Any]:
+        """Connection, firmware, temperatures, position; ``refresh=true`` asks the printer first."""
+        return await service.printer_status(refresh)
 
     @app.post("/printer/emergency-stop", dependencies=auth)
     async def emergency_stop() -> dict[str, Any]:
         service.emergency_stop()
-        return service.printer_status()
+        return await service.printer_status()
 
     @app.post("/printer/recover", dependencies=auth)
     async def recover() -> dict[str, Any]:

@@ -117,6 +117,8 @@ def _line(job: dict[str, Any]) -> str:
     if job.get("lines_total"):
         progress = f"  line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}"
     err = f"  ({job['error']})" if job.get("error") else ""
+    if job.get("eta_s") is not None:
+        progress += f", ~{job['eta_s'] / 60:.1f} min left"
     stage = f" [{job['stage']}]" if job.get("stage") else ""
     return f"{job['id']}  {job['state']:<15}{stage}  {job['mesh_name']}{progress}{err}"
 
@@ -280,7 +282,7 @@ def _align_text(status: dict[str, Any]) -> str:
 
 
 def cmd_printer(args: argparse.Namespace) -> int:
-    status = _client(args).request("GET", "/printer")
+    status = _client(args).request("GET", "/printer", params={"refresh": "true"})
     heaters = ", ".join(f"{k} {v['current']:.0f}/{v.get('target') or 0:.0f} °C" for k, v in status.get("heaters", {}).items())
     _out(args, status, f"{status.get('state')}  {status.get('firmware') or ''}  {heaters}  "
                        f"position {status.get('position')}")

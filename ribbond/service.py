@@ -181,6 +181,7 @@ class RibbonService:
         self._compiling: dict[str, asyncio.subprocess.Process] = {}
         self._run: _Run | None = None
         self._acked = -1                 # program lines acknowledged in the current stream
+        self._eta: dict[str, float] = {}  # seconds left of the program a job is streaming
         self._run_commands: list[str] = []
 
     # ------------------------------------------------------------------ life cycle
@@ -228,6 +229,10 @@ class RibbonService:
 
     def jobs(self) -> list[JobRecord]:
         return self.store.list()
+
+    def eta(self, job_id: str) -> float | None:
+        """Seconds left of the program the job is streaming (from the rate so far), if it is."""
+        return self._eta.get(job_id)
 
     def job_dir(self, job_id: str) -> Path:
         return self.jobs_dir / job_id
@@ -447,10 +452,15 @@ class RibbonService:
                 last_write = now
                 self.store.record_ack(job_id, p.acknowledged)
                 eta = (p.elapsed_s / p.acknowledged * (p.total - p.acknowledged)) if p.acknowledged else None
+                if eta is not None:
+                    self._eta[job_id] = eta
                 self.bus.publish({"type": "progress", "job_id": job_id, "side": side, "line": p.acknowledged,
                                   "lines": p.total, "eta_s": eta})
 
-        await link.stream(commands, progress)
+        try:
+            await link.stream(commands, progress)
+        finally:
+            self._eta.pop(job_id, None)
         if not switched and after_heating is not None:
             self._transition(job_id, after_heating, stage=f"printing {side}")
 
@@ -611,9 +621,15 @@ class RibbonService:
 
     # ------------------------------------------------------------------ the printer
 
-    def printer_status(self) -> dict[str, Any]:
+    async def printer_status(self, refresh: bool = False) -> dict[str, Any]:
+        """What the link knows; with ``refresh``, the temperatures and position asked for first
+        (``M105``, ``M114``: answered ahead of a running program)."""
         if self.link is None:
             return {"state": "disconnected"}
+        if refresh and self.link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED):
+            with contextlib.suppress(LinkError, asyncio.TimeoutError):
+                await asyncio.wait_for(self.link.query_temperatures(), 10)
+                await asyncio.wait_for(self.link.query_position(), 10)
         return self.link.status.model_dump(mode="json")
 
     def emergency_stop(self) -> None:
@@ -626,7 +642,7 @@ class RibbonService:
         if link.state is not LinkState.HALTED:
             raise ServiceError(f"the printer is {link.state.value}, not halted: nothing to recover")
         await link.recover()
-        return self.printer_status()
+        return await self.printer_status()
 
 
 def _allowed(state: JobState) -> frozenset[JobState]:

@@ -82,3 +82,28 @@ def test_watch_follows_a_job_to_the_end_over_server_sent_events(shared_daemon: D
     order = ["submitted", "compiling", "ready", "heating", "printing_front", "done"]
     seen = [s for s in order if s in states]
     assert seen == sorted(seen, key=order.index) and "printing_front" in seen
+
+
+def test_printer_status_and_the_time_left_of_a_print(shared_daemon: Daemon, api: httpx.Client,
+                                                     meshes: dict[str, Path]) -> None:
+    import time
+
+    status = api.get("/printer", params={"refresh": "true"}).json()
+    assert status["state"] == "ready" and status["firmware"]
+    assert "T" in status["heaters"] and status["position"] is not None and len(status["position"]) == 4
+    printer = ctl(shared_daemon, "printer")
+    assert printer.returncode == 0 and "ready" in printer.stdout and "°C" in printer.stdout
+    job = json.loads(ctl(shared_daemon, "submit", str(meshes["one_sided"]), "--size", "70", "--start",
+                         "--no-wait", "--json").stdout)["id"]
+    wait_for(api, job, "printing_front")
+    eta = None
+    deadline = time.monotonic() + 30
+    while eta is None and time.monotonic() < deadline:
+        record = api.get(f"/jobs/{job}").json()
+        eta = record.get("eta_s")
+        if record["state"] == "done":
+            break
+        time.sleep(0.05)
+    assert eta is not None and eta >= 0
+    wait_for(api, job, "done")
+    assert api.get(f"/jobs/{job}").json()["eta_s"] is None
