@@ -176,7 +176,7 @@ def cmd_submit(args: argparse.Namespace) -> int:
     params: dict[str, Any] = {}
     if args.params:
         from .design.params import load_settings
-        params = load_settings(args.params).parameters.model_dump(mode="json", exclude_none=True)
+        params = load_settings(args.params).parameters.model_dump(mode="json", exclude_unset=True)
     if args.size is not None:
         params["size"] = {"bbox_diagonal": args.size}
     job = c.submit(args.mesh, params, args.start, show=not args.json)

@@ -243,6 +243,10 @@ class RibbonService:
         if Path(safe).suffix.lower() not in MESH_SUFFIXES:
             raise ValueError(f"{name!r}: not a mesh file the engine reads ({', '.join(MESH_SUFFIXES)})")
         DesignParameters.model_validate(parameters)              # refuse bad parameters now
+        asked = parameters.get("printer_profile")
+        if asked is not None and asked != self.config.printer_profile:
+            raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
+                             "printer; leave printer_profile out (designs are made for the daemon's printer)")
         if sum(j.state is not JobState.INTERRUPTED for j in self.store.active()) >= self.config.limits.max_jobs:
             raise ServiceError(f"{self.config.limits.max_jobs} jobs are already queued or running; "
                                "wait for some to finish or cancel them")
@@ -308,8 +312,7 @@ class RibbonService:
         if job.state is not JobState.SUBMITTED:
             return
         folder = self.job_dir(job_id)
-        params = {**job.parameters, "printer_profile": job.parameters.get("printer_profile",
-                                                                         self.config.printer_profile)}
+        params = {**job.parameters, "printer_profile": self.config.printer_profile}
         self._transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
         log_path = folder / "compile.log"
         with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
