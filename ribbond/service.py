@@ -404,6 +404,8 @@ class RibbonService:
             await self._await_flip(job.id)
             run.alignment = _Alignment(expected=expected)
             self._transition(job.id, JobState.ALIGNING, stage="aligning")
+            # the front program ended with the motors off (M84) and the frame was handled: home again
+            await link.send("G28", timeout=300)
             await self._go_to_mark(0, expected)
             await run.aligned.wait()
             if run.cancel_requested:
