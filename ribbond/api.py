@@ -11,7 +11,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import secrets
 import tempfile
 from pathlib import Path
 from typing import Annotated, Any
@@ -250,7 +249,6 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         return StreamingResponse(stream(), media_type="text/event-stream",
                                  headers={"Cache-Control": "no-cache"})
 
-    app.state.instance_id = secrets.token_hex(4)
     # the file may take the whole limit; its multipart framing and form fields get 64 kB more
     app.add_middleware(BodyLimit, limit=limit + 65536)
     return app

@@ -37,7 +37,7 @@ from .config import DaemonConfig
 from .design.folder import read_design_folder
 from .design.params import DesignParameters
 from .gcode.profiles import PrinterProfile
-from .gcode.program import SidePlan, flip_message, render_side
+from .gcode.program import Correction, SidePlan, flip_message, render_side
 from .jobs import TRANSITIONS, IllegalTransition, JobState
 from .printer.errors import LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
@@ -102,6 +102,8 @@ class _Alignment:
 
     expected: np.ndarray
     measured: dict[int, tuple[float, float]] = field(default_factory=dict)
+    correction: Correction | None = None        # the accepted fit, once every mark is in
+    refused: AlignmentRefused | None = None     # or why it was refused
 
     @property
     def next_mark(self) -> int | None:
@@ -279,7 +281,7 @@ class RibbonService:
 
     async def cancel(self, job_id: str) -> JobRecord:
         job = self.job(job_id)
-        if JobState.CANCELLED not in _allowed(job.state):
+        if JobState.CANCELLED not in TRANSITIONS[job.state]:
             raise IllegalTransition(job.state, JobState.CANCELLED)
         proc = self._compiling.get(job_id)
         if proc is not None:
@@ -410,13 +412,12 @@ class RibbonService:
             await run.aligned.wait()
             if run.cancel_requested:
                 raise StreamCancelled("cancelled by the operator")
-            try:
-                correction = self._fit(run.alignment)
-            except AlignmentRefused as exc:
+            correction, refused = run.alignment.correction, run.alignment.refused
+            if refused is not None or correction is None:
                 run.flip.clear()
                 run.aligned.clear()
-                self._transition(job.id, JobState.AWAITING_FLIP, reason=f"alignment refused: {exc}",
-                                 error=str(exc))
+                self._transition(job.id, JobState.AWAITING_FLIP, reason=f"alignment refused: {refused}",
+                                 error=str(refused))
                 continue
             break
         plan = SidePlan.load(self.job_dir(job.id) / "plans" / "back-plan.npz")
@@ -546,29 +547,23 @@ class RibbonService:
         if nxt is not None:
             await self._go_to_mark(nxt, al.expected)
             return status
+        # the fit is made once, here; the printer task takes its result from ``al``
+        fit = fit_rigid(al.expected, np.array([al.measured[i] for i in range(len(al.expected))]))
+        status["fit"] = {"rotation_deg": fit.rotation_deg, "offset": list(fit.offset),
+                         "rms_mm": fit.rms, "max_residual_mm": fit.max_residual}
+        tol = self.profile.alignment
         try:
-            fit = fit_rigid(al.expected, np.array([al.measured[i] for i in range(len(al.expected))]))
-            status["fit"] = {"rotation_deg": fit.rotation_deg, "offset": list(fit.offset),
-                             "rms_mm": fit.rms, "max_residual_mm": fit.max_residual}
-            self._check(fit)
-            status["accepted"] = True
+            check_fit(fit, max_residual=tol.max_residual, max_rotation_deg=tol.max_rotation_deg,
+                      max_offset=tol.max_offset)
         except AlignmentRefused as exc:
-            status["accepted"] = False
-            status["refused"] = str(exc)
-            run.aligned.set()
+            al.refused = exc
             raise
+        else:
+            al.correction = fit.correction()
+            status["accepted"] = True
         finally:
             run.aligned.set()
         return status
-
-    def _check(self, fit: Any) -> None:
-        a = self.profile.alignment
-        check_fit(fit, max_residual=a.max_residual, max_rotation_deg=a.max_rotation_deg, max_offset=a.max_offset)
-
-    def _fit(self, al: _Alignment) -> Any:
-        fit = fit_rigid(al.expected, np.array([al.measured[i] for i in range(len(al.expected))]))
-        self._check(fit)
-        return fit.correction()
 
     # ------------------------------------------------------------------ pause and resume
 
@@ -649,6 +644,3 @@ class RibbonService:
         await link.recover()
         return await self.printer_status()
 
-
-def _allowed(state: JobState) -> frozenset[JobState]:
-    return TRANSITIONS[state]

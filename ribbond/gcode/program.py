@@ -223,6 +223,7 @@ class _Writer:
     retracted: bool = False
     moves: list[tuple[float, float, float, float, float, float, float, float, bool]] = field(default_factory=list)
     outside: list[str] = field(default_factory=list)
+    _array: np.ndarray | None = None
 
     def raw(self, text: str) -> None:
         self.lines.append(text)
@@ -295,10 +296,16 @@ class _Writer:
         for q, de in zip(pts[1:], e):
             self._move("G1", np.array([q[0], q[1], z]), float(de), self.profile.motion.print_speed, True)
 
+    def move_array(self) -> np.ndarray:
+        """(k, 9) the moves written: start xyz, end xyz, e, speed, extruding (once writing is done)."""
+        if self._array is None or len(self._array) != len(self.moves):
+            self._array = np.array(self.moves, dtype=float).reshape(-1, 9)
+        return self._array
+
     def stats(self) -> ProgramStats:
         if not self.moves:
             return ProgramStats(0, 0.0, 0.0, 0.0, 0.0, 0.0, (0.0,) * 6)
-        M = np.array(self.moves, dtype=float)
+        M = self.move_array()
         start, end, e, speed, extruding = M[:, 0:3], M[:, 3:6], M[:, 6], M[:, 7], M[:, 8] > 0
         xy = np.linalg.norm(end[:, :2] - start[:, :2], axis=1)
         mo = self.profile.motion
@@ -421,7 +428,7 @@ def _check_limits(w: _Writer, what: str) -> None:
                          f"{tuple(round(b, 2) for b in prof.frame.bounds)}, first: {w.outside[0]}")
     m = prof.motion
     if w.moves:
-        M = np.array(w.moves, dtype=float)
+        M = w.move_array()
         d = M[:, 3:6] - M[:, 0:3]
         xy = np.hypot(d[:, 0], d[:, 1]) > 0
         limit = np.where(xy, m.max_xy_speed, np.where(np.abs(d[:, 2]) > 0, m.max_z_speed, m.max_e_speed))
