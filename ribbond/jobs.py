@@ -1,13 +1,18 @@
-"""The job state machine: one Enum, one transition table (issue 6 §2).
+"""The job state machine: one Enum, one transition table (issue 6 §2, issue 13).
 
     submitted → compiling → ready → heating → printing_front → awaiting_flip → aligning
               → printing_back → done
 
 plus ``paused`` (from either printing state, resumable to it), ``cancelled``, ``failed`` (with a
-reason) and ``interrupted`` (the daemon stopped while the job held the printer). A one-sided design
-goes from ``printing_front`` to ``done``. Every state change goes through ``check_transition``; a
-request the current state does not allow raises ``IllegalTransition`` naming the state and what is
-allowed (the API answers it with HTTP 409).
+reason) and ``interrupted`` (the daemon stopped, or the print task failed, while the job held the
+printer). A one-sided design goes from ``printing_front`` to ``done``; a plain G-code program needs
+no compile (``submitted → ready``) and prints as ``printing_front``. A job that ended (``done``,
+``failed``, ``cancelled``, ``interrupted``) goes back to ``ready`` when it is started again: a new
+print run of the same design (the store keeps the earlier runs).
+
+Every state change goes through ``check_transition``. What a person can do in each state is
+``COMMANDS`` (ribbonctl's verbs); a request the state does not allow raises ``IllegalTransition``
+naming the command tried, the state, and the commands possible now (the API answers 409).
 """
 
 from __future__ import annotations
@@ -32,23 +37,39 @@ class JobState(enum.Enum):
 
     @property
     def terminal(self) -> bool:
-        """No transition leaves this state (``interrupted`` may be resumed as a new run)."""
-        return not TRANSITIONS[self]
+        """The job's run has ended (``start`` begins a new run of the same design)."""
+        return self in ENDED
 
     @property
     def holds_printer(self) -> bool:
         """The job is using the printer in this state."""
         return self in _HOLDS_PRINTER
 
+    @property
+    def streams(self) -> bool:
+        """A program is being streamed to the printer (manual control is refused)."""
+        return self in STREAMING
+
+    @property
+    def waits_for_person(self) -> bool:
+        """Nothing happens until the operator acts (``ready`` only when not queued to print)."""
+        return self in WAITING
+
 
 _J = JobState
 _HOLDS_PRINTER = frozenset({_J.HEATING, _J.PRINTING_FRONT, _J.AWAITING_FLIP, _J.ALIGNING,
                             _J.PRINTING_BACK, _J.PAUSED})
+#: The run is over; the job can be printed again or deleted.
+ENDED = frozenset({_J.DONE, _J.CANCELLED, _J.FAILED, _J.INTERRUPTED})
+#: A program is streaming: the printer takes no manual commands.
+STREAMING = frozenset({_J.HEATING, _J.PRINTING_FRONT, _J.PRINTING_BACK})
+#: The job waits for the operator.
+WAITING = frozenset({_J.READY, _J.AWAITING_FLIP, _J.ALIGNING, _J.PAUSED})
 _ENDS = frozenset({_J.CANCELLED, _J.FAILED})
 
 #: The only transitions a job makes.
 TRANSITIONS: dict[JobState, frozenset[JobState]] = {
-    _J.SUBMITTED: frozenset({_J.COMPILING}) | _ENDS,
+    _J.SUBMITTED: frozenset({_J.COMPILING, _J.READY}) | _ENDS,
     _J.COMPILING: frozenset({_J.READY}) | _ENDS | {_J.INTERRUPTED},
     _J.READY: frozenset({_J.HEATING}) | _ENDS,
     _J.HEATING: frozenset({_J.PRINTING_FRONT, _J.PRINTING_BACK}) | _ENDS | {_J.INTERRUPTED},
@@ -57,23 +78,60 @@ TRANSITIONS: dict[JobState, frozenset[JobState]] = {
     _J.ALIGNING: frozenset({_J.PRINTING_BACK, _J.AWAITING_FLIP}) | _ENDS | {_J.INTERRUPTED},
     _J.PRINTING_BACK: frozenset({_J.DONE, _J.PAUSED}) | _ENDS | {_J.INTERRUPTED},
     _J.PAUSED: frozenset({_J.PRINTING_FRONT, _J.PRINTING_BACK}) | _ENDS | {_J.INTERRUPTED},
-    _J.DONE: frozenset(),
-    _J.CANCELLED: frozenset(),
-    _J.FAILED: frozenset(),
-    _J.INTERRUPTED: frozenset({_J.CANCELLED}),
+    # a new print run of the same design
+    _J.DONE: frozenset({_J.READY}),
+    _J.CANCELLED: frozenset({_J.READY}),
+    _J.FAILED: frozenset({_J.READY}),
+    _J.INTERRUPTED: frozenset({_J.READY, _J.CANCELLED}),
 }
+
+#: What a person can do with a job in each state: ribbonctl's commands (``ribbonctl CMD JOB``).
+COMMANDS: dict[JobState, tuple[str, ...]] = {
+    _J.SUBMITTED: ("start", "cancel"),
+    _J.COMPILING: ("start", "cancel"),
+    _J.READY: ("start", "cancel", "delete"),
+    _J.HEATING: ("cancel",),
+    _J.PRINTING_FRONT: ("pause", "cancel"),
+    _J.AWAITING_FLIP: ("flip-done", "cancel"),
+    _J.ALIGNING: ("align", "cancel"),
+    _J.PRINTING_BACK: ("pause", "cancel"),
+    _J.PAUSED: ("resume", "cancel"),
+    _J.DONE: ("start", "delete"),
+    _J.CANCELLED: ("start", "delete"),
+    _J.FAILED: ("start", "delete"),
+    _J.INTERRUPTED: ("start", "cancel", "delete"),
+}
+
+#: The command that asks for a state, for messages about refused transitions.
+_VERB = {_J.HEATING: "start", _J.READY: "start", _J.PAUSED: "pause", _J.CANCELLED: "cancel",
+         _J.ALIGNING: "flip-done", _J.PRINTING_FRONT: "resume", _J.PRINTING_BACK: "resume"}
 
 
 class IllegalTransition(Exception):
-    """A state change the transition table does not allow."""
+    """A request the job's state does not allow.
 
-    def __init__(self, current: JobState, requested: JobState | str) -> None:
+    Attributes
+    ----------
+    current : the job's state.
+    requested : the state or the command asked for.
+    command : the command tried (``pause``, ``flip-done``, …).
+    allowed : the commands possible now (``COMMANDS[current]``).
+    allowed_states : the states the table allows next.
+    """
+
+    def __init__(self, current: JobState, requested: JobState | str, *, command: str | None = None,
+                 hint: str | None = None) -> None:
         self.current = current
         self.requested = requested
-        self.allowed = sorted(s.value for s in TRANSITIONS[current])
-        name = requested.value if isinstance(requested, JobState) else requested
-        super().__init__(f"cannot {name} a job that is {current.value}; from {current.value} a job can go to: "
-                         + (", ".join(self.allowed) or "nothing (it is finished)"))
+        if command is None:
+            command = _VERB.get(requested, f"move to {requested.value}") if isinstance(requested, JobState) \
+                else requested
+        self.command = command
+        self.allowed = list(COMMANDS[current])
+        self.allowed_states = sorted(s.value for s in TRANSITIONS[current])
+        possible = ", ".join(self.allowed) or "nothing"
+        super().__init__(f"cannot {command}: the job is {current.value}; possible now: {possible}"
+                         + (f" ({hint})" if hint else ""))
 
 
 def check_transition(current: JobState, new: JobState) -> None:

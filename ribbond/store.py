@@ -28,7 +28,7 @@ from .jobs import JobState, check_transition
 
 #: The layout this code reads and writes (PRAGMA user_version). Bump it with a migration in
 #: ``_MIGRATIONS`` whenever the tables change.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 
 class JobRecord(BaseModel):
@@ -56,6 +56,10 @@ class JobRecord(BaseModel):
     side: Literal["front", "back"] | None = Field(None, description="side being printed")
     correction: dict[str, Any] | None = Field(None, description="the fitted alignment correction")
     paused_from: JobState | None = None
+    kind: Literal["design", "gcode"] = Field("design", description="a design compiled from a mesh, or a "
+                                             "plain G-code program (mesh_name/mesh_path: the program)")
+    runs: list[dict[str, Any]] = Field(default_factory=list, description="earlier print runs of this job, "
+                                       "oldest first: run, started, ended, state, error, side, lines")
 
     @field_validator("mesh_name")
     @classmethod
@@ -91,7 +95,7 @@ class JobNotFound(KeyError):
 
 #: Fields ``transition`` and ``update`` may set (the id, the state and the timestamps are the store's).
 MUTABLE_FIELDS = frozenset(JobRecord.model_fields) - {"id", "state", "created", "updated"}
-_JSON_FIELDS = frozenset({"parameters", "correction"})
+_JSON_FIELDS = frozenset({"parameters", "correction", "runs"})
 _COLUMNS = tuple(JobRecord.model_fields)
 
 _SCHEMA = """
@@ -115,7 +119,9 @@ CREATE TABLE jobs (
     checkpoint_line  INTEGER,
     side             TEXT,
     correction       TEXT,                               -- JSON
-    paused_from      TEXT
+    paused_from      TEXT,
+    kind             TEXT NOT NULL DEFAULT 'design',
+    runs             TEXT                                -- JSON list, NULL: none
 );
 CREATE INDEX jobs_state ON jobs (state);
 CREATE TABLE transitions (
@@ -129,8 +135,11 @@ CREATE TABLE transitions (
 CREATE INDEX transitions_job ON transitions (job_id, seq);
 """
 
-#: ``_MIGRATIONS[v]`` brings a database from version v to v + 1 (none yet: version 1 is the first).
-_MIGRATIONS: dict[int, str] = {}
+#: ``_MIGRATIONS[v]`` brings a database from version v to v + 1.
+_MIGRATIONS: dict[int, str] = {
+    # 2: plain G-code jobs and the history of print runs (issue 13)
+    1: "ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'design'; ALTER TABLE jobs ADD COLUMN runs TEXT",
+}
 
 
 def _json(value: Any, where: str) -> str:
@@ -238,6 +247,8 @@ class JobStore:
             if data[name] is not None:
                 data[name] = json.loads(data[name])
         data["start_when_ready"] = bool(data["start_when_ready"])
+        if data["runs"] is None:
+            data["runs"] = []
         return JobRecord.model_validate(data)
 
     def _row(self, job_id: str) -> sqlite3.Row:
@@ -251,8 +262,9 @@ class JobStore:
         return self._record(self._row(job_id))
 
     def list(self, states: Iterable[JobState] | None = None,
-             limit: int | None = None) -> builtins.list[JobRecord]:
-        """Jobs, newest first, optionally only those in ``states`` and at most ``limit`` of them."""
+             limit: int | None = None, offset: int = 0) -> builtins.list[JobRecord]:
+        """Jobs, newest first, optionally only those in ``states``, at most ``limit`` of them after
+        skipping ``offset``."""
         sql = "SELECT * FROM jobs"
         args: builtins.list[Any] = []
         if states is not None:
@@ -262,19 +274,28 @@ class JobStore:
             sql += f" WHERE state IN ({', '.join('?' * len(wanted))})"
             args += wanted
         sql += " ORDER BY seq DESC"
-        if limit is not None:
-            if limit < 0:
+        if offset < 0:
+            raise ValueError(f"offset = {offset}: must be >= 0")
+        if limit is not None or offset:
+            if limit is not None and limit < 0:
                 raise ValueError(f"limit = {limit}: must be >= 0")
-            sql += " LIMIT ?"
-            args.append(limit)
+            sql += " LIMIT ? OFFSET ?"
+            args += [-1 if limit is None else limit, offset]
         return [self._record(row) for row in self._db.execute(sql, args)]
 
-    def active(self) -> builtins.list[JobRecord]:
-        """Jobs not in a terminal state, oldest first: the queue.
+    def count(self, states: Iterable[JobState] | None = None) -> int:
+        """How many jobs there are (in ``states``)."""
+        if states is None:
+            return int(self._db.execute("SELECT count(*) FROM jobs").fetchone()[0])
+        wanted = sorted({JobState(s).value for s in states})
+        if not wanted:
+            return 0
+        return int(self._db.execute(f"SELECT count(*) FROM jobs WHERE state IN ({', '.join('?' * len(wanted))})",
+                                    wanted).fetchone()[0])
 
-        ``interrupted`` is not terminal (it can still be cancelled), so interrupted jobs stay here
-        until someone deals with them.
-        """
+    def active(self) -> builtins.list[JobRecord]:
+        """Jobs whose run has not ended, oldest first: the queue (``interrupted`` has ended: it is
+        started again or deleted by the operator)."""
         live = [s.value for s in JobState if not s.terminal]
         rows = self._db.execute(
             f"SELECT * FROM jobs WHERE state IN ({', '.join('?' * len(live))}) ORDER BY seq", live)
@@ -327,21 +348,21 @@ class JobStore:
                              + ", ".join(sorted(MUTABLE_FIELDS)))
 
     def create(self, *, mesh_name: str, mesh_path: str, parameters: dict[str, Any],
-               start_when_ready: bool) -> JobRecord:
+               start_when_ready: bool, kind: Literal["design", "gcode"] = "design") -> JobRecord:
         """A new job in state ``submitted`` (with its first ``transitions`` row), committed."""
         now = self._clock()
         try:
             record = JobRecord(id=secrets.token_hex(6), state=JobState.SUBMITTED, created=now, updated=now,
                                mesh_name=mesh_name, mesh_path=mesh_path, parameters=parameters,
-                               start_when_ready=start_when_ready)
+                               start_when_ready=start_when_ready, kind=kind)
         except ValidationError as exc:
             raise ValueError(f"new job: {_format_errors(exc)}") from None
         parameters_json = _json(record.parameters, "new job: parameters")
         with self._transaction() as db:
             db.execute("INSERT INTO jobs (id, state, created, updated, mesh_name, mesh_path, parameters, "
-                       "start_when_ready) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                       "start_when_ready, kind) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                        (record.id, record.state.value, now, now, mesh_name, mesh_path, parameters_json,
-                        int(start_when_ready)))
+                        int(start_when_ready), kind))
             self._log(record.id, None, record.state, now, None)
         return record
 
@@ -428,6 +449,13 @@ class JobStore:
                                                "updated": self._now(current.updated)})
             self._write(record)
         return record
+
+    def delete(self, job_id: str) -> None:
+        """Remove the job and its transitions, committed (its files are the caller's)."""
+        with self._transaction() as db:
+            self._row(job_id)
+            db.execute("DELETE FROM transitions WHERE job_id = ?", (job_id,))
+            db.execute("DELETE FROM jobs WHERE id = ?", (job_id,))
 
     def mark_interrupted(self, reason: str) -> builtins.list[JobRecord]:
         """At daemon start: move every job that held the printer, or was compiling, to ``interrupted``.

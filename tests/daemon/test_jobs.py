@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from ribbond.jobs import TRANSITIONS, IllegalTransition, JobState, check_transition
+from ribbond.jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState, check_transition
 from ribbond.service import modal_state
 
 J = JobState
@@ -33,12 +33,38 @@ def test_every_state_is_in_the_table_and_every_target_is_a_state() -> None:
         assert targets <= set(JobState)
 
 
-@pytest.mark.parametrize("state", [J.DONE, J.CANCELLED, J.FAILED])
-def test_finished_jobs_go_nowhere(state: JobState) -> None:
-    assert state.terminal
+@pytest.mark.parametrize("state", [J.DONE, J.CANCELLED, J.FAILED, J.INTERRUPTED])
+def test_an_ended_job_can_only_be_started_again(state: JobState) -> None:
+    """An ended run goes back to ready (a new run of the same design); interrupted can also be
+    cancelled; nothing else."""
+    assert state.terminal and "start" in COMMANDS[state] and "delete" in COMMANDS[state]
+    extra = {J.CANCELLED} if state is J.INTERRUPTED else set()
     for other in JobState:
-        with pytest.raises(IllegalTransition):
+        if other is J.READY or other in extra:
             check_transition(state, other)
+        else:
+            with pytest.raises(IllegalTransition):
+                check_transition(state, other)
+
+
+def test_a_gcode_program_needs_no_compile() -> None:
+    check_transition(J.SUBMITTED, J.READY)
+
+
+def test_every_command_names_a_possible_move() -> None:
+    """Each state's commands lead somewhere the table allows (manual commands are not job commands)."""
+    target = {"start": {J.READY, J.HEATING}, "cancel": {J.CANCELLED}, "pause": {J.PAUSED},
+              "resume": {J.PRINTING_FRONT, J.PRINTING_BACK}, "flip-done": {J.ALIGNING},
+              "align": {J.PRINTING_BACK, J.AWAITING_FLIP}}
+    assert set(COMMANDS) == set(JobState)
+    for state, commands in COMMANDS.items():
+        for command in commands:
+            if command == "delete":
+                assert state.terminal or state is J.READY
+            elif state in (J.SUBMITTED, J.COMPILING) and command == "start":
+                continue                                       # marks the job to print when ready
+            else:
+                assert target[command] & TRANSITIONS[state], (state, command)
 
 
 def test_only_jobs_on_the_printer_can_be_interrupted() -> None:
@@ -48,19 +74,22 @@ def test_only_jobs_on_the_printer_can_be_interrupted() -> None:
 
 def test_cancel_and_fail_from_every_unfinished_state() -> None:
     for state in JobState:
-        if state.terminal or state is J.INTERRUPTED:
+        if state.terminal:
             continue
         check_transition(state, J.CANCELLED)
         check_transition(state, J.FAILED)
 
 
-def test_an_illegal_request_names_the_state_and_what_is_allowed() -> None:
+def test_an_illegal_request_names_the_command_the_state_and_the_commands_possible() -> None:
     with pytest.raises(IllegalTransition) as info:
-        check_transition(J.READY, J.PRINTING_BACK)
+        check_transition(J.READY, J.PAUSED)
     err = info.value
     assert err.current is J.READY
-    assert set(err.allowed) == {s.value for s in TRANSITIONS[J.READY]}
-    assert "ready" in str(err) and "heating" in str(err)
+    assert err.allowed == list(COMMANDS[J.READY]) == ["start", "cancel", "delete"]
+    assert err.allowed_states == sorted(s.value for s in TRANSITIONS[J.READY])
+    assert str(err) == "cannot pause: the job is ready; possible now: start, cancel, delete"
+    err = IllegalTransition(J.AWAITING_FLIP, "resume")
+    assert str(err) == "cannot resume: the job is awaiting_flip; possible now: flip-done, cancel"
 
 
 def test_modal_state_follows_the_program_up_to_the_pause() -> None:

@@ -77,6 +77,43 @@ def path_to(state: JobState) -> list[JobState]:
     raise AssertionError(f"{state} unreachable")
 
 
+#: The tables as schema version 1 wrote them (before G-code jobs and print runs).
+V1_SCHEMA = """
+CREATE TABLE jobs (
+    seq              INTEGER PRIMARY KEY AUTOINCREMENT,  -- creation order
+    id               TEXT NOT NULL UNIQUE,
+    state            TEXT NOT NULL,
+    created          REAL NOT NULL,
+    updated          REAL NOT NULL,
+    mesh_name        TEXT NOT NULL,
+    mesh_path        TEXT NOT NULL,
+    parameters       TEXT NOT NULL,                      -- JSON
+    start_when_ready INTEGER NOT NULL CHECK (start_when_ready IN (0, 1)),
+    design_dir       TEXT,
+    error            TEXT,
+    stage            TEXT,
+    progress         REAL,
+    lines_total      INTEGER,
+    last_acked_line  INTEGER NOT NULL DEFAULT -1,
+    checkpoint       TEXT,
+    checkpoint_line  INTEGER,
+    side             TEXT,
+    correction       TEXT,                               -- JSON
+    paused_from      TEXT
+);
+CREATE INDEX jobs_state ON jobs (state);
+CREATE TABLE transitions (
+    seq        INTEGER PRIMARY KEY AUTOINCREMENT,
+    job_id     TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+    from_state TEXT,
+    to_state   TEXT NOT NULL,
+    at         REAL NOT NULL,
+    reason     TEXT
+);
+CREATE INDEX transitions_job ON transitions (job_id, seq);
+"""
+
+
 # -- records ------------------------------------------------------------------------------------------
 
 def test_create_and_get(store: JobStore) -> None:
@@ -111,6 +148,39 @@ def test_list_newest_first_and_filters(store: JobStore) -> None:
     assert store.list([]) == []
     with pytest.raises(ValueError, match="limit"):
         store.list(limit=-1)
+    # pages: offset skips the newest
+    everything = [j.id for j in store.list()]
+    assert [j.id for j in store.list(limit=2, offset=2)] == everything[2:4]
+    assert [j.id for j in store.list(offset=3)] == everything[3:]
+    assert store.count() == 5 and store.count([J.CANCELLED]) == 1
+
+
+def test_delete_removes_the_job_and_its_transitions(store: JobStore) -> None:
+    keep, gone = new_job(store, "a.obj"), new_job(store, "b.obj")
+    store.transition(gone.id, J.CANCELLED)
+    store.delete(gone.id)
+    assert [j.id for j in store.list()] == [keep.id]
+    with pytest.raises(JobNotFound):
+        store.transitions(gone.id)
+    with pytest.raises(JobNotFound):
+        store.delete(gone.id)
+    assert len(store.transitions(keep.id)) == 1
+
+
+def test_a_version_1_database_is_migrated(db: Path) -> None:
+    """A database written before G-code jobs and runs (schema 1) opens with its jobs as designs."""
+    db.parent.mkdir(parents=True)
+    conn = sqlite3.connect(db)
+    conn.executescript(V1_SCHEMA)
+    conn.execute("INSERT INTO jobs (id, state, created, updated, mesh_name, mesh_path, parameters, "
+                 "start_when_ready) VALUES ('abcdefabcdef', 'done', 1.0, 2.0, 'm.obj', '/m.obj', '{}', 0)")
+    conn.execute("PRAGMA user_version = 1")
+    conn.commit()
+    conn.close()
+    with JobStore(db) as store:
+        job = store.get("abcdefabcdef")
+        assert job.kind == "design" and job.runs == [] and job.state is J.DONE
+        assert store.update(job.id, runs=[{"run": 1}]).runs == [{"run": 1}]
 
 
 def test_active_is_the_queue_oldest_first(store: JobStore) -> None:
@@ -159,9 +229,8 @@ def test_transition_table_enforced(db: Path, current: JobState) -> None:
                 continue
             with pytest.raises(IllegalTransition) as err:
                 store.transition(job.id, new)
-            for allowed in TRANSITIONS[current]:
-                assert allowed.value in str(err.value)
-            assert err.value.allowed == sorted(s.value for s in TRANSITIONS[current])
+            assert current.value in str(err.value)
+            assert err.value.allowed_states == sorted(s.value for s in TRANSITIONS[current])
             assert (store.get(job.id), store.transitions(job.id)) == before
 
 
