@@ -10,8 +10,9 @@ refuses a fit whose marks do not agree with a rigid motion or whose frame is tur
 far, and ``AlignmentFit.correction()`` is the ``Correction`` the back program is rendered with: it
 maps back-side program coordinates onto where the fabric actually is.
 
-Marks are numbered by their row in the arrays given (0-based, as ``design.registration_marks`` and
-the programs' ``;TYPE:REGISTRATION i`` comments).
+Marks are numbered from 1 in everything a person reads (messages, ``AlignmentRefused.mark``): mark
+i is row i - 1 of the arrays given (``design.registration_marks[i - 1]``, the programs'
+``;TYPE:REGISTRATION i-1`` comment).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ def _points(xy: object, what: str) -> np.ndarray:
         raise ValueError(f"{what} must be (k, 2) points, got an array of shape {a.shape}")
     if not np.all(np.isfinite(a)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(a), axis=1))[0])
-        raise ValueError(f"{what}: mark {bad} is not finite: {tuple(a[bad])}")
+        raise ValueError(f"{what}: mark {bad + 1} is not finite: {tuple(a[bad])}")
     return a
 
 
@@ -131,7 +132,7 @@ def fit_rigid(expected: np.ndarray, measured: np.ndarray) -> AlignmentFit:
     close = d[i, j] <= COINCIDENT
     if np.any(close):
         a, b = int(i[close][0]), int(j[close][0])
-        raise ValueError(f"expected marks {a} and {b} are at the same place {tuple(p[a])}: "
+        raise ValueError(f"expected marks {a + 1} and {b + 1} are at the same place {tuple(p[a])}: "
                          "a rotation cannot be fitted to coincident marks")
     cp, cq = p.mean(axis=0), q.mean(axis=0)
     a, b = p - cp, q - cq
@@ -208,9 +209,9 @@ def check_fit(fit: AlignmentFit, *, max_residual: float, max_rotation_deg: float
                 which="residual", value=worst, limit=max_residual)
         m = int(np.argmax(res))
         raise AlignmentRefused(
-            f"the marks do not fit a rigid motion: mark {m} is {worst:.2f} mm off (limit "
+            f"the marks do not fit a rigid motion: mark {m + 1} is {worst:.2f} mm off (limit "
             f"{max_residual:.2f} mm); re-check that mark",
-            which="residual", value=worst, limit=max_residual, mark=m)
+            which="residual", value=worst, limit=max_residual, mark=m + 1)
     turn = abs(fit.rotation_deg)
     if turn > max_rotation_deg:
         sense = "counter-clockwise" if fit.rotation_deg > 0 else "clockwise"
@@ -222,7 +223,7 @@ def check_fit(fit: AlignmentFit, *, max_residual: float, max_rotation_deg: float
     if shift > max_offset:
         has_marks = np.asarray(fit.expected).reshape(-1, 2).shape[0] > 0
         m = int(np.argmax(disp)) if has_marks else None
-        where = f"at mark {m}" if m is not None else "at the marks' centre"
+        where = f"at mark {m + 1}" if m is not None else "at the marks' centre"
         raise AlignmentRefused(
             f"the frame is shifted by {shift:.2f} mm {where} (limit {max_offset:.2f} mm): seat the frame again",
-            which="offset", value=shift, limit=max_offset, mark=m)
+            which="offset", value=shift, limit=max_offset, mark=None if m is None else m + 1)

@@ -1,9 +1,10 @@
 """The REST API: routes onto ``RibbonService`` methods, pydantic models in and out, no business logic.
 
-OpenAPI at ``/docs``. Errors: an illegal request for the job's state is 409 with the state and what
-is allowed; an unknown job or file 404; bad input 422; an upload over the limit 413; the printer
-not connected 503. When a token is configured (always when listening beyond loopback), every route
-but the documentation needs ``Authorization: Bearer <token>``, compared in constant time.
+OpenAPI at ``/docs`` (Swagger UI served from the package: it works on a host without internet).
+Errors: a request the job's state does not allow is 409 with the state and the commands possible
+now; an unknown job or file 404; bad input 422; an upload over the limit 413; the printer not
+connected or halted 503. When a token is configured (always when listening beyond loopback), every
+route but the documentation needs ``Authorization: Bearer <token>``, compared in constant time.
 """
 
 from __future__ import annotations
@@ -15,13 +16,16 @@ import tempfile
 from pathlib import Path
 from typing import Annotated, Any
 
-from fastapi import Depends, FastAPI, File, Form, HTTPException, Request, UploadFile
-from fastapi.responses import FileResponse, JSONResponse, StreamingResponse
+from fastapi import Depends, FastAPI, File, Form, HTTPException, Query, Request, Response, UploadFile
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, StreamingResponse
+from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
+from swagger_ui_bundle import swagger_ui_path
 
 from .alignment import AlignmentRefused
 from .config import tokens_match
-from .jobs import IllegalTransition
+from .jobs import IllegalTransition, JobState
 from .printer.errors import LinkError
 from .service import NotFound, RibbonService, ServiceError
 from .store import JobRecord, Transition
@@ -29,14 +33,52 @@ from .store import JobRecord, Transition
 #: Files of a job that can be fetched.
 JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "design",
              "front.gcode": "design", "back.gcode": "design", "combined.gcode": "design",
-             "target.obj": "design", "flat.obj": "design", "back-corrected.gcode": "job"}
+             "target.obj": "design", "flat.obj": "design", "back-corrected.gcode": "job",
+             "program.gcode": "job"}
 _CHUNK = 1 << 20
 
 
-class JobStatus(JobRecord):
-    """A job as the API shows it: the stored record and, while it streams, the time left."""
+class NextStep(BaseModel):
+    """What the operator does next."""
 
-    eta_s: float | None = Field(None, description="seconds left of the program being streamed")
+    instruction: str
+    commands: list[str] = Field(description="the exact commands possible now")
+
+
+class JobStatus(JobRecord):
+    """A job as the API shows it: the stored record, its progress and what to do next."""
+
+    progress: float = Field(0.0, ge=0.0, le=1.0, description="0–1: of the compile while compiling, else of "
+                                                              "the print (both sides)")
+    compile_progress: float | None = Field(None, description="the stored progress within a compile stage")
+    eta_s: float | None = Field(None, description="seconds left of the print (the programs' time estimate "
+                                                  "scaled by the measured rate); 0 when done")
+    elapsed_s: float | None = Field(None, description="seconds since this run started (while it runs)")
+    ribbon: int | None = Field(None, description="the ribbon being printed, from 1")
+    ribbons: int | None = Field(None, description="ribbons on the side being printed")
+    print_side: str | None = Field(None, description="the side printed now or next")
+    waits_for_operator: bool = Field(False, description="nothing happens until the operator acts")
+    next: NextStep
+
+
+class JogRequest(BaseModel):
+    dx: float = Field(description="mm")
+    dy: float = Field(description="mm")
+    dz: float = Field(0.0, description="mm")
+
+
+class GotoRequest(BaseModel):
+    x: float = Field(description="mm, machine coordinates")
+    y: float = Field(description="mm, machine coordinates")
+
+
+class GcodeRequest(BaseModel):
+    commands: list[str] = Field(min_length=1, description="one G-code command or a short list")
+
+
+class HeatRequest(BaseModel):
+    nozzle: float | None = Field(None, description="°C; default the profile's print temperature")
+    bed: float | None = Field(None, description="°C")
 
 
 class BodyLimit:
@@ -92,16 +134,30 @@ class _TooLarge(Exception):
 
 
 class AlignRequest(BaseModel):
-    """Confirm a registration mark (no jog) or report the jog that put the head on it."""
+    """One registration mark: the head is on it (``here``), or the jog from where the head was sent
+    to the mark (no jog: it was on the mark)."""
 
-    mark: int = Field(ge=0, description="the mark's index (0-based, as in design.json)")
-    jog: tuple[float, float] | None = Field(None, description="(dx, dy) mm the head was moved to sit on the mark")
+    mark: int | None = Field(None, ge=1, description="the mark, numbered from 1 (design.json's "
+                                                     "registration_marks[mark - 1]); default: the one the head was sent to")
+    jog: tuple[float, float] | None = Field(None, description="(dx, dy) mm from where the head was sent to the mark")
+    here: bool = Field(False, description="the nozzle is over the mark now (after jogging it there)")
 
 
 def create_app(service: RibbonService, token: str | None) -> FastAPI:
     """The FastAPI application over ``service``; ``token`` None means no authentication."""
-    app = FastAPI(title="ribbond", version="1", description=__doc__)
+    app = FastAPI(title="ribbond", version="1", description=__doc__, docs_url=None, redoc_url=None)
     limit = int(service.config.limits.max_upload_mb * 1024 * 1024)
+    app.mount("/docs-assets", StaticFiles(directory=swagger_ui_path), name="docs-assets")
+
+    @app.get("/docs", include_in_schema=False)
+    async def docs() -> HTMLResponse:
+        return get_swagger_ui_html(openapi_url=app.openapi_url or "/openapi.json", title="ribbond API",
+                                   swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+                                   swagger_css_url="/docs-assets/swagger-ui.css",
+                                   swagger_favicon_url="/docs-assets/favicon-32x32.png")
+
+    def status(record: JobRecord) -> JobStatus:
+        return JobStatus.model_validate(service.status(record))
 
     async def authorize(request: Request) -> None:
         if token is None:
@@ -117,7 +173,8 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     @app.exception_handler(IllegalTransition)
     async def _illegal(_: Request, exc: IllegalTransition) -> JSONResponse:
         return JSONResponse(status_code=409, content={"detail": str(exc), "state": exc.current.value,
-                                                      "allowed": exc.allowed})
+                                                      "command": exc.command, "allowed": exc.allowed,
+                                                      "allowed_states": exc.allowed_states})
 
     @app.exception_handler(NotFound)
     async def _missing(_: Request, exc: NotFound) -> JSONResponse:
@@ -140,16 +197,23 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     async def _invalid(_: Request, exc: ValueError) -> JSONResponse:
         return JSONResponse(status_code=422, content={"detail": str(exc)})
 
-    @app.post("/jobs", status_code=201, response_model=JobRecord, dependencies=auth)
-    async def submit(mesh: Annotated[UploadFile, File(description="OBJ, PLY, STL or OFF")],
+    @app.post("/jobs", status_code=201, response_model=JobStatus, dependencies=auth)
+    async def submit(mesh: Annotated[UploadFile | None, File(description="OBJ, PLY, STL or OFF: a design")] = None,
+                     gcode: Annotated[UploadFile | None, File(description="a plain G-code program")] = None,
                      parameters: Annotated[str, Form(description="design parameters, JSON")] = "{}",
-                     start: Annotated[bool, Form(description="print as soon as compiled")] = False) -> JobRecord:
-        try:
-            params = json.loads(parameters)
-        except ValueError as exc:
-            raise ValueError(f"parameters: not valid JSON: {exc}") from None
-        if not isinstance(params, dict):
-            raise ValueError("parameters: expected a JSON object")
+                     start: Annotated[bool, Form(description="print as soon as it is ready")] = False) -> JobStatus:
+        if (mesh is None) == (gcode is None):
+            raise ValueError("upload either a mesh (field 'mesh') or a G-code program (field 'gcode')")
+        upload = mesh if mesh is not None else gcode
+        assert upload is not None
+        params: Any = {}
+        if mesh is not None:
+            try:
+                params = json.loads(parameters)
+            except ValueError as exc:
+                raise ValueError(f"parameters: not valid JSON: {exc}") from None
+            if not isinstance(params, dict):
+                raise ValueError("parameters: expected a JSON object")
         uploads = Path(service.config.state_dir) / "uploads"
         uploads.mkdir(parents=True, exist_ok=True)
         fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
@@ -157,22 +221,34 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         size = 0
         try:
             with open(fd, "wb") as out:
-                while chunk := await mesh.read(_CHUNK):
+                while chunk := await upload.read(_CHUNK):
                     size += len(chunk)
                     if size > limit:
                         raise HTTPException(413, f"upload exceeds the limit of {limit} bytes (limits.max_upload_mb)")
                     out.write(chunk)
-            return service.submit(tmp, mesh.filename or "mesh.obj", params, start)
+            if mesh is not None:
+                return status(service.submit(tmp, mesh.filename or "mesh.obj", params, start))
+            return status(service.submit_gcode(tmp, upload.filename or "program.gcode", start))
         finally:
             tmp.unlink(missing_ok=True)
 
-    @app.get("/jobs", response_model=list[JobRecord], dependencies=auth)
-    async def jobs() -> list[JobRecord]:
-        return service.jobs()
+    @app.get("/jobs", response_model=list[JobStatus], dependencies=auth)
+    async def jobs(response: Response,
+                   state: Annotated[list[JobState] | None, Query(description="only jobs in these states")] = None,
+                   limit: Annotated[int | None, Query(ge=0, le=1000, description="at most this many")] = None,
+                   offset: Annotated[int, Query(ge=0, description="skip the newest this many")] = 0) -> list[JobStatus]:
+        """Jobs, newest first; ``X-Total-Count`` is the number matching the filter."""
+        response.headers["X-Total-Count"] = str(service.store.count(state))
+        return [status(j) for j in service.jobs(state, limit, offset)]
 
     @app.get("/jobs/{job_id}", response_model=JobStatus, dependencies=auth)
     async def job(job_id: str) -> JobStatus:
-        return JobStatus(**service.job(job_id).model_dump(), eta_s=service.eta(job_id))
+        return status(service.job(job_id))
+
+    @app.delete("/jobs/{job_id}", status_code=204, dependencies=auth)
+    async def delete(job_id: str) -> Response:
+        service.delete(job_id)
+        return Response(status_code=204)
 
     @app.get("/jobs/{job_id}/transitions", response_model=list[Transition], dependencies=auth)
     async def transitions(job_id: str) -> list[Transition]:
@@ -191,29 +267,53 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
             raise NotFound(f"job {job_id} has no {name} (yet)")
         return FileResponse(path)
 
-    @app.post("/jobs/{job_id}/start", response_model=JobRecord, dependencies=auth)
-    async def start(job_id: str) -> JobRecord:
-        return service.start_job(job_id)
+    @app.post("/jobs/{job_id}/start", response_model=JobStatus, dependencies=auth)
+    async def start(job_id: str) -> JobStatus:
+        return status(service.start_job(job_id))
 
-    @app.post("/jobs/{job_id}/pause", response_model=JobRecord, dependencies=auth)
-    async def pause(job_id: str) -> JobRecord:
-        return await service.pause(job_id)
+    @app.post("/jobs/{job_id}/pause", response_model=JobStatus, dependencies=auth)
+    async def pause(job_id: str) -> JobStatus:
+        return status(await service.pause(job_id))
 
-    @app.post("/jobs/{job_id}/resume", response_model=JobRecord, dependencies=auth)
-    async def resume(job_id: str) -> JobRecord:
-        return await service.resume(job_id)
+    @app.post("/jobs/{job_id}/resume", response_model=JobStatus, dependencies=auth)
+    async def resume(job_id: str) -> JobStatus:
+        return status(await service.resume(job_id))
 
-    @app.post("/jobs/{job_id}/cancel", response_model=JobRecord, dependencies=auth)
-    async def cancel(job_id: str) -> JobRecord:
-        return await service.cancel(job_id)
+    @app.post("/jobs/{job_id}/cancel", response_model=JobStatus, dependencies=auth)
+    async def cancel(job_id: str) -> JobStatus:
+        return status(await service.cancel(job_id))
 
-    @app.post("/jobs/{job_id}/flip-done", response_model=JobRecord, dependencies=auth)
-    async def flip_done(job_id: str) -> JobRecord:
-        return service.flip_done(job_id)
+    @app.post("/jobs/{job_id}/flip-done", response_model=JobStatus, dependencies=auth)
+    async def flip_done(job_id: str) -> JobStatus:
+        return status(await service.flip_done(job_id))
 
     @app.post("/jobs/{job_id}/align", dependencies=auth)
     async def align(job_id: str, body: AlignRequest) -> dict[str, Any]:
-        return await service.align_mark(job_id, body.mark, body.jog)
+        return await service.align_mark(job_id, body.mark, body.jog, body.here)
+
+    @app.post("/printer/home", dependencies=auth)
+    async def home() -> dict[str, Any]:
+        return await service.home()
+
+    @app.post("/printer/jog", dependencies=auth)
+    async def jog(body: JogRequest) -> dict[str, Any]:
+        return await service.jog(body.dx, body.dy, body.dz)
+
+    @app.post("/printer/goto", dependencies=auth)
+    async def goto(body: GotoRequest) -> dict[str, Any]:
+        return await service.goto(body.x, body.y)
+
+    @app.post("/printer/gcode", dependencies=auth)
+    async def gcode(body: GcodeRequest) -> dict[str, Any]:
+        return await service.gcode(body.commands)
+
+    @app.post("/printer/heat", dependencies=auth)
+    async def heat(body: HeatRequest) -> dict[str, Any]:
+        return await service.heat(body.nozzle, body.bed)
+
+    @app.post("/printer/cool", dependencies=auth)
+    async def cool() -> dict[str, Any]:
+        return await service.cool()
 
     @app.get("/printer", dependencies=auth)
     async def printer(refresh: bool = False) -> dict[str, Any]:

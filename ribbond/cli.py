@@ -13,18 +13,32 @@ parameters); 130 interrupted. The daemon commands: see ``client.py``.
 from __future__ import annotations
 
 import argparse
+import importlib
+import math
+import os
 import sys
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-import numpy as np
-from tqdm import tqdm
-
+from .client import ClientError, add_commands, add_global_options
 from .design.errors import DesignError, MeshError
-from .design.params import DesignSettings, SizeSpec, load_settings
-from .design.pipeline import DesignResult, design_mesh, write_design
-from .client import ClientError, add_commands
-from .gcode.profiles import load_profile
+
+if TYPE_CHECKING:
+    from .design.pipeline import DesignResult
+
+
+class _Lazy:
+    """A module imported on first use: the daemon commands must not load the design engine
+    (numpy, scipy, matplotlib: over a second per command, several on a Raspberry Pi)."""
+
+    def __init__(self, name: str) -> None:
+        self._name = name
+
+    def __getattr__(self, attr: str) -> Any:
+        return getattr(importlib.import_module(self._name), attr)
+
+
+np = _Lazy("numpy")
 
 
 class TerminalProgress:
@@ -33,12 +47,14 @@ class TerminalProgress:
     def __init__(self, stream: TextIO = sys.stderr, quiet: bool = False) -> None:
         self.stream = stream
         self.quiet = quiet
-        self._bar: tqdm | None = None
+        self._bar: Any = None                 # a tqdm bar while the flattening runs
 
     def stage_started(self, stage: str, description: str) -> None:
         if self.quiet:
             return
         if stage == "flatten" and self.stream.isatty():
+            from tqdm import tqdm
+
             self._bar = tqdm(desc=f"{stage:<9} iterations", unit="it", file=self.stream,
                              leave=False, dynamic_ncols=True, mininterval=0.2)
 
@@ -127,6 +143,11 @@ def verdict(bad1_pct: float, bad2_pct: float, max_dev: float) -> str:
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
+    # the engine is imported here only: the daemon commands start without it
+    from .design.params import DesignSettings, SizeSpec, load_settings
+    from .design.pipeline import design_mesh, write_design
+    from .gcode.profiles import load_profile
+
     settings = load_settings(args.params) if args.params else DesignSettings()
     params = settings.parameters
     updates: dict[str, object] = {}
@@ -147,9 +168,30 @@ def _cmd_design(args: argparse.Namespace) -> int:
     return 0
 
 
+EPILOG = """exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the
+alignment is refused, the job failed); 2 bad input; 3 the daemon cannot be reached; 4 no such job;
+130 interrupted; 141 the output was closed. 'ribbonctl COMMAND --help' describes each command."""
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("ribbond")
+    except Exception:  # noqa: BLE001 - not installed: the package's own number
+        from . import __version__
+
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ribbonctl", description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = argparse.ArgumentParser(
+        prog="ribbonctl", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="ribbonctl: design self-actuated surfaces locally (design), and drive the ribbond "
+                    "daemon and its printer (every other command).")
+    parser.add_argument("--version", action="version", version=f"ribbonctl {_version()}")
+    add_global_options(parser, in_subcommand=False)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     d = sub.add_parser("design", help="compute a design locally (no daemon) and write its folder",
                        description="Compute the design of a target surface and write the design "
                                    "folder: target.obj, flat.obj, design.json.")
@@ -169,10 +211,19 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if getattr(args, "size", None) is not None and not (np.isfinite(args.size) and args.size > 0):
+    if getattr(args, "size", None) is not None and not (math.isfinite(args.size) and args.size > 0):
         parser.error(f"--size {args.size}: must be a positive number of millimetres")
     try:
         return args.func(args)
+    except BrokenPipeError:
+        # the reader went away (ribbonctl status | head): quietly, without a traceback at exit
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), sys.stdout.fileno())
+        return 141
+    except OSError as exc:
+        print(f"ribbonctl {args.command}: {exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}",
+              file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("ribbonctl: interrupted" + ("; nothing was written" if args.command == "design" else ""),
               file=sys.stderr)

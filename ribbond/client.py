@@ -1,28 +1,35 @@
-"""``ribbonctl``'s daemon commands: submit, status, watch, start, pause, resume, cancel, flip-done,
-align, printer, stop. One HTTP client (httpx) over the REST API; output for people by default,
-``--json`` for scripts.
+"""``ribbonctl``'s daemon commands: one HTTP client (the standard library's) over the REST API; output for people by
+default, ``--json`` for scripts. Nothing here imports the design engine (a command starts in a
+fraction of a second, also on a Raspberry Pi).
 
-Exit status: 0 done; 1 the daemon refused (the job's state does not allow it, alignment refused,
-the job failed); 2 bad input; 3 the daemon cannot be reached or answered an error; 4 no such job;
-130 interrupted.
+Jobs: submit, print (a plain G-code program), status, watch, start, pause, resume, cancel,
+flip-done, align, delete. The printer: printer, home, jog, goto, gcode, heat, cool, stop, recover.
+
+Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
+is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
+file, a value out of range, a program the profile refuses); 3 the daemon cannot be reached (or
+answered an error of its own); 4 no such job; 130 interrupted (Ctrl-C); 141 the output was closed
+(``ribbonctl status | head``).
 """
 
 from __future__ import annotations
 
 import argparse
+import http.client
 import json
+import json as _json
 import os
 import sys
 import time
+import urllib.parse
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import httpx
-from tqdm import tqdm
-
 DEFAULT_URL = "http://127.0.0.1:7125"
-TERMINAL = {"done", "cancelled", "failed", "interrupted"}
+ENDED = {"done", "cancelled", "failed", "interrupted"}
+#: States that hold the printer: a job in them is followed by ``print`` and ``watch``.
+RUNNING = {"heating", "printing_front", "printing_back"}
 
 
 class ClientError(Exception):
@@ -34,72 +41,216 @@ class ClientError(Exception):
 
 
 class Client:
-    """The REST API of one daemon."""
+    """The REST API of one daemon, over the standard library's ``http.client`` (it imports in a
+    few milliseconds; a full HTTP client library costs a tenth of a second per command)."""
 
     def __init__(self, url: str, token: str | None, timeout: float = 30.0) -> None:
-        headers = {"Authorization": f"Bearer {token}"} if token else {}
         self.url = url.rstrip("/")
-        self.http = httpx.Client(base_url=self.url, headers=headers, timeout=timeout)
+        parts = urllib.parse.urlsplit(self.url)
+        if parts.scheme not in ("http", "https") or not parts.hostname:
+            raise ClientError(f"--url {url!r}: give the daemon's address as http://HOST:PORT", 2)
+        self._https = parts.scheme == "https"
+        self._host = parts.hostname
+        self._port = parts.port
+        self._base = parts.path.rstrip("/")
+        self.timeout = timeout
+        self.headers = {"Authorization": f"Bearer {token}"} if token else {}
 
-    def _check(self, r: httpx.Response) -> Any:
-        if r.status_code < 400:
-            return r.json() if r.headers.get("content-type", "").startswith("application/json") else r.content
+    def _connection(self, timeout: float) -> http.client.HTTPConnection:
+        cls = http.client.HTTPSConnection if self._https else http.client.HTTPConnection
+        return cls(self._host, self._port, timeout=timeout)
+
+    @staticmethod
+    def _error(status: int, body: bytes) -> ClientError:
         try:
-            detail = r.json().get("detail", r.text)
-        except ValueError:
-            detail = r.text
+            detail: Any = json.loads(body).get("detail", body.decode(errors="replace"))
+        except (ValueError, AttributeError):
+            detail = body.decode(errors="replace").strip() or f"HTTP {status}"
         if isinstance(detail, list):                       # FastAPI's validation errors
-            detail = "; ".join(f"{'.'.join(map(str, d.get('loc', [])))}: {d.get('msg')}" for d in detail)
-        code = {404: 4, 409: 1, 413: 2, 422: 2, 401: 3}.get(r.status_code, 3)
-        raise ClientError(f"{detail}" + (f" (HTTP {r.status_code})" if code == 3 else ""), code)
+            detail = "; ".join(f"{'.'.join(map(str, d.get('loc', [])[1:]))}: {d.get('msg')}" for d in detail)
+        code = {404: 4, 409: 1, 413: 2, 422: 2, 503: 1}.get(status, 3)
+        if status == 401:
+            detail = f"{detail}: give --token or --token-file (or set RIBBOND_TOKEN)"
+        return ClientError(f"{detail}" + (f" (HTTP {status})" if code == 3 else ""), code)
 
-    def request(self, method: str, path: str, **kw: Any) -> Any:
+    def _send(self, method: str, path: str, params: dict[str, Any] | None, json_body: Any,
+              body: Any, headers: dict[str, str], timeout: float | None) -> tuple[http.client.HTTPConnection,
+                                                                                  http.client.HTTPResponse]:
+        target = self._base + path + (("?" + urllib.parse.urlencode(params, doseq=True)) if params else "")
+        head = {**self.headers, **headers}
+        if json_body is not None:
+            body = json.dumps(json_body).encode()
+            head["Content-Type"] = "application/json"
+        conn = self._connection(timeout or self.timeout)
         try:
-            return self._check(self.http.request(method, path, **kw))
-        except httpx.TransportError as exc:
+            conn.request(method, target, body=body, headers=head,
+                         encode_chunked=body is not None and not isinstance(body, (bytes, str)))
+            return conn, conn.getresponse()
+        except (OSError, http.client.HTTPException) as exc:
+            conn.close()
             raise ClientError(f"cannot reach ribbond at {self.url}: {exc}", 3) from None
 
-    def submit(self, mesh: Path, parameters: dict[str, Any], start: bool, show: bool) -> dict[str, Any]:
-        size = mesh.stat().st_size
-        bar = tqdm(total=size, unit="B", unit_scale=True, desc=f"upload {mesh.name}", file=sys.stderr,
-                   disable=not (show and sys.stderr.isatty()), leave=False)
+    def request(self, method: str, path: str, *, params: dict[str, Any] | None = None, json: Any = None,
+                body: Any = None, headers: dict[str, str] | None = None, timeout: float | None = None) -> Any:
+        conn, r = self._send(method, path, params, json, body, headers or {}, timeout)
+        try:
+            data = r.read()
+        except (OSError, http.client.HTTPException) as exc:
+            raise ClientError(f"lost ribbond at {self.url}: {exc}", 3) from None
+        finally:
+            conn.close()
+        if r.status >= 400:
+            raise self._error(r.status, data)
+        if r.status == 204:
+            return None
+        if (r.getheader("content-type") or "").startswith("application/json"):
+            return _json.loads(data)
+        return data
 
-        class Reader:                                       # a file that reports what was read
-            def __init__(self, f: Any) -> None:
-                self.f = f
+    def upload(self, field: str, path: Path, data: dict[str, str], show: bool) -> dict[str, Any]:
+        """POST /jobs with the file ``path`` as ``field`` (``mesh`` or ``gcode``), streamed."""
+        try:
+            size = path.stat().st_size
+            handle = path.open("rb")
+        except OSError as exc:
+            raise ClientError(f"{path}: {exc.strerror or exc}", 2) from None
+        bar = Bar(f"upload {path.name}", show and sys.stderr.isatty())
+        boundary = "ribbonctl-" + os.urandom(8).hex()
 
-            def read(self, n: int = -1) -> bytes:
-                data = self.f.read(n)
-                bar.update(len(data))
-                return data
+        def parts() -> Iterator[bytes]:
+            for name, value in data.items():
+                yield (f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"\r\n\r\n'
+                       f"{value}\r\n").encode()
+            filename = path.name.replace('"', "_")
+            yield (f'--{boundary}\r\nContent-Disposition: form-data; name="{field}"; filename="{filename}"\r\n'
+                   "Content-Type: application/octet-stream\r\n\r\n").encode()
+            while chunk := handle.read(1 << 16):
+                bar.draw(handle.tell() / size if size else 1.0)
+                yield chunk
+            yield f"\r\n--{boundary}--\r\n".encode()
 
         try:
-            with mesh.open("rb") as f:
-                return self.request("POST", "/jobs", files={"mesh": (mesh.name, Reader(f))},  # type: ignore[dict-item]
-                                    data={"parameters": json.dumps(parameters), "start": str(start).lower()},
-                                    timeout=600)
+            return self.request("POST", "/jobs", body=parts(), timeout=600,  # type: ignore[no-any-return]
+                                headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
         finally:
+            handle.close()
             bar.close()
 
     def events(self) -> Iterator[dict[str, Any]]:
-        """Server-sent events, parsed."""
+        """Server-sent events, parsed (the daemon sends a keep-alive every 15 s)."""
+        conn, r = self._send("GET", "/events", None, None, None, {"Accept": "text/event-stream"}, 60.0)
         try:
-            with self.http.stream("GET", "/events", timeout=httpx.Timeout(30.0, read=60.0)) as r:
-                if r.status_code >= 400:
-                    r.read()
-                    self._check(r)
-                data: list[str] = []
-                for line in r.iter_lines():
-                    if line.startswith("data:"):
-                        data.append(line[5:].strip())
-                    elif not line and data:
-                        yield json.loads("\n".join(data))
-                        data = []
-        except httpx.TransportError as exc:
-            raise ClientError(f"lost ribbond at {self.url}: {exc}", 3) from None
+            if r.status >= 400:
+                raise self._error(r.status, r.read())
+            data: list[str] = []
+            while True:
+                try:
+                    raw = r.readline()
+                except (OSError, http.client.HTTPException) as exc:
+                    raise ClientError(f"lost ribbond at {self.url}: {exc}", 3) from None
+                if not raw:
+                    raise ClientError(f"lost ribbond at {self.url}: the event stream ended", 3)
+                line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+                if line.startswith("data:"):
+                    data.append(line[5:].strip())
+                elif not line and data:
+                    yield _json.loads("\n".join(data))
+                    data = []
+        finally:
+            conn.close()
 
 
-# ---------------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------- output
+
+
+def _clock(seconds: float | None) -> str:
+    if seconds is None:
+        return "?"
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+
+
+class Bar:
+    """A one-line progress bar on a terminal (redrawn in place); nothing when ``live`` is False."""
+
+    def __init__(self, label: str, live: bool, stream: Any = None) -> None:
+        self.label, self.live = label, live
+        self.stream = stream or sys.stderr
+        self._shown = False
+
+    def draw(self, fraction: float, text: str = "") -> None:
+        if not self.live:
+            return
+        self.stream.write("\r\x1b[K" + bar_text(fraction, self.label, text))
+        self.stream.flush()
+        self._shown = True
+
+    def close(self) -> None:
+        if self._shown:
+            self.stream.write("\r\x1b[K")
+            self.stream.flush()
+            self._shown = False
+
+
+def bar_text(fraction: float, label: str = "", text: str = "", width: int = 24) -> str:
+    f = min(max(fraction, 0.0), 1.0)
+    filled = int(round(f * width))
+    return f"{label + '  ' if label else ''}[{'#' * filled}{'.' * (width - filled)}] {100 * f:5.1f}%" \
+           + (f"  {text}" if text else "")
+
+
+def progress_text(info: dict[str, Any]) -> str:
+    """``front  ribbon 3/8  elapsed 0:12  ETA 0:20`` from a job status or a progress event."""
+    parts = []
+    side = info.get("print_side") or info.get("side")
+    if side:
+        parts.append(side)
+    if info.get("ribbons"):
+        parts.append(f"ribbon {info.get('ribbon') or 0}/{info['ribbons']}")
+    if info.get("elapsed_s") is not None:
+        parts.append(f"elapsed {_clock(info['elapsed_s'])}")
+    if info.get("eta_s") is not None and info.get("state", "printing") not in ENDED:
+        parts.append(f"ETA {_clock(info['eta_s'])}")
+    return "  ".join(parts)
+
+
+def _line(job: dict[str, Any]) -> str:
+    pct = f"{100 * (job.get('progress') or 0):5.1f}%"
+    stage = f" [{job['stage']}]" if job.get("stage") else ""
+    err = f"  ({job['error']})" if job.get("error") else ""
+    runs = f"  run {len(job.get('runs') or []) + 1}" if job.get("runs") else ""
+    kind = "  (G-code)" if job.get("kind") == "gcode" else ""
+    return f"{job['id']}  {job['state']:<15} {pct}  {job['mesh_name']}{kind}{runs}{stage}{err}"
+
+
+def _detail(job: dict[str, Any]) -> str:
+    lines = [_line(job)]
+    more = progress_text(job)
+    if job.get("lines_total") and job["state"] not in ("submitted", "compiling", "ready"):
+        more = f"line {max(job.get('last_acked_line', -1), 0) + 1} of {job['lines_total']}" + (
+            f"  {more}" if more else "")
+    if more:
+        lines.append(f"  {bar_text(job.get('progress') or 0)}  {more}")
+    nxt = job.get("next") or {}
+    if nxt.get("instruction"):
+        lines.append(f"  next: {nxt['instruction']}")
+    return "\n".join(lines)
+
+
+def _out(args: argparse.Namespace, obj: Any, text: str) -> None:
+    print(json.dumps(obj, indent=1) if args.json else text, flush=True)
+
+
+def waits(job: dict[str, Any]) -> bool:
+    """The job waits for the operator (or its run ended): watching it can stop."""
+    return bool(job.get("waits_for_operator")) or job["state"] in ENDED
+
+
+def _exit_code(job: dict[str, Any]) -> int:
+    return 1 if job["state"] in ("failed", "cancelled", "interrupted") else 0
+
+
+# --------------------------------------------------------------------------------------- commands
 
 
 def _client(args: argparse.Namespace) -> Client:
@@ -112,78 +263,41 @@ def _client(args: argparse.Namespace) -> Client:
     return Client(args.url or os.environ.get("RIBBOND_URL", DEFAULT_URL), token)
 
 
-def _line(job: dict[str, Any]) -> str:
-    progress = ""
-    if job.get("lines_total"):
-        progress = f"  line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}"
-    err = f"  ({job['error']})" if job.get("error") else ""
-    if job.get("eta_s") is not None:
-        progress += f", ~{job['eta_s'] / 60:.1f} min left"
-    stage = f" [{job['stage']}]" if job.get("stage") else ""
-    return f"{job['id']}  {job['state']:<15}{stage}  {job['mesh_name']}{progress}{err}"
-
-
-def _out(args: argparse.Namespace, obj: Any, text: str) -> None:
-    print(json.dumps(obj, indent=1) if args.json else text)
-
-
-#: The compile's stages in order (``ribbond.design.pipeline``), for the progress bar.
-COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "preview", "write")
-
-
-def _wait(c: Client, job_id: str, until: set[str], show: bool) -> dict[str, Any]:
-    """Poll the job until its state is in ``until``: a progress bar over the compile's stages and
-    the printed lines on a terminal, one line per stage otherwise."""
+def _wait_compile(c: Client, job_id: str, until: set[str], show: bool) -> dict[str, Any]:
+    """Poll the job until its state is in ``until``: a bar over the compile's stages on a
+    terminal, one line per stage otherwise."""
     last = None
-    bar: tqdm | None = None
-    tty = show and sys.stderr.isatty()
+    bar = Bar("compiling", show and sys.stderr.isatty())
     try:
         while True:
             job = c.request("GET", f"/jobs/{job_id}")
             key = (job["state"], job.get("stage"))
-            if tty and job["state"] == "compiling":
-                if bar is None:
-                    bar = tqdm(total=len(COMPILE_STAGES), desc="compiling", unit="stage", file=sys.stderr,
-                               leave=False)
-                stage = job.get("stage")
-                if stage in COMPILE_STAGES:
-                    bar.n = COMPILE_STAGES.index(stage)
-                    bar.set_postfix_str(stage, refresh=False)
-                    bar.refresh()
-                last = key
-            elif show and key != last:
-                if bar is not None:
-                    bar.close()
-                    bar = None
+            if bar.live and job["state"] == "compiling":
+                bar.draw(job.get("progress") or 0.0, job.get("stage") or "")
+            elif show and key != last and not bar.live:
                 print(f"{job['state']:<15} {job.get('stage') or ''}", file=sys.stderr, flush=True)
-                last = key
-            if tty and job.get("lines_total") and job["state"].startswith("printing"):
-                if bar is None:
-                    bar = tqdm(total=job["lines_total"], unit="line", desc=job["state"], file=sys.stderr,
-                               leave=False)
-                bar.n = max(job.get("last_acked_line", 0), 0)
-                bar.refresh()
+            last = key
             if job["state"] in until:
                 return job
-            time.sleep(0.5)
+            time.sleep(0.3)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
 
 
 def cmd_submit(args: argparse.Namespace) -> int:
     c = _client(args)
     params: dict[str, Any] = {}
     if args.params:
-        from .design.params import load_settings
+        from .design.params import load_settings          # only here: it is the engine's reader
         params = load_settings(args.params).parameters.model_dump(mode="json", exclude_unset=True)
     if args.size is not None:
         params["size"] = {"bbox_diagonal": args.size}
-    job = c.submit(args.mesh, params, args.start, show=not args.json)
+    job = c.upload("mesh", args.mesh, {"parameters": json.dumps(params), "start": str(args.start).lower()},
+                   show=not args.json)
     if args.no_wait:
         _out(args, job, job["id"])
         return 0
-    job = _wait(c, job["id"], {"ready", "heating", "printing_front", *TERMINAL}, show=not args.json)
+    job = _wait_compile(c, job["id"], {"ready", "heating", "printing_front", *ENDED}, show=not args.json)
     if job["state"] in ("failed", "cancelled"):
         _out(args, job, f"job {job['id']} {job['state']}: {job.get('error') or ''}")
         return 1
@@ -195,137 +309,306 @@ def cmd_submit(args: argparse.Namespace) -> int:
         f"job         {job['id']} ({job['state']})",
         f"design      {r['faces']} faces, {design['parameters']['size']['bbox_diagonal']:.0f} mm, "
         f"{r['iterations']} iterations, {r['time_s']:.1f} s",
-        f"ribbons     {rr.get('front', 0)} front, {rr.get('back', 0)} back",
+        f"ribbons     {rr.get('front', 0)} front, {rr.get('back', 0)} back; "
+        f"{len(design.get('registration_marks') or [])} registration marks (numbered from 1 on the preview)",
         f"print       front ~{pr.get('front', {}).get('time_s', 0) / 60:.1f} min, back "
         f"~{pr.get('back', {}).get('time_s', 0) / 60:.1f} min",
         f"bounds      σ1 {r['sigma1_bad_pct']:.2f} %, σ2 {r['sigma2_bad_pct']:.2f} % of faces outside",
         f"preview     {job['design_dir']}/preview.png  ({c.url}/jobs/{job['id']}/files/preview.png)",
+        f"next        {(job.get('next') or {}).get('instruction', '')}",
     ])
     _out(args, {"job": job, "report": r}, text)
     return 0
+
+
+def cmd_print(args: argparse.Namespace) -> int:
+    c = _client(args)
+    job = c.upload("gcode", args.program, {"start": str(not args.no_start).lower()}, show=not args.json)
+    if args.no_wait or args.no_start:
+        _out(args, job, _detail(job) if not args.json else "")
+        return 0
+    return _follow(c, args, job)
 
 
 def cmd_status(args: argparse.Namespace) -> int:
     c = _client(args)
     if args.job:
         job = c.request("GET", f"/jobs/{args.job}")
-        _out(args, job, _line(job))
+        _out(args, job, _detail(job))
     else:
-        jobs = c.request("GET", "/jobs")
+        params: dict[str, Any] = {"state": args.state} if args.state else {}
+        if args.limit is not None:
+            params["limit"] = args.limit
+        jobs = c.request("GET", "/jobs", params=params)
         _out(args, jobs, "\n".join(_line(j) for j in jobs) or "no jobs")
     return 0
 
 
+def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
+    """Follow a job over server-sent events until it waits for the operator or its run ends: a
+    bar with the percentage, the side, the ribbon n of N, elapsed and ETA (on a terminal; one line
+    per 10 % otherwise), the states as they change, the instructions."""
+    job_id = job["id"]
+    tty = sys.stdout.isatty() and not args.json
+    bar = Bar(job_id, tty, stream=sys.stdout)
+    print(json.dumps(job) if args.json else _detail(job), flush=True)
+    if waits(job):
+        return _exit_code(job)
+    events = c.events()
+    # the job may have changed between the first GET and the subscription: look once more
+    job = c.request("GET", f"/jobs/{job_id}")
+    state = job["state"]
+    shown = -1
+    try:
+        for event in events:
+            kind = event.get("type")
+            if kind == "job" and event["job"]["id"] == job_id:
+                job = event["job"]
+                if job["state"] != state or waits(job):
+                    state = job["state"]
+                    bar.close()
+                    print(json.dumps(event) if args.json else _detail(job), flush=True)
+                    shown = -1
+                if waits(job):
+                    return _exit_code(job)
+            elif kind == "progress" and event.get("job_id") == job_id:
+                fraction = event.get("progress") or 0.0
+                if args.json:
+                    print(json.dumps(event), flush=True)
+                elif tty:
+                    bar.draw(fraction, progress_text(event))
+                elif int(fraction * 10) > shown:
+                    shown = int(fraction * 10)
+                    print(f"  {bar_text(fraction)}  {progress_text(event)}", flush=True)
+            elif kind == "deleted" and event.get("job_id") == job_id:
+                bar.close()
+                raise ClientError(f"job {job_id} was deleted", 4)
+            elif event.get("job_id") == job_id and kind in ("alignment", "notice"):
+                bar.close()
+                print(json.dumps(event) if args.json else f"  {event.get('message')}", flush=True)
+    finally:
+        bar.close()
+    return 3
+
+
 def cmd_watch(args: argparse.Namespace) -> int:
     c = _client(args)
-    job = c.request("GET", f"/jobs/{args.job}")
-    print(_line(job), flush=True)
-    if job["state"] in TERMINAL:
-        return 0 if job["state"] == "done" else 1
-    for event in c.events():
-        if event.get("type") == "job" and event["job"]["id"] == args.job:
-            job = event["job"]
-            print(json.dumps(event) if args.json else _line(job), flush=True)
-            if job["state"] in TERMINAL:
-                return 0 if job["state"] == "done" else 1
-        elif event.get("job_id") == args.job and event.get("type") in ("alignment", "notice"):
-            print(json.dumps(event) if args.json else f"  {event.get('message')}", flush=True)
-    return 3
+    return _follow(c, args, c.request("GET", f"/jobs/{args.job}"))
 
 
 def _action(name: str) -> Any:
     def cmd(args: argparse.Namespace) -> int:
         job = _client(args).request("POST", f"/jobs/{args.job}/{name}")
-        _out(args, job, _line(job))
+        _out(args, job, _detail(job))
         return 0
     return cmd
 
 
-def cmd_align(args: argparse.Namespace) -> int:
+def cmd_delete(args: argparse.Namespace) -> int:
     c = _client(args)
-    job = c.request("GET", f"/jobs/{args.job}")
-    if args.mark is not None:
-        status = c.request("POST", f"/jobs/{args.job}/align",
-                           json={"mark": args.mark, "jog": list(args.jog) if args.jog else None})
-        _out(args, status, _align_text(status))
-        return 0 if status.get("accepted", True) else 1
-    if job["state"] != "aligning":
-        raise ClientError(f"job {args.job} is {job['state']}, not aligning: flip the frame and run "
-                          f"'ribbonctl flip-done {args.job}' first", 1)
-    design = c.request("GET", f"/jobs/{args.job}/files/design.json")
-    marks = (json.loads(design) if isinstance(design, (bytes, str)) else design)["registration_marks"]
-    mark = 0
-    while mark is not None:
-        answer = input(f"mark {mark + 1} of {len(marks)}: the head is above where it should be. "
-                       "Enter if it is on the mark, or the jog 'dx dy' (mm) that put it there: ").split()
-        try:
-            jog = [float(v) for v in answer] if answer else None
-        except ValueError:
-            print("  two numbers, e.g. 0.3 -0.2, or Enter", file=sys.stderr)
-            continue
-        if jog is not None and len(jog) != 2:
-            print("  two numbers, e.g. 0.3 -0.2, or Enter", file=sys.stderr)
-            continue
-        status = c.request("POST", f"/jobs/{args.job}/align", json={"mark": mark, "jog": jog})
-        mark = status.get("next_mark")
-    print(_align_text(status))
-    return 0 if status.get("accepted") else 1
+    for job in args.job:
+        c.request("DELETE", f"/jobs/{job}")
+        if not args.json:
+            print(f"job {job} deleted", flush=True)
+    if args.json:
+        print(json.dumps({"deleted": args.job}))
+    return 0
 
 
 def _align_text(status: dict[str, Any]) -> str:
+    got = f"mark {status['mark']} of {status['marks']}: offset ({status['offset'][0]:+.3f}, " \
+          f"{status['offset'][1]:+.3f}) mm from where it was expected"
     if status.get("next_mark") is not None:
-        return f"recorded; next: mark {status['next_mark'] + 1} of {status['marks']}"
+        return f"{got}; the head is now above mark {status['next_mark']}: jog it onto the mark, then align --here"
     fit = status.get("fit", {})
-    return (f"fit: rotation {fit.get('rotation_deg', 0):+.3f}°, offset ({fit.get('offset', [0, 0])[0]:+.3f}, "
+    return (f"{got}\nfit: rotation {fit.get('rotation_deg', 0):+.3f}°, offset ({fit.get('offset', [0, 0])[0]:+.3f}, "
             f"{fit.get('offset', [0, 0])[1]:+.3f}) mm, residual {fit.get('max_residual_mm', 0):.3f} mm: "
-            + ("accepted, printing the back" if status.get("accepted") else f"refused: {status.get('refused')}"))
+            + ("accepted, printing the back" if status.get("accepted") else "refused"))
+
+
+def cmd_align(args: argparse.Namespace) -> int:
+    c = _client(args)
+    if args.here or args.jog is not None or args.mark is not None:
+        if args.jog is None and not args.here and args.mark is not None:
+            raise ClientError("--mark needs --jog DX DY (or use --here: the nozzle is on the mark)", 2)
+        body: dict[str, Any] = {"here": bool(args.here), "jog": list(args.jog) if args.jog else None}
+        if args.mark is not None:
+            body["mark"] = args.mark
+        status = c.request("POST", f"/jobs/{args.job}/align", json=body)
+        _out(args, status, _align_text(status))
+        return 0
+    job = c.request("GET", f"/jobs/{args.job}")
+    if job["state"] != "aligning":
+        raise ClientError(f"cannot align: job {args.job} is {job['state']}; "
+                          + (job.get("next") or {}).get("instruction", ""), 1)
+    while True:                                          # interactive: jog, then Enter, per mark
+        job = c.request("GET", f"/jobs/{args.job}")
+        print((job.get("next") or {}).get("instruction", ""))
+        answer = input("jog 'dx dy [dz]' (mm), Enter when the nozzle is on the mark: ").split()
+        if answer:
+            try:
+                d = [float(v) for v in answer]
+                if len(d) not in (2, 3):
+                    raise ValueError
+            except ValueError:
+                print("  two or three numbers, e.g. 0.3 -0.2, or Enter", file=sys.stderr)
+                continue
+            try:
+                c.request("POST", "/printer/jog", json={"dx": d[0], "dy": d[1], "dz": d[2] if len(d) == 3 else 0})
+            except ClientError as exc:
+                print(f"  {exc}", file=sys.stderr)
+            continue
+        status = c.request("POST", f"/jobs/{args.job}/align", json={"here": True})
+        print(_align_text(status))
+        if status.get("next_mark") is None:
+            return 0
+
+
+def _printer_text(status: dict[str, Any]) -> str:
+    heaters = ", ".join(f"{k} {v['current']:.0f}/{v.get('target') or 0:.0f} °C"
+                        for k, v in (status.get("heaters") or {}).items())
+    pos = status.get("head") or status.get("position")
+    where = f"head at x {pos[0]:.2f} y {pos[1]:.2f} z {pos[2]:.2f}" if pos else ""
+    note = status.get("note") or ""
+    return "  ".join(p for p in (status.get("state"), status.get("firmware") or "", heaters, where, note) if p)
 
 
 def cmd_printer(args: argparse.Namespace) -> int:
     status = _client(args).request("GET", "/printer", params={"refresh": "true"})
-    heaters = ", ".join(f"{k} {v['current']:.0f}/{v.get('target') or 0:.0f} °C" for k, v in status.get("heaters", {}).items())
-    _out(args, status, f"{status.get('state')}  {status.get('firmware') or ''}  {heaters}  "
-                       f"position {status.get('position')}")
+    _out(args, status, _printer_text(status))
+    return 0
+
+
+def _position(status: dict[str, Any]) -> str:
+    pos = status.get("position")
+    return f"head at x {pos[0]:.3f} y {pos[1]:.3f} z {pos[2]:.3f}" if pos else "done"
+
+
+def cmd_home(args: argparse.Namespace) -> int:
+    status = _client(args).request("POST", "/printer/home", timeout=330)
+    _out(args, status, _position(status))
+    return 0
+
+
+def cmd_jog(args: argparse.Namespace) -> int:
+    status = _client(args).request("POST", "/printer/jog", json={"dx": args.dx, "dy": args.dy, "dz": args.dz},
+                                   timeout=330)
+    _out(args, status, _position(status))
+    return 0
+
+
+def cmd_goto(args: argparse.Namespace) -> int:
+    status = _client(args).request("POST", "/printer/goto", json={"x": args.x, "y": args.y}, timeout=330)
+    _out(args, status, _position(status))
+    return 0
+
+
+def cmd_gcode(args: argparse.Namespace) -> int:
+    result = _client(args).request("POST", "/printer/gcode", json={"commands": args.commands}, timeout=630)
+    text = "\n".join(f"> {a['command']}\n" + "\n".join(a["answer"]) for a in result["answers"])
+    _out(args, result, text)
+    return 0
+
+
+def cmd_heat(args: argparse.Namespace) -> int:
+    status = _client(args).request("POST", "/printer/heat", json={"nozzle": args.nozzle, "bed": args.bed})
+    _out(args, status, _printer_text(status))
+    return 0
+
+
+def cmd_cool(args: argparse.Namespace) -> int:
+    status = _client(args).request("POST", "/printer/cool")
+    _out(args, status, _printer_text(status))
     return 0
 
 
 def cmd_stop(args: argparse.Namespace) -> int:
     status = _client(args).request("POST", "/printer/emergency-stop")
-    _out(args, status, f"emergency stop sent; printer {status.get('state')}")
+    _out(args, status, f"emergency stop sent; printer {status.get('state')} (ribbonctl recover restarts it)")
     return 0
+
+
+def cmd_recover(args: argparse.Namespace) -> int:
+    status = _client(args).request("POST", "/printer/recover", timeout=60)
+    _out(args, status, "recovered: " + _printer_text(status))
+    return 0
+
+
+# --------------------------------------------------------------------------------------- parser
+
+
+def add_global_options(parser: argparse.ArgumentParser, *, in_subcommand: bool) -> None:
+    """--url, --token, --token-file, --json: before the subcommand (``in_subcommand`` False) or
+    after it (the defaults are then left to the main parser, so either place works)."""
+    keep = {"default": argparse.SUPPRESS} if in_subcommand else {}
+    parser.add_argument("--url", help=f"the daemon (default $RIBBOND_URL or {DEFAULT_URL})",
+                        **({"default": None} | keep))
+    parser.add_argument("--token", help="API token (default $RIBBOND_TOKEN)", **({"default": None} | keep))
+    parser.add_argument("--token-file", type=Path, help="file holding the API token",
+                        **({"default": None} | keep))
+    parser.add_argument("--json", action="store_true", help="plain JSON output for scripts",
+                        **({"default": False} | keep))
 
 
 def add_commands(sub: Any) -> None:
     """Add the daemon commands to ``ribbonctl``'s subparsers."""
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--url", help=f"the daemon (default $RIBBOND_URL or {DEFAULT_URL})")
-    common.add_argument("--token", help="API token (default $RIBBOND_TOKEN)")
-    common.add_argument("--token-file", type=Path, help="file holding the API token")
-    common.add_argument("--json", action="store_true", help="plain JSON output for scripts")
+    add_global_options(common, in_subcommand=True)
 
-    s = sub.add_parser("submit", parents=[common], help="upload a mesh to the daemon and compile it")
+    def cmd(name: str, help: str, func: Any, description: str | None = None) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, parents=[common], help=help, description=description or help)
+        p.set_defaults(func=func)
+        return p
+
+    s = cmd("submit", "upload a mesh to the daemon and compile it", cmd_submit)
     s.add_argument("mesh", type=Path)
     s.add_argument("--size", type=float, metavar="MM", help="bounding-box diagonal of the target, mm")
     s.add_argument("--params", type=Path, metavar="FILE", help="TOML or JSON design parameters")
     s.add_argument("--start", action="store_true", help="print as soon as it is compiled")
     s.add_argument("--no-wait", action="store_true", help="print the job id and return at once")
-    s.set_defaults(func=cmd_submit)
-    st = sub.add_parser("status", parents=[common], help="list the jobs, or show one")
+    p = cmd("print", "print a plain G-code file through the daemon", cmd_print,
+            "Upload a G-code program, checked line by line against the printer profile (frame, feeds, "
+            "temperatures), and print it; follows the job like watch.")
+    p.add_argument("program", type=Path, help="a .gcode file")
+    p.add_argument("--no-start", action="store_true", help="upload and check only (start it later)")
+    p.add_argument("--no-wait", action="store_true", help="return once it is queued")
+    st = cmd("status", "list the jobs, or show one with its progress and what to do next", cmd_status)
     st.add_argument("job", nargs="?")
-    st.set_defaults(func=cmd_status)
-    w = sub.add_parser("watch", parents=[common], help="follow a job until it ends")
+    st.add_argument("--state", action="append", metavar="STATE", help="only jobs in this state (repeatable)")
+    st.add_argument("--limit", type=int, metavar="N", help="at most N jobs (newest first)")
+    w = cmd("watch", "follow a job (progress bar) until it waits for you or ends", cmd_watch)
     w.add_argument("job")
-    w.set_defaults(func=cmd_watch)
-    for name in ("start", "pause", "resume", "cancel", "flip-done"):
-        p = sub.add_parser(name, parents=[common], help=f"{name} a job")
-        p.add_argument("job")
-        p.set_defaults(func=_action(name))
-    a = sub.add_parser("align", parents=[common], help="the alignment check after the flip (interactive)")
+    for name, text in (("start", "print a job (again: a new run of the same design)"), ("pause", "pause a print"),
+                       ("resume", "resume a paused print (it reheats first)"), ("cancel", "cancel a job"),
+                       ("flip-done", "the frame is turned over: go on to the alignment")):
+        a = cmd(name, text, _action(name))
+        a.add_argument("job")
+    d = cmd("delete", "remove jobs and their files (not while they print)", cmd_delete)
+    d.add_argument("job", nargs="+")
+    a = cmd("align", "the alignment check after the flip: jog onto each mark, then --here", cmd_align,
+            "Without options: interactive (type jogs, Enter when the nozzle is on the mark). --here: the "
+            "nozzle is over the mark now. --mark N --jog DX DY: report a jog made another way.")
     a.add_argument("job")
-    a.add_argument("--mark", type=int, help="report one mark (0-based) instead of asking")
-    a.add_argument("--jog", type=float, nargs=2, metavar=("DX", "DY"), help="with --mark: the jog, mm")
-    a.set_defaults(func=cmd_align)
-    pr = sub.add_parser("printer", parents=[common], help="the printer's state")
-    pr.set_defaults(func=cmd_printer)
-    sp = sub.add_parser("stop", parents=[common], help="emergency stop (M112)")
-    sp.set_defaults(func=cmd_stop)
+    a.add_argument("--here", action="store_true", help="the nozzle is over the mark now")
+    a.add_argument("--mark", type=int, metavar="N", help="the mark, numbered from 1 (default: the current one)")
+    a.add_argument("--jog", type=float, nargs=2, metavar=("DX", "DY"), help="the mark's offset from where the "
+                   "head was sent, mm")
+    cmd("printer", "the printer's state, temperatures and head position", cmd_printer)
+    cmd("home", "home the axes (G28)", cmd_home)
+    j = cmd("jog", "move the head by DX DY [DZ] mm (within the frame)", cmd_jog)
+    j.add_argument("dx", type=float)
+    j.add_argument("dy", type=float)
+    j.add_argument("dz", type=float, nargs="?", default=0.0)
+    g = cmd("goto", "move the head to X Y (machine mm, within the frame)", cmd_goto)
+    g.add_argument("x", type=float)
+    g.add_argument("y", type=float)
+    gc = cmd("gcode", "send G-code commands and print the printer's answers", cmd_gcode,
+             "Send one command or a short list (one argument each, quoted: ribbonctl gcode \"G28 X\" M114); "
+             "not while a program streams.")
+    gc.add_argument("commands", nargs="+", metavar="COMMAND")
+    h = cmd("heat", "heat the nozzle (default: the profile's temperature) and/or the bed", cmd_heat)
+    h.add_argument("--nozzle", type=float, metavar="C")
+    h.add_argument("--bed", type=float, metavar="C")
+    cmd("cool", "heaters off", cmd_cool)
+    cmd("stop", "emergency stop (M112)", cmd_stop)
+    cmd("recover", "after an emergency stop or a halt: restart the firmware (M999)", cmd_recover)

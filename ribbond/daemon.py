@@ -6,6 +6,11 @@ the compile queue (compiles run in worker processes); this module only wires the
 Configuration: ``--config``, else ``$RIBBOND_CONFIG``, else ``/etc/ribbond/ribbond.toml`` (missing:
 defaults). Under systemd (``Type=notify``) it sends READY=1 once the API listens, STATUS lines, and
 WATCHDOG=1 at half the watchdog interval. It writes the API's address to ``<state_dir>/api.url``.
+
+SIGTERM or SIGINT (``systemctl stop``/``restart``) while a job holds the printer stops it safely
+first (the stream ends at a line boundary, heaters off, head lifted; the job ``interrupted``), then
+the daemon exits. Exit status: 0 stopped; 2 a configuration error (the file, the token file, the
+state directory): the unit does not restart on it.
 """
 
 from __future__ import annotations
@@ -68,28 +73,50 @@ async def _keep_connected(link: PrinterLink, notifier: Notifier, stop: asyncio.E
 
 async def run(config: DaemonConfig) -> int:
     state_dir = Path(config.state_dir)
-    lock = _lock_state_dir(state_dir)
+    try:
+        lock = _lock_state_dir(state_dir)
+    except OSError as exc:
+        raise ValueError(f"cannot use the state directory {state_dir}: {exc.strerror or exc}") from None
     notifier = Notifier()
     profile = load_profile(config.printer_profile)
-    store = JobStore(state_dir / "jobs.sqlite3")
-    link = PrinterLink(config.serial.port, config.serial.baud,
-                       capabilities=Capabilities(rx_buffer_bytes=config.serial.rx_buffer))
-    service = RibbonService(config, profile, store, link)
+    try:
+        store = JobStore(state_dir / "jobs.sqlite3")
+        link = PrinterLink(config.serial.port, config.serial.baud,
+                           capabilities=Capabilities(rx_buffer_bytes=config.serial.rx_buffer))
+        service = RibbonService(config, profile, store, link)
+    except OSError as exc:
+        os.close(lock)
+        raise ValueError(f"cannot use the state directory {state_dir}: {exc.strerror or exc}"
+                         + (f" ({exc.filename})" if exc.filename else "")) from None
     token = resolve_token(config)
     app = create_app(service, token)
+    # a short graceful shutdown: event streams (ribbonctl watch) never end on their own
     server = uvicorn.Server(uvicorn.Config(app, host=config.api.host, port=config.api.port,
-                                           log_level=config.log_level, lifespan="off", access_log=False))
+                                           log_level=config.log_level, lifespan="off", access_log=False,
+                                           timeout_graceful_shutdown=2))
     server.install_signal_handlers = lambda: None        # type: ignore[method-assign]  # ours below
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
 
-    def shutdown() -> None:
-        log.info("stopping")
-        stop.set()
-        server.should_exit = True
+    stopping: list[asyncio.Task[None]] = []
+
+    async def stop_safely(name: str) -> None:
+        try:
+            await service.shutdown(f"the daemon was stopped ({name})")
+        finally:
+            stop.set()
+            server.should_exit = True
+
+    def shutdown(sig: signal.Signals) -> None:
+        if stopping:                                   # a second signal: stop at once
+            server.force_exit = True
+            return
+        log.info("stopping (%s)", sig.name)
+        notifier.stopping()
+        stopping.append(loop.create_task(stop_safely(sig.name)))
 
     for sig in (signal.SIGTERM, signal.SIGINT):
-        loop.add_signal_handler(sig, shutdown)
+        loop.add_signal_handler(sig, shutdown, sig)
 
     async def announce() -> None:
         while not server.started:
@@ -117,6 +144,8 @@ async def run(config: DaemonConfig) -> int:
     finally:
         stop.set()
         notifier.stopping()
+        with contextlib.suppress(Exception):
+            await (stopping[0] if stopping else service.shutdown("the daemon stopped"))
         for task in tasks:
             task.cancel()
         await service.close()

@@ -1,18 +1,21 @@
-"""The daemon's business logic: jobs from upload to done, on one printer (issue 6).
+"""The daemon's business logic: jobs from upload to done, on one printer (issues 6 and 13).
 
 ``RibbonService`` owns the job store, the compile queue (each compile a ``ribbond.worker``
 subprocess, so the event loop that feeds the printer never computes a design) and the print queue
 (one job on the printer at a time). It drives each job through the states of ``ribbond.jobs``:
 heating and the front program, the host's own pause for the flip (the head parked, the heaters by
-the configured policy), the alignment check over the registration marks, the back program
-re-rendered with the fitted correction, done. It knows nothing of HTTP (``api.py`` maps its
-methods and exceptions to routes and status codes) and parses no printer answers (``PrinterLink``
-does).
+the configured policy), the alignment check over the registration marks (the operator jogs the head
+onto each mark), the back program re-rendered with the fitted correction, done. Plain G-code jobs
+are checked against the profile at upload and printed the same way. Between and around prints it
+takes the operator's manual commands (home, jog, goto, G-code, heat, cool), never while a program
+streams. It knows nothing of HTTP (``api.py`` maps its methods and exceptions to routes and status
+codes) and parses no printer answers (``PrinterLink`` does).
 
 Every state change is committed to the store before it is published. What the printer
 acknowledged is queued, not executed: ``last_acked_line`` is recorded as streaming goes, and the
-synchronized checkpoints (after ``M400``: the front done, the flip) say honestly where an
-interrupted job could be resumed from.
+synchronized checkpoints (after ``M400``: the front done, the flip, a safe stop) say exactly where an
+interrupted job stood. A stop of the daemon (SIGTERM) or a fatal error of the print task ends the
+stream at a line boundary, turns the heaters off and lifts the head (``shutdown``, ``_safe_stop``).
 """
 
 from __future__ import annotations
@@ -37,11 +40,13 @@ from .config import DaemonConfig
 from .design.folder import read_design_folder
 from .design.params import DesignParameters
 from .gcode.profiles import PrinterProfile
-from .gcode.program import Correction, SidePlan, flip_message, render_side
-from .jobs import TRANSITIONS, IllegalTransition, JobState
+from .gcode.program import Correction, SidePlan, render_side
+from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
+from .printer import codec
 from .printer.errors import LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
+from .programs import Timeline, check_program, program_timeline
 from .store import JobRecord, JobStore
 
 log = logging.getLogger(__name__)
@@ -50,6 +55,19 @@ log = logging.getLogger(__name__)
 ACK_INTERVAL_S = 0.5
 #: Extensions of the mesh formats the engine reads.
 MESH_SUFFIXES = (".obj", ".off", ".stl", ".ply")
+#: Extensions of plain G-code programs.
+GCODE_SUFFIXES = (".gcode", ".gco", ".g", ".nc")
+#: The compile's stages in order (``ribbond.design.pipeline``): a compile's progress.
+COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "preview", "write")
+#: How long a stop of the daemon waits for the safe stop before the emergency stop, seconds
+#: (systemd's TimeoutStopSec is 30).
+STOP_TIMEOUT_S = 20.0
+#: At most this many commands in one manual G-code request.
+MAX_MANUAL_COMMANDS = 16
+#: Jogs and gotos move at most this fast in X/Y, mm/s (the profile's travel speed if slower).
+JOG_SPEED = 50.0
+#: Commands after which the head's position is no longer the one the daemon commanded.
+_MOVES_HEAD = frozenset({"G0", "G1", "G2", "G3", "G28", "G29", "G92", "G30", "M206", "M428"})
 
 
 def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path) -> list[str]:
@@ -105,9 +123,12 @@ class _Alignment:
     correction: Correction | None = None        # the accepted fit, once every mark is in
     refused: AlignmentRefused | None = None     # or why it was refused
 
+    current: int = 0                            # the mark the head is above (from 1; 0: on its way)
+
     @property
     def next_mark(self) -> int | None:
-        missing = [i for i in range(len(self.expected)) if i not in self.measured]
+        """The first mark (numbered from 1) not measured yet."""
+        missing = [i for i in range(1, len(self.expected) + 1) if i not in self.measured]
         return missing[0] if missing else None
 
 
@@ -121,6 +142,30 @@ class _Run:
     alignment: _Alignment | None = None
     pause_snapshot: dict[str, Any] | None = None
     cancel_requested: bool = False
+    stop_reason: str | None = None              # the daemon stops: interrupted, not cancelled
+    busy: bool = False                           # pausing or resuming (manual control waits)
+    done: asyncio.Event = field(default_factory=asyncio.Event)
+    heaters: asyncio.Task[None] | None = None   # the idle-heater policy while waiting
+    started: float = field(default_factory=time.time)
+    timelines: dict[str, Timeline] = field(default_factory=dict)
+    stream: _Stream | None = None
+
+    def check(self) -> None:
+        """Raise ``StreamCancelled`` once a cancel or a stop was asked for."""
+        if self.cancel_requested or self.stop_reason is not None:
+            raise StreamCancelled(self.stop_reason or "cancelled by the operator")
+
+
+@dataclass
+class _Stream:
+    """The program being streamed: its time line and the measured rate."""
+
+    side: str
+    timeline: Timeline
+    acked: int = -1
+    printing_since: float | None = None         # monotonic, when the first line after heating was acked
+    paused_s: float = 0.0
+    paused_at: float | None = None
 
 
 def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
@@ -183,8 +228,13 @@ class RibbonService:
         self._compiling: dict[str, asyncio.subprocess.Process] = {}
         self._run: _Run | None = None
         self._acked = -1                 # program lines acknowledged in the current stream
-        self._eta: dict[str, float] = {}  # seconds left of the program a job is streaming
         self._run_commands: list[str] = []
+        self._rate: float | None = None  # measured seconds per estimated second, from the last stream
+        self._timelines: dict[tuple[str, str, float], Timeline] = {}
+        self._manual = asyncio.Lock()    # one sequence of moves at a time (manual, marks, pause)
+        self._head: tuple[float, float, float] | None = None   # commanded position (exact)
+        self._head_sender: object = None # the link's sender the position was commanded through
+        self._stopping = False
 
     # ------------------------------------------------------------------ life cycle
 
@@ -200,6 +250,25 @@ class RibbonService:
         self._tasks = [asyncio.create_task(self._compile_loop(), name="compile"),
                        asyncio.create_task(self._print_loop(), name="print")]
 
+    async def shutdown(self, reason: str = "the daemon was stopped") -> None:
+        """Stop safely before the daemon exits: a job on the printer ends its stream at a line
+        boundary, the heaters go off, the head is lifted by the profile's park lift, and the job is
+        ``interrupted`` with an exact checkpoint. If that does not finish in ``STOP_TIMEOUT_S``,
+        the emergency stop (M112: heaters off in the firmware)."""
+        self._stopping = True
+        run = self._run
+        if run is None:
+            return
+        run.stop_reason = reason
+        self._interrupt(run)
+        try:
+            await asyncio.wait_for(run.done.wait(), STOP_TIMEOUT_S)
+        except asyncio.TimeoutError:
+            log.error("the safe stop did not finish in %.0f s: emergency stop", STOP_TIMEOUT_S)
+            with contextlib.suppress(Exception):
+                if self.link is not None:
+                    self.link.emergency_stop()
+
     async def close(self) -> None:
         for proc in self._compiling.values():
             with contextlib.suppress(ProcessLookupError):
@@ -210,16 +279,35 @@ class RibbonService:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
 
+    def _interrupt(self, run: _Run) -> None:
+        """Make the print task leave what it waits on (the stream, the flip, the marks)."""
+        if self.link is not None and self.link.state in (LinkState.STREAMING, LinkState.PAUSED):
+            with contextlib.suppress(LinkError):
+                self.link.cancel()
+        run.flip.set()
+        run.aligned.set()
+        if run.heaters is not None:
+            run.heaters.cancel()
+
     # ------------------------------------------------------------------ events
 
     def _publish(self, job: JobRecord, **extra: Any) -> None:
-        self.bus.publish({"type": "job", "job": job.model_dump(mode="json"), **extra})
+        self.bus.publish({"type": "job", "job": self.status(job), **extra})
 
     def _transition(self, job_id: str, new: JobState, **fields: Any) -> JobRecord:
         job = self.store.transition(job_id, new, **fields)     # committed before it is published
         log.info("job %s -> %s%s", job_id, new.value, f" ({fields['reason']})" if fields.get("reason") else "")
         self._publish(job)
         return job
+
+    async def _wait_state(self, job_id: str, done: Any, timeout: float) -> JobRecord:
+        """The job once ``done(state)`` holds (or after ``timeout`` s, as it is then)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            job = self.job(job_id)
+            if done(job.state) or time.monotonic() > deadline:
+                return job
+            await asyncio.sleep(0.02)
 
     # ------------------------------------------------------------------ jobs
 
@@ -229,19 +317,28 @@ class RibbonService:
         except KeyError:
             raise NotFound(f"no job {job_id!r}") from None
 
-    def jobs(self) -> list[JobRecord]:
-        return self.store.list()
-
-    def eta(self, job_id: str) -> float | None:
-        """Seconds left of the program the job is streaming (from the rate so far), if it is."""
-        return self._eta.get(job_id)
+    def jobs(self, states: list[JobState] | None = None, limit: int | None = None,
+             offset: int = 0) -> list[JobRecord]:
+        return self.store.list(states, limit=limit, offset=offset)
 
     def job_dir(self, job_id: str) -> Path:
         return self.jobs_dir / job_id
 
+    def _queued(self) -> int:
+        """Jobs that count against ``limits.max_jobs``: compiling or waiting to, printing or queued
+        to print (a ``ready`` design nobody started does not count)."""
+        return sum(1 for j in self.store.active() if j.state is not JobState.READY or j.start_when_ready)
+
+    def _check_queue(self) -> None:
+        if self._queued() >= self.config.limits.max_jobs:
+            raise ServiceError(f"{self.config.limits.max_jobs} jobs are already queued or printing "
+                               "(limits.max_jobs); wait for some to finish, or cancel some")
+
     def submit(self, upload: Path, name: str, parameters: dict[str, Any], start: bool) -> JobRecord:
         """Take an uploaded mesh (``upload``, moved into the job's folder) and queue its compile."""
         safe = re.sub(r"[^A-Za-z0-9._-]", "_", Path(name).name) or "mesh.obj"
+        if Path(safe).suffix.lower() in GCODE_SUFFIXES:
+            raise ValueError(f"{name!r} is a G-code program, not a mesh: print it with 'ribbonctl print {name}'")
         if Path(safe).suffix.lower() not in MESH_SUFFIXES:
             raise ValueError(f"{name!r}: not a mesh file the engine reads ({', '.join(MESH_SUFFIXES)})")
         DesignParameters.model_validate(parameters)              # refuse bad parameters now
@@ -249,9 +346,7 @@ class RibbonService:
         if asked is not None and asked != self.config.printer_profile:
             raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
                              "printer; leave printer_profile out (designs are made for the daemon's printer)")
-        if sum(j.state is not JobState.INTERRUPTED for j in self.store.active()) >= self.config.limits.max_jobs:
-            raise ServiceError(f"{self.config.limits.max_jobs} jobs are already queued or running; "
-                               "wait for some to finish or cancel them")
+        self._check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters=parameters,
                                 start_when_ready=start)
         folder = self.job_dir(job.id)
@@ -263,17 +358,70 @@ class RibbonService:
         self._compile_queue.put_nowait(job.id)
         return job
 
+    def submit_gcode(self, upload: Path, name: str, start: bool) -> JobRecord:
+        """Take an uploaded G-code program, check it line by line against the profile (refused with
+        the line named: nothing is kept), and make it a ``ready`` job (queued if ``start``)."""
+        safe = re.sub(r"[^A-Za-z0-9._-]", "_", Path(name).name) or "program.gcode"
+        if Path(safe).suffix.lower() not in GCODE_SUFFIXES:
+            raise ValueError(f"{name!r}: not a G-code file ({', '.join(GCODE_SUFFIXES)})")
+        try:
+            text = upload.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ValueError(f"{name}: not a text file (G-code is ASCII text)") from None
+        commands = check_program(text.splitlines(), self.profile, source=safe)
+        if start:
+            self._check_queue()
+        job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
+                                kind="gcode")
+        folder = self.job_dir(job.id)
+        folder.mkdir(parents=True, exist_ok=True)
+        program = folder / "program.gcode"
+        shutil.move(str(upload), program)
+        job = self._transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
+                               mesh_path=str(program), design_dir=str(folder), lines_total=len(commands))
+        if start:
+            self._print_queue.put_nowait(job.id)
+        return job
+
+    def _has_program(self, job: JobRecord) -> bool:
+        if not job.design_dir:
+            return False
+        folder = Path(job.design_dir)
+        return (folder / ("program.gcode" if job.kind == "gcode" else "front.gcode")).is_file()
+
     def start_job(self, job_id: str) -> JobRecord:
-        """Queue a compiled job for printing (or mark it to start as soon as it is compiled)."""
+        """Queue a job for printing: a compiled one, one still compiling (it prints when ready), or
+        one whose run ended (a new run of the same design; the ended run is kept in ``runs``)."""
         job = self.job(job_id)
         if job.state in (JobState.SUBMITTED, JobState.COMPILING):
             job = self.store.update(job_id, start_when_ready=True)
             self._publish(job)
             return job
+        if job.state.terminal:
+            if not self._has_program(job):
+                raise ServiceError(f"cannot start: job {job_id} has no design to print"
+                                   + (f" (its compile failed: {job.error})" if job.error else "")
+                                   + "; submit the mesh again")
+            self._check_queue()
+            runs = list(job.runs)
+            started = [t.at for t in self.store.transitions(job_id) if t.to_state is JobState.HEATING]
+            if started:
+                runs.append({"run": len(runs) + 1, "started": started[-1], "ended": job.updated,
+                             "state": job.state.value, "error": job.error, "side": job.side,
+                             "lines_total": job.lines_total, "last_acked_line": job.last_acked_line,
+                             "checkpoint": job.checkpoint, "checkpoint_line": job.checkpoint_line,
+                             "correction": job.correction})
+            job = self._transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
+                                   runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
+                                   lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
+                                   side=None, correction=None, paused_from=None)
+            self._print_queue.put_nowait(job_id)
+            return job
         if job.state is not JobState.READY:
-            raise IllegalTransition(job.state, JobState.HEATING)
+            raise IllegalTransition(job.state, "start")
         if job.start_when_ready:
             return job                                        # already queued
+        self._check_queue()
         job = self.store.update(job_id, start_when_ready=True)
         self._print_queue.put_nowait(job_id)
         self._publish(job)
@@ -282,20 +430,194 @@ class RibbonService:
     async def cancel(self, job_id: str) -> JobRecord:
         job = self.job(job_id)
         if JobState.CANCELLED not in TRANSITIONS[job.state]:
-            raise IllegalTransition(job.state, JobState.CANCELLED)
+            raise IllegalTransition(job.state, "cancel")
         proc = self._compiling.get(job_id)
         if proc is not None:
             with contextlib.suppress(ProcessLookupError):
                 proc.kill()
+            return await self._wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
         run = self._run
         if run is not None and run.job_id == job_id:
             run.cancel_requested = True
-            if self.link is not None and self.link.state in (LinkState.STREAMING, LinkState.PAUSED):
-                self.link.cancel()
-            run.flip.set()
-            run.aligned.set()
-            return self.job(job_id)                          # the printer task finishes the cancel
-        return self._transition(job_id, JobState.CANCELLED, reason="cancelled by the operator")
+            self._interrupt(run)
+            # the printer task finishes the cancel (heaters off, head up)
+            return await self._wait_state(job_id, lambda s: s.terminal, 60)
+        return self._transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
+                                start_when_ready=False)
+
+    def delete(self, job_id: str) -> None:
+        """Remove a job and its files (uploads, design, programs); refused while it compiles or
+        holds the printer."""
+        job = self.job(job_id)
+        if job.state.holds_printer or job.state in (JobState.SUBMITTED, JobState.COMPILING) \
+                or (self._run is not None and self._run.job_id == job_id):
+            raise IllegalTransition(job.state, "delete", hint=f"cancel it first: ribbonctl cancel {job_id}")
+        self.store.delete(job_id)
+        shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
+        log.info("job %s deleted", job_id)
+        self.bus.publish({"type": "deleted", "job_id": job_id})
+
+    # ------------------------------------------------------------------ what a person sees
+
+    def _timeline(self, job: JobRecord, side: str) -> Timeline | None:
+        """The time line of one of the job's programs (cached by file and modification time)."""
+        if not job.design_dir:
+            return None
+        folder = Path(job.design_dir)
+        if job.kind == "gcode":
+            path = folder / "program.gcode"
+        elif side == "back" and (self.job_dir(job.id) / "back-corrected.gcode").is_file() and job.correction:
+            path = self.job_dir(job.id) / "back-corrected.gcode"
+        else:
+            path = folder / f"{side}.gcode"
+        try:
+            key = (job.id, str(path), path.stat().st_mtime)
+        except OSError:
+            return None
+        if key not in self._timelines:
+            if len(self._timelines) > 64:
+                self._timelines.clear()
+            self._timelines[key] = program_timeline(path.read_text(encoding="utf-8").splitlines(), self.profile)
+        return self._timelines[key]
+
+    def _sides(self, job: JobRecord) -> list[str]:
+        if job.kind == "gcode":
+            return ["front"]
+        back = self._timeline(job, "back")
+        return ["front", "back"] if back is not None and back.total > 0 else ["front"]
+
+    def progress(self, job: JobRecord) -> dict[str, Any]:
+        """How far the job is: ``progress`` 0–1 (of the compile while compiling, else of the print,
+        both sides), ``eta_s`` (seconds left of the print: the programs' own time estimate, scaled
+        by the rate measured once the stream is past the heating), ``elapsed_s`` of the run, the
+        ``ribbon`` n of ``ribbons`` being printed, and ``print_side``."""
+        s = job.state
+        out: dict[str, Any] = {"progress": 0.0, "eta_s": None, "elapsed_s": None, "ribbon": None,
+                               "ribbons": None, "print_side": job.side}
+        if s is JobState.COMPILING:
+            stage = job.stage if job.stage in COMPILE_STAGES else None
+            out["progress"] = COMPILE_STAGES.index(stage) / len(COMPILE_STAGES) if stage else 0.0
+            return out
+        if s in (JobState.SUBMITTED,) or not job.design_dir:
+            return out
+        sides = self._sides(job)
+        lines = {side: self._timeline(job, side) for side in sides}
+        totals = {side: (tl.total if tl is not None else 0.0) for side, tl in lines.items()}
+        total = sum(totals.values()) or 1.0
+        run = self._run if self._run is not None and self._run.job_id == job.id else None
+        stream = run.stream if run is not None else None
+        rate = self._rate or 1.0
+        side = job.side or "front"
+        if stream is not None:
+            side = stream.side
+            lines[side] = stream.timeline
+            totals[side] = stream.timeline.total
+            total = sum(totals.values()) or 1.0
+            rate = self._stream_rate(stream) or rate
+        tl = lines.get(side)
+        acked = stream.acked if stream is not None else job.last_acked_line
+        if s is JobState.DONE:
+            out.update(progress=1.0, eta_s=0.0)
+        elif s is JobState.READY:
+            out.update(progress=0.0, eta_s=total * rate)
+        elif s in (JobState.AWAITING_FLIP, JobState.ALIGNING):
+            out.update(progress=totals["front"] / total, eta_s=totals.get("back", 0.0) * rate,
+                       print_side="back")
+        elif tl is not None:
+            done = (totals["front"] if side == "back" else 0.0) + tl.done_s(acked)
+            out["progress"] = min(1.0, done / total)
+            if not s.terminal:
+                out["eta_s"] = max(0.0, total - done) * rate
+            out["ribbon"] = tl.ribbon_at(acked) or None
+            out["ribbons"] = tl.ribbons or None
+        if run is not None:
+            out["elapsed_s"] = time.time() - run.started
+        return out
+
+    @staticmethod
+    def _stream_rate(stream: _Stream) -> float | None:
+        """Measured seconds per estimated second since the stream passed its heating (pauses left out)."""
+        if stream.printing_since is None:
+            return None
+        tl = stream.timeline
+        estimated = tl.done_s(stream.acked) - tl.done_s(tl.first - 1)
+        now = stream.paused_at if stream.paused_at is not None else time.monotonic()
+        measured = now - stream.printing_since - stream.paused_s
+        if estimated < 0.5 or measured <= 0:
+            return None
+        return measured / estimated
+
+    def guidance(self, job: JobRecord) -> dict[str, Any]:
+        """What the operator does next: an instruction and the exact commands, for every state."""
+        j, s = job.id, job.state
+        run = self._run if self._run is not None and self._run.job_id == j else None
+        cmds: list[str] = [f"ribbonctl {c} {j}" for c in COMMANDS[s]]
+        if s in (JobState.SUBMITTED, JobState.COMPILING):
+            text = "compiling; it prints when compiled" if job.start_when_ready else \
+                f"compiling; then print it with: ribbonctl start {j}"
+        elif s is JobState.READY:
+            if job.start_when_ready:
+                connected = self.link is not None and self.link.state in (LinkState.READY, LinkState.STREAMING,
+                                                                          LinkState.PAUSED)
+                text = "queued: it prints when the printer is free" + (
+                    "" if connected else " (the printer is not connected: it prints once it is)")
+                cmds = [f"ribbonctl cancel {j}"]
+            else:
+                text = f"ready to print: ribbonctl start {j}"
+        elif s is JobState.HEATING:
+            text = "heating; the print starts when the nozzle is hot"
+        elif s in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK):
+            text = f"printing the {job.side or 'front'}" if job.kind == "design" else "printing the program"
+        elif s is JobState.PAUSED:
+            text = (f"paused, the head parked; move it with ribbonctl jog/goto/home if needed, then "
+                    f"resume: ribbonctl resume {j} (it reheats first)")
+        elif s is JobState.AWAITING_FLIP:
+            axis = self.profile.frame.flip_axis
+            other, c = ("x", self.profile.frame.center[0]) if axis == "y" else ("y", self.profile.frame.center[1])
+            refused = f"the alignment was refused ({job.error}); " if job.error else ""
+            text = (f"{refused}the front is printed. Turn the frame over about its {axis} axis (the line "
+                    f"{other} = {c:g}), seat it again, then run: ribbonctl flip-done {j}")
+            cmds = [f"ribbonctl flip-done {j}", f"ribbonctl cancel {j}"]
+        elif s is JobState.ALIGNING:
+            al = run.alignment if run is not None else None
+            if al is None or al.current == 0:
+                nxt = al.next_mark if al is not None else 1
+                text = f"aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
+            else:
+                k, n = al.current, len(al.expected)
+                text = (f"mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
+                        f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
+                        f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
+            cmds = [f"ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
+        elif s is JobState.DONE:
+            text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
+        else:
+            why = f" ({job.error})" if job.error else ""
+            if self._has_program(job):
+                text = f"{s.value}{why}; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
+            else:
+                text = f"{s.value}{why}; nothing to print: submit the mesh again (ribbonctl delete {j} removes it)"
+                cmds = [f"ribbonctl delete {j}"]
+        return {"instruction": text, "commands": cmds}
+
+    def status(self, job: JobRecord) -> dict[str, Any]:
+        """The job as people see it: the record, its progress and time left, what to do next."""
+        data = job.model_dump(mode="json")
+        info = self.progress(job)
+        data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
+                    compile_progress=job.progress, waits_for_operator=self._waits(job))
+        return data
+
+    def _waits(self, job: JobRecord) -> bool:
+        """Nothing happens until the operator acts (a ready job nobody started, the flip, a mark
+        the head is above, a pause)."""
+        if job.state is JobState.READY:
+            return not job.start_when_ready
+        if job.state is JobState.ALIGNING:
+            run = self._run
+            return run is not None and run.job_id == job.id and run.alignment is not None \
+                and run.alignment.current > 0
+        return job.state in (JobState.AWAITING_FLIP, JobState.PAUSED)
 
     # ------------------------------------------------------------------ compiling
 
@@ -304,6 +626,8 @@ class RibbonService:
             job_id = await self._compile_queue.get()
             try:
                 await self._compile(job_id)
+            except NotFound:
+                continue
             except Exception:  # noqa: BLE001 - one job's failure never stops the daemon
                 log.exception("compiling job %s", job_id)
                 with contextlib.suppress(Exception):
@@ -355,51 +679,93 @@ class RibbonService:
 
     # ------------------------------------------------------------------ printing
 
+    def _connected(self) -> bool:
+        return self.link is not None and self.link.state is LinkState.READY
+
     async def _print_loop(self) -> None:
         while True:
             job_id = await self._print_queue.get()
-            job = self.job(job_id)
-            if job.state is not JobState.READY:
+            try:
+                job = self.job(job_id)
+            except NotFound:
+                continue                                      # deleted while queued
+            if job.state is not JobState.READY or not job.start_when_ready:
                 continue
-            self._run = _Run(job_id)
+            if not self._connected():                         # wait for the printer, do not fail
+                log.info("job %s waits for the printer to connect", job_id)
+                self._publish(self.store.update(job_id, stage="waiting for the printer"))
+                while not self._connected() and self._job_exists(job_id) \
+                        and self.job(job_id).state is JobState.READY:
+                    await asyncio.sleep(0.2)
+                if not self._job_exists(job_id) or self.job(job_id).state is not JobState.READY:
+                    continue
+                job = self.store.update(job_id, stage=None)
+            self._run = run = _Run(job_id)
             try:
                 await self._print(job)
             except StreamCancelled:
-                await self._safe_stop()
-                self._transition(job_id, JobState.CANCELLED, reason="cancelled by the operator")
-            except (LinkError, OSError, ValueError) as exc:
+                await self._end_run(run, None)
+            except Exception as exc:  # noqa: BLE001 - any fatal error of the print task: stop safely
                 log.exception("printing job %s", job_id)
-                await self._safe_stop()
-                with contextlib.suppress(IllegalTransition):
-                    self._transition(job_id, JobState.FAILED, reason=str(exc), error=str(exc))
-            except Exception as exc:  # noqa: BLE001 - the daemon keeps running
-                log.exception("printing job %s", job_id)
-                with contextlib.suppress(Exception):
-                    self._transition(job_id, JobState.FAILED, reason=f"internal error: {exc}", error=str(exc))
+                kind = "printer" if isinstance(exc, (LinkError, OSError)) else "internal error"
+                await self._end_run(run, f"{kind}: {exc}")
             finally:
+                if run.heaters is not None:
+                    run.heaters.cancel()
                 self._run = None
+                run.done.set()
 
-    def _require_link(self) -> PrinterLink:
-        if self.link is None or self.link.state is LinkState.DISCONNECTED:
-            raise LinkError("the printer is not connected")
-        return self.link
+    def _job_exists(self, job_id: str) -> bool:
+        try:
+            self.store.get(job_id)
+        except KeyError:
+            return False
+        return True
+
+    async def _end_run(self, run: _Run, error: str | None) -> None:
+        """After the stream ended early: heaters off, head lifted; the job ``cancelled`` (asked for),
+        or ``interrupted`` (the daemon stops, or ``error``) with the exact checkpoint."""
+        stopped = await self._safe_stop()
+        job = self.job(run.job_id)
+        if job.state.terminal:
+            return
+        if run.cancel_requested and error is None:
+            self._transition(run.job_id, JobState.CANCELLED, reason="cancelled by the operator",
+                             start_when_ready=False)
+            return
+        reason = error or run.stop_reason or "stopped"
+        if stopped and job.state in (JobState.HEATING, JobState.PRINTING_FRONT, JobState.PRINTING_BACK,
+                                     JobState.PAUSED):
+            # after M400 every acknowledged line has been executed: the checkpoint is exact
+            side = job.side or "front"
+            self.store.checkpoint(run.job_id, f"{side}_stopped", self._acked)
+        self._transition(run.job_id, JobState.INTERRUPTED, reason=reason, start_when_ready=False,
+                         stage="stopped: heaters off, head lifted" if stopped else "stopped")
 
     async def _print(self, job: JobRecord) -> None:
         link = self._require_link()
         run = self._run
         assert run is not None
+        if job.kind == "gcode":
+            text = Path(job.mesh_path).read_text(encoding="utf-8")
+            self._transition(job.id, JobState.HEATING, side="front", stage="heating")
+            await self._stream(job.id, text, "front", JobState.PRINTING_FRONT, plain=True)
+            await link.send("M400", timeout=600)
+            self._publish(self.store.checkpoint(job.id, "program_done", self._acked))
+            run.check()
+            self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
+            return
         folder = read_design_folder(Path(job.design_dir or ""))
         design = folder.design
         has_back = any(r.side == "back" for r in design.ribbons or [])
         front = (Path(job.design_dir or "") / "front.gcode").read_text(encoding="utf-8")
         self._transition(job.id, JobState.HEATING, side="front", stage="heating")
         await self._stream(job.id, front, "front", JobState.PRINTING_FRONT)
-        await link.send("M400")
+        await link.send("M400", timeout=600)
         self._publish(self.store.checkpoint(job.id, "front_done", self._acked))
-        if run.cancel_requested:
-            raise StreamCancelled("cancelled by the operator")
+        run.check()
         if not has_back:
-            self._transition(job.id, JobState.DONE, stage=None, progress=None)
+            self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
             return
         expected = expected_marks(design.registration_marks or [], self.profile.frame)
         while True:
@@ -407,11 +773,14 @@ class RibbonService:
             run.alignment = _Alignment(expected=expected)
             self._transition(job.id, JobState.ALIGNING, stage="aligning")
             # the front program ended with the motors off (M84) and the frame was handled: home again
-            await link.send("G28", timeout=300)
-            await self._go_to_mark(0, expected)
+            async with self._manual:
+                await link.send("G28", timeout=300)
+                self._head = None
+            run.check()
+            if len(expected):
+                await self._go_to_mark(1)
             await run.aligned.wait()
-            if run.cancel_requested:
-                raise StreamCancelled("cancelled by the operator")
+            run.check()
             correction, refused = run.alignment.correction, run.alignment.refused
             if refused is not None or correction is None:
                 run.flip.clear()
@@ -429,26 +798,38 @@ class RibbonService:
         self._transition(job.id, JobState.PRINTING_BACK, side="back", correction=correction.model_dump(mode="json"),
                          stage="printing back", error=None)
         await self._stream(job.id, program.text, "back", None)
-        await link.send("M400")
+        await link.send("M400", timeout=600)
         self._publish(self.store.checkpoint(job.id, "back_done", self._acked))
-        self._transition(job.id, JobState.DONE, stage=None, progress=None)
+        run.check()
+        self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
 
-    async def _stream(self, job_id: str, text: str, side: str, after_heating: JobState | None) -> None:
-        """Stream one program; switch from ``heating`` to ``after_heating`` at its first part."""
+    async def _stream(self, job_id: str, text: str, side: str, after_heating: JobState | None,
+                      plain: bool = False) -> None:
+        """Stream one program; switch from ``heating`` to ``after_heating`` where it starts printing."""
         link = self._require_link()
+        run = self._run
+        assert run is not None
+        run.check()
         lines = text.splitlines()
         commands = prepare_program(lines, f"{side}.gcode")
-        first_part = len(prepare_program(lines[: next((i for i, line in enumerate(lines)
-                                                        if line.startswith(";TYPE:")), len(lines))]))
+        timeline = program_timeline(lines, self.profile)
+        first_part = timeline.first
+        stream = run.stream = _Stream(side=side, timeline=timeline)
         self._run_commands = commands
+        self._acked = -1
+        self._head = None
         self._publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
         last_write = 0.0
         switched = after_heating is None
+        if switched:
+            stream.printing_since = time.monotonic()
 
         def progress(p: StreamProgress) -> None:
             nonlocal last_write, switched
             now = time.monotonic()
-            self._acked = p.acknowledged
+            self._acked = stream.acked = p.acknowledged
+            if stream.printing_since is None and p.acknowledged >= first_part:
+                stream.printing_since = now
             if not switched and p.acknowledged >= first_part:
                 switched = True
                 job = self.job(job_id)
@@ -457,27 +838,65 @@ class RibbonService:
             if now - last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
                 last_write = now
                 self.store.record_ack(job_id, p.acknowledged)
-                eta = (p.elapsed_s / p.acknowledged * (p.total - p.acknowledged)) if p.acknowledged else None
-                if eta is not None:
-                    self._eta[job_id] = eta
+                info = self.progress(self.job(job_id))
                 self.bus.publish({"type": "progress", "job_id": job_id, "side": side, "line": p.acknowledged,
-                                  "lines": p.total, "eta_s": eta})
+                                  "lines": p.total, **info})
 
         try:
             await link.stream(commands, progress)
         finally:
-            self._eta.pop(job_id, None)
+            rate = self._stream_rate(stream)
+            if rate is not None and stream.acked >= len(commands) - 1:
+                self._rate = rate                             # what this printer does with an estimate
+            run.stream = None
         if not switched and after_heating is not None:
             self._transition(job_id, after_heating, stage=f"printing {side}")
 
-    async def _safe_stop(self) -> None:
-        """Heaters off, head lifted: after a cancel or a failure."""
+    def _safe_stop_commands(self) -> list[str]:
+        """Heaters off, fan off, the head lifted by the profile's park lift, motion finished, motors off."""
+        return ["M104 S0", "M140 S0", "M107", "G91",
+                f"G0 Z{self.profile.park_lift:.3f} F{self.profile.motion.z_speed * 60:.0f}", "G90", "M400", "M84"]
+
+    async def _safe_stop(self) -> bool:
+        """Heaters off, head lifted: after a cancel, a stop or a failure. Whether it was sent."""
         link = self.link
         if link is None or link.state not in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED):
+            return False
+        sent = True
+        async with self._manual:
+            for command in self._safe_stop_commands():
+                try:
+                    await link.send(command, timeout=60)
+                except (LinkError, asyncio.TimeoutError):
+                    sent = False
+            self._head = None
+        return sent
+
+    # ------------------------------------------------------------------ waiting heaters
+
+    async def _idle_heaters(self, job_id: str, why: str) -> None:
+        """While the job waits for the operator: the heaters follow ``[flip]`` (keep, lower, off),
+        and all go off after ``off_after_s``."""
+        policy = self.config.flip
+        link = self._require_link()
+        try:
+            if policy.heaters == "off":
+                await link.send("M104 S0")
+            elif policy.heaters == "lower":
+                await link.send(f"M104 S{policy.lower_to:.0f}")
+            if policy.off_after_s <= 0:
+                return
+            await asyncio.sleep(policy.off_after_s)
+            await link.send("M104 S0")
+            await link.send("M140 S0")
+        except (LinkError, asyncio.TimeoutError) as exc:
+            log.warning("job %s: idle heaters: %s", job_id, exc)
             return
-        for command in ("M104 S0", "M140 S0", "M107", "G91", "G0 Z10 F600", "G90", "M84"):
-            with contextlib.suppress(LinkError, asyncio.TimeoutError):
-                await link.send(command, timeout=30)
+        message = f"heaters off after {policy.off_after_s:.0f} s {why}"
+        log.info("job %s: %s", job_id, message)
+        with contextlib.suppress(NotFound, ValueError):
+            self._publish(self.store.update(job_id, stage=message))
+        self.bus.publish({"type": "notice", "job_id": job_id, "message": message})
 
     # ------------------------------------------------------------------ the flip
 
@@ -487,68 +906,86 @@ class RibbonService:
         job = self.job(job_id)
         if job.state is not JobState.AWAITING_FLIP:
             self._transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
-                             reason=flip_message(self.profile))
+                             reason="the front is printed: turn the frame over, then flip-done")
         self._publish(self.store.checkpoint(job_id, "flip", self._acked))
-        policy = self.config.flip
-        link = self._require_link()
-        if policy.heaters == "off":
-            await link.send("M104 S0")
-        elif policy.heaters == "lower":
-            await link.send(f"M104 S{policy.lower_to:.0f}")
+        run.heaters = asyncio.create_task(self._idle_heaters(job_id, "awaiting the flip"))
         try:
-            await asyncio.wait_for(run.flip.wait(), policy.off_after_s if policy.off_after_s > 0 else None)
-        except asyncio.TimeoutError:
-            await link.send("M104 S0")
-            await link.send("M140 S0")
-            self.bus.publish({"type": "notice", "job_id": job_id,
-                              "message": f"heaters off after {policy.off_after_s:.0f} s awaiting the flip"})
             await run.flip.wait()
-        if run.cancel_requested:
-            raise StreamCancelled("cancelled by the operator")
+        finally:
+            run.heaters.cancel()
+            run.heaters = None
+        run.check()
 
-    def flip_done(self, job_id: str) -> JobRecord:
+    async def flip_done(self, job_id: str) -> JobRecord:
+        """The operator turned the frame over: go on to the alignment (returns once aligning)."""
         job = self.job(job_id)
         run = self._run
         if job.state is not JobState.AWAITING_FLIP or run is None or run.job_id != job_id:
-            raise IllegalTransition(job.state, JobState.ALIGNING)
+            raise IllegalTransition(job.state, "flip-done")
         run.flip.set()
-        return job
+        return await self._wait_state(job_id, lambda s: s is not JobState.AWAITING_FLIP, 30)
 
-    async def _go_to_mark(self, index: int, expected: np.ndarray) -> None:
-        """Move the head above where mark ``index`` should be now, at the safe height."""
+    async def _go_to_mark(self, mark: int) -> None:
+        """Move the head above where mark ``mark`` (from 1) should be now, at the safe height."""
+        run = self._run
+        assert run is not None and run.alignment is not None
+        al = run.alignment
         link = self._require_link()
         lay, mo = self.profile.layers, self.profile.motion
-        x, y = expected[index]
-        for command in ("G90", f"G0 Z{lay.fabric_z + lay.safe_height:.3f} F{mo.z_speed * 60:.0f}",
-                        f"G0 X{x:.3f} Y{y:.3f} F{mo.travel_speed * 60:.0f}", "M400"):
-            await link.send(command, timeout=120)
-        self.bus.publish({"type": "alignment", "job_id": self._run.job_id if self._run else None,
-                          "mark": index, "expected": [float(x), float(y)],
-                          "message": f"the head is above where mark {index + 1} of {len(expected)} should be: "
-                                     "confirm it, or jog the head onto the mark and report the jog"})
+        x, y = (float(v) for v in al.expected[mark - 1])
+        z = lay.fabric_z + lay.safe_height
+        al.current = 0
+        async with self._manual:
+            for command in ("G90", f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
+                            f"G0 X{x:.3f} Y{y:.3f} F{mo.travel_speed * 60:.0f}", "M400"):
+                await link.send(command, timeout=120)
+            self._set_head((x, y, z))
+        al.current = mark
+        job = self.job(run.job_id)
+        self._publish(job)
+        self.bus.publish({"type": "alignment", "job_id": run.job_id, "mark": mark, "marks": len(al.expected),
+                          "expected": [x, y], "message": self.guidance(job)["instruction"]})
 
-    async def align_mark(self, job_id: str, mark: int, jog: tuple[float, float] | None) -> dict[str, Any]:
-        """Confirm mark ``mark`` (``jog`` None) or report the jog (dx, dy) that brought the head
-        onto it. Returns the alignment's status; the last mark ends the check."""
+    async def align_mark(self, job_id: str, mark: int | None, jog: tuple[float, float] | None,
+                         here: bool = False) -> dict[str, Any]:
+        """Measure registration mark ``mark`` (numbered from 1; None: the one the head was sent to):
+        ``here`` takes the head's commanded position (the operator jogged the nozzle onto the mark),
+        else ``jog`` (dx, dy) is the offset of the mark from where the head was sent (None: it was
+        on the mark). Returns the alignment's status; the last mark ends the check."""
         run = self._run
         job = self.job(job_id)
         if job.state is not JobState.ALIGNING or run is None or run.job_id != job_id or run.alignment is None:
             raise IllegalTransition(job.state, "align")
         al = run.alignment
-        if not 0 <= mark < len(al.expected):
-            raise ValueError(f"mark {mark} does not exist: the design has marks 0 to {len(al.expected) - 1}")
-        dx, dy = jog or (0.0, 0.0)
-        if not (np.isfinite(dx) and np.isfinite(dy)):
-            raise ValueError("the jog must be two finite numbers (mm)")
-        al.measured[mark] = (float(al.expected[mark][0] + dx), float(al.expected[mark][1] + dy))
+        k = len(al.expected)
+        if al.current == 0 and (here or mark is None):
+            raise ServiceError(f"cannot align yet: the head is on its way above mark {al.next_mark}; "
+                               f"wait for the prompt (ribbonctl watch {job_id})")
+        mark = al.current if mark is None else mark
+        if not 1 <= mark <= k:
+            raise ValueError(f"mark {mark} does not exist: the design has marks 1 to {k}")
+        expected = (float(al.expected[mark - 1][0]), float(al.expected[mark - 1][1]))
+        if here:
+            if jog is not None:
+                raise ValueError("give either --here (the head is on the mark) or a jog, not both")
+            async with self._manual:
+                x, y, _ = await self._where(self._require_link())
+            measured = (x, y)
+        else:
+            dx, dy = jog or (0.0, 0.0)
+            if not (np.isfinite(dx) and np.isfinite(dy)):
+                raise ValueError("the jog must be two finite numbers (mm)")
+            measured = (expected[0] + float(dx), expected[1] + float(dy))
+        al.measured[mark] = measured
         nxt = al.next_mark
-        status: dict[str, Any] = {"measured": {str(k): v for k, v in al.measured.items()}, "next_mark": nxt,
-                                  "marks": len(al.expected)}
+        status: dict[str, Any] = {"mark": mark, "marks": k, "next_mark": nxt,
+                                  "offset": [measured[0] - expected[0], measured[1] - expected[1]],
+                                  "measured": {str(i): v for i, v in sorted(al.measured.items())}}
         if nxt is not None:
-            await self._go_to_mark(nxt, al.expected)
+            await self._go_to_mark(nxt)
             return status
         # the fit is made once, here; the printer task takes its result from ``al``
-        fit = fit_rigid(al.expected, np.array([al.measured[i] for i in range(len(al.expected))]))
+        fit = fit_rigid(al.expected, np.array([al.measured[i] for i in range(1, k + 1)]))
         status["fit"] = {"rotation_deg": fit.rotation_deg, "offset": list(fit.offset),
                          "rms_mm": fit.rms, "max_residual_mm": fit.max_residual}
         tol = self.profile.alignment
@@ -571,21 +1008,34 @@ class RibbonService:
         job = self.job(job_id)
         run = self._run
         if job.state not in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK) or run is None or run.job_id != job_id:
-            raise IllegalTransition(job.state, JobState.PAUSED)
+            raise IllegalTransition(job.state, "pause")
         link = self._require_link()
-        link.pause()
-        job = self._transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
-        await link.send("M400", timeout=300)
-        pos = await link.query_position()
-        modal = modal_state(self._run_commands, max(self._acked, 0))
-        exact = {k: modal[k] if modal[k] is not None else getattr(pos, k) for k in ("x", "y", "z")}
-        run.pause_snapshot = {**modal, **exact}
-        lay, mo, r = self.profile.layers, self.profile.motion, self.profile.retraction
-        x0, _, _, y1 = self.profile.frame.bounds
-        for command in ("G90", "M83", f"G1 E{-r.length:.5f} F{mo.retract_speed * 60:.0f}",
-                        f"G0 Z{max(pos.z, lay.fabric_z) + self.profile.park_lift:.3f} F{mo.z_speed * 60:.0f}",
-                        f"G0 X{x0:.3f} Y{y1:.3f} F{mo.travel_speed * 60:.0f}"):
-            await link.send(command, timeout=120)
+        run.busy = True
+        try:
+            link.pause()
+            if run.stream is not None:
+                run.stream.paused_at = time.monotonic()
+            job = self._transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
+            await link.send("M400", timeout=300)
+            pos = await link.query_position()
+            modal = modal_state(self._run_commands, max(self._acked, 0))
+            exact = {k: modal[k] if modal[k] is not None else getattr(pos, k) for k in ("x", "y", "z")}
+            nozzle = link.status.heaters.get("T")
+            if modal["nozzle"] is None and nozzle is not None and nozzle.target:
+                modal["nozzle"] = nozzle.target               # the program set it before the pause point
+            run.pause_snapshot = {**modal, **exact}
+            lay, mo, r = self.profile.layers, self.profile.motion, self.profile.retraction
+            x0, _, _, y1 = self.profile.frame.bounds
+            z = max(pos.z, lay.fabric_z) + self.profile.park_lift
+            async with self._manual:
+                for command in ("G90", "M83", f"G1 E{-r.length:.5f} F{mo.retract_speed * 60:.0f}",
+                                f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
+                                f"G0 X{x0:.3f} Y{y1:.3f} F{mo.travel_speed * 60:.0f}"):
+                    await link.send(command, timeout=120)
+                self._set_head((x0, y1, z))
+            run.heaters = asyncio.create_task(self._idle_heaters(job_id, "paused"))
+        finally:
+            run.busy = False
         self._publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)
         return self.job(job_id)
 
@@ -595,6 +1045,9 @@ class RibbonService:
         if job.state is not JobState.PAUSED or run is None or run.job_id != job_id or run.pause_snapshot is None:
             raise IllegalTransition(job.state, "resume")
         link = self._require_link()
+        if run.heaters is not None:
+            run.heaters.cancel()
+            run.heaters = None
         snap = run.pause_snapshot
         mo, r = self.profile.motion, self.profile.retraction
         commands = []
@@ -602,7 +1055,9 @@ class RibbonService:
             commands += [f"M104 S{snap['nozzle']:.0f}", f"M109 S{snap['nozzle']:.0f}"]
         if snap.get("bed"):
             commands += [f"M140 S{snap['bed']:.0f}", f"M190 S{snap['bed']:.0f}"]
-        commands += ["G90", f"G0 X{snap['x']:.3f} Y{snap['y']:.3f} F{mo.travel_speed * 60:.0f}",
+        safe_z = max(snap["z"], self.profile.layers.fabric_z + self.profile.layers.safe_height)
+        commands += ["G90", f"G0 Z{safe_z:.3f} F{mo.z_speed * 60:.0f}",
+                     f"G0 X{snap['x']:.3f} Y{snap['y']:.3f} F{mo.travel_speed * 60:.0f}",
                      f"G0 Z{snap['z']:.3f} F{mo.z_speed * 60:.0f}", "M83",
                      f"G1 E{r.length:.5f} F{mo.retract_speed * 60:.0f}"]
         commands.append("G90" if snap["absolute"] else "G91")
@@ -611,36 +1066,210 @@ class RibbonService:
             commands.append(f"M106 S{snap['fan']}")
         if snap.get("feed"):
             commands.append(f"G0 F{snap['feed']:.0f}")
-        for command in commands:
-            await link.send(command, timeout=1200)
-        back_to = job.paused_from or JobState.PRINTING_FRONT
-        job = self._transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
-        run.pause_snapshot = None
-        link.resume()
+        run.busy = True
+        try:
+            self._publish(self.store.update(job_id, stage="resuming: reheating"))
+            async with self._manual:
+                for command in commands:
+                    await link.send(command, timeout=1200)
+                self._head = None
+            back_to = job.paused_from or JobState.PRINTING_FRONT
+            job = self._transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
+            run.pause_snapshot = None
+            if run.stream is not None and run.stream.paused_at is not None:
+                run.stream.paused_s += time.monotonic() - run.stream.paused_at
+                run.stream.paused_at = None
+            link.resume()
+        finally:
+            run.busy = False
         return job
+
+    # ------------------------------------------------------------------ manual control
+
+    def _manual_link(self, what: str) -> PrinterLink:
+        """The link, if the operator may move the printer now: no program streaming (a job paused,
+        awaiting the flip or aligning, or no job at all)."""
+        run = self._run
+        if run is not None:
+            job = self.job(run.job_id)
+            if job.state.streams or job.state not in (JobState.PAUSED, JobState.AWAITING_FLIP, JobState.ALIGNING):
+                hint = f"pause it first: ribbonctl pause {job.id}" if job.state in (
+                    JobState.PRINTING_FRONT, JobState.PRINTING_BACK) else f"wait, or cancel it: ribbonctl cancel {job.id}"
+                raise ServiceError(f"cannot {what}: job {job.id} is {job.state.value} (a program is streaming "
+                                   f"to the printer); {hint}")
+            if run.busy:
+                raise ServiceError(f"cannot {what}: job {job.id} is pausing or resuming; try again in a moment")
+        link = self._require_link()
+        if link.state is LinkState.STREAMING:
+            raise ServiceError(f"cannot {what}: a program is streaming to the printer")
+        return link
+
+    def _set_head(self, xyz: tuple[float, float, float]) -> None:
+        self._head = xyz
+        self._head_sender = self.link.sender if self.link is not None else None
+
+    async def _where(self, link: PrinterLink) -> tuple[float, float, float]:
+        """The head's commanded position, else (first time, after homing, after typed G-code, after a
+        reconnect) the printer's own (``M400``, ``M114``)."""
+        if self._head is not None and self._head_sender is link.sender:
+            return self._head
+        await link.send("M400", timeout=300)
+        pos = await link.query_position()
+        self._set_head((pos.x, pos.y, pos.z))
+        assert self._head is not None
+        return self._head
+
+    def _inside(self, x: float, y: float, z: float, what: str) -> None:
+        x0, y0, x1, y1 = self.profile.frame.bounds
+        fabric = self.profile.layers.fabric_z
+        eps = 1e-6
+        if not (x0 - eps <= x <= x1 + eps and y0 - eps <= y <= y1 + eps):
+            raise ValueError(f"{what} would take the head to x {x:.3f}, y {y:.3f}: outside the frame "
+                             f"(x {x0:g} to {x1:g}, y {y0:g} to {y1:g} mm)")
+        if z < fabric - eps:
+            raise ValueError(f"{what} would take the nozzle down to z {z:.3f}, below the fabric (z {fabric:g} mm)")
+
+    async def _move_to(self, link: PrinterLink, x: float, y: float, z: float) -> None:
+        here = await self._where(link)
+        xy_feed = min(JOG_SPEED, self.profile.motion.travel_speed) * 60
+        z_feed = self.profile.motion.z_speed * 60
+        xy = f"G0 X{x:.3f} Y{y:.3f} F{xy_feed:.0f}"
+        zz = f"G0 Z{z:.3f} F{z_feed:.0f}"
+        # up before moving across, down after: never dragged over the fabric
+        moves = [zz, xy] if z >= here[2] else [xy, zz]
+        for command in ("G90", *moves, "M400"):
+            await link.send(command, timeout=300)
+        self._set_head((x, y, z))
+
+    def _position_status(self) -> dict[str, Any]:
+        return {"position": list(self._head) if self._head is not None else None}
+
+    async def home(self) -> dict[str, Any]:
+        """Home all axes (``G28``); the head's position is then the printer's."""
+        async with self._manual:
+            link = self._manual_link("home")
+            await link.send("G28", timeout=300)
+            self._head = None
+            await self._where(link)
+            return self._position_status()
+
+    async def jog(self, dx: float, dy: float, dz: float = 0.0) -> dict[str, Any]:
+        """Move the head by (dx, dy, dz) mm at a safe feed, within the frame and above the fabric."""
+        for name, v in (("dx", dx), ("dy", dy), ("dz", dz)):
+            if not np.isfinite(v):
+                raise ValueError(f"{name} must be a finite number of mm")
+        async with self._manual:
+            link = self._manual_link("jog")
+            x, y, z = await self._where(link)
+            target = (x + dx, y + dy, z + dz)
+            self._inside(*target, what=f"jog {dx:g} {dy:g} {dz:g}")
+            await self._move_to(link, *target)
+            return self._position_status()
+
+    async def goto(self, x: float, y: float) -> dict[str, Any]:
+        """Move the head to (x, y) in the frame, at least at the safe height above the fabric."""
+        if not (np.isfinite(x) and np.isfinite(y)):
+            raise ValueError("x and y must be finite numbers of mm")
+        async with self._manual:
+            link = self._manual_link("goto")
+            _, _, z = await self._where(link)
+            z = max(z, self.profile.layers.fabric_z + self.profile.layers.safe_height)
+            self._inside(x, y, z, what=f"goto {x:g} {y:g}")
+            await self._move_to(link, x, y, z)
+            return self._position_status()
+
+    async def gcode(self, commands: list[str]) -> dict[str, Any]:
+        """Send typed G-code (one command or a short list) and return what the printer answered."""
+        clean = [c.strip() for c in commands if c.strip()]
+        if not clean:
+            raise ValueError("no G-code command given")
+        if len(clean) > MAX_MANUAL_COMMANDS:
+            raise ValueError(f"{len(clean)} commands: at most {MAX_MANUAL_COMMANDS} at a time "
+                             "(print a longer program as a job: ribbonctl print FILE)")
+        for i, command in enumerate(clean, start=1):
+            word = command.split()[0].upper()
+            if word == "M112":
+                raise ValueError("M112 is the emergency stop: use ribbonctl stop")
+            prepare_program([command], f"command {i}")       # M110, too long, not ASCII: refused
+            codec.check_sendable(codec.strip_comment(command) or command)
+        async with self._manual:
+            link = self._manual_link("send G-code")
+            answers = []
+            for command in clean:
+                _, lines = await link.send_collecting(command, timeout=600)
+                if command.split()[0].upper() in _MOVES_HEAD:
+                    self._head = None
+                answers.append({"command": command, "answer": lines})
+            return {"answers": answers}
+
+    async def heat(self, nozzle: float | None, bed: float | None) -> dict[str, Any]:
+        """Set heater targets (no wait); defaults: the profile's nozzle temperature, the bed as it is."""
+        t = self.profile.temperatures
+        nozzle = t.nozzle if nozzle is None and bed is None else nozzle
+        if nozzle is not None and not 0 <= nozzle <= t.nozzle_max:
+            raise ValueError(f"nozzle {nozzle:g} °C: must be 0 to the profile's nozzle_max ({t.nozzle_max:g} °C)")
+        if bed is not None and not 0 <= bed <= t.bed_max:
+            raise ValueError(f"bed {bed:g} °C: must be 0 to the profile's bed_max ({t.bed_max:g} °C)")
+        async with self._manual:
+            link = self._manual_link("heat")
+            if nozzle is not None:
+                await link.send(f"M104 S{nozzle:.0f}")
+            if bed is not None:
+                await link.send(f"M140 S{bed:.0f}")
+        return await self.printer_status(refresh=True)
+
+    async def cool(self) -> dict[str, Any]:
+        """Heaters off."""
+        async with self._manual:
+            link = self._manual_link("cool")
+            await link.send("M104 S0")
+            await link.send("M140 S0")
+        return await self.printer_status(refresh=True)
 
     # ------------------------------------------------------------------ the printer
 
+    def _require_link(self) -> PrinterLink:
+        if self.link is None or self.link.state is LinkState.DISCONNECTED:
+            raise LinkError("the printer is not connected")
+        if self.link.state is LinkState.HALTED:
+            raise LinkError("the printer is halted (emergency stop or a firmware error): ribbonctl recover")
+        if self.link.state is LinkState.CONNECTING:
+            raise LinkError("the printer is connecting; try again in a moment")
+        return self.link
+
     async def printer_status(self, refresh: bool = False) -> dict[str, Any]:
         """What the link knows; with ``refresh``, the temperatures and position asked for first
-        (``M105``, ``M114``: answered ahead of a running program)."""
+        (``M105``, ``M114``: answered ahead of a running program). Halted or disconnected, no
+        temperatures or position are shown: the last ones known would be stale."""
         if self.link is None:
-            return {"state": "disconnected"}
-        if refresh and self.link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED):
+            return {"state": "disconnected", "heaters": {}, "position": None}
+        live = self.link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
+        if refresh and live:
             with contextlib.suppress(LinkError, asyncio.TimeoutError):
                 await asyncio.wait_for(self.link.query_temperatures(), 10)
                 await asyncio.wait_for(self.link.query_position(), 10)
-        return self.link.status.model_dump(mode="json")
+        status = self.link.status.model_dump(mode="json")
+        if not live:
+            status["heaters"], status["position"] = {}, None
+            status["note"] = {"halted": "halted: temperatures unknown; ribbonctl recover restarts the firmware",
+                              "disconnected": "not connected: temperatures unknown",
+                              "connecting": "connecting"}.get(status["state"])
+        status["head"] = list(self._head) if self._head is not None else None
+        return status
 
     def emergency_stop(self) -> None:
-        link = self._require_link()
+        link = self.link
+        if link is None or link.state is LinkState.DISCONNECTED:
+            raise LinkError("the printer is not connected")
         link.emergency_stop()
 
     async def recover(self) -> dict[str, Any]:
         """After an emergency stop or a halt: restart the firmware (``M999``) and shake hands again."""
-        link = self._require_link()
+        link = self.link
+        if link is None or link.state is LinkState.DISCONNECTED:
+            raise LinkError("the printer is not connected")
         if link.state is not LinkState.HALTED:
-            raise ServiceError(f"the printer is {link.state.value}, not halted: nothing to recover")
+            raise ServiceError(f"cannot recover: the printer is {link.state.value}, not halted; nothing to recover")
         await link.recover()
+        self._head = None
         return await self.printer_status()
-

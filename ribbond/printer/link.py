@@ -150,6 +150,7 @@ class PrinterLink:
         self._rehandshake: asyncio.Task[None] | None = None
         self._state_changed: asyncio.Event | None = None
         self._position_at = 0.0
+        self._collectors: list[list[str]] = []
 
     # ------------------------------------------------------------------ state
 
@@ -289,6 +290,18 @@ class PrinterLink:
         future = self.sender.send(command)
         return await (asyncio.wait_for(future, timeout) if timeout else future)
 
+    async def send_collecting(self, command: str, timeout: float | None = None) -> tuple[Answer, list[str]]:
+        """``send``, and the lines the printer printed until its acknowledgement (with the ``ok``),
+        as received: for people typing G-code (other lines arriving meanwhile, such as temperature
+        autoreports, are among them)."""
+        lines: list[str] = []
+        self._collectors.append(lines)
+        try:
+            answer = await self.send(command, timeout)
+        finally:
+            self._collectors.remove(lines)
+        return answer, lines
+
     async def query_temperatures(self) -> codec.Temperatures:
         """Ask for the temperatures (``M105``)."""
         answer = await self.send("M105")
@@ -390,6 +403,8 @@ class PrinterLink:
 
     def _on_line(self, text: str) -> None:
         self._last_line_at = time.monotonic()
+        for lines in self._collectors:
+            lines.append(text)
         event = codec.parse_line(text)
         log.debug("<< %s", text)
         self._observe(event)

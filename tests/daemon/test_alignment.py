@@ -151,12 +151,12 @@ def test_one_mark_off_by_1_mm_is_refused_and_named(bad: int, direction: tuple[fl
     err = e.value
     assert isinstance(err, ValueError)
     assert err.which == "residual"
-    assert err.mark == bad
+    assert err.mark == bad + 1                                  # numbered from 1, as people read it
     assert err.limit == 0.3
     assert 0.5 < err.value <= 1.0
     assert err.value == pytest.approx(fit.max_residual)
     msg = str(err)
-    assert f"mark {bad} " in msg and f"{err.value:.2f} mm" in msg and "0.30 mm" in msg
+    assert f"mark {bad + 1} " in msg and f"{err.value:.2f} mm" in msg and "0.30 mm" in msg
 
 
 def test_two_marks_at_the_right_distance_fit_exactly() -> None:
@@ -241,7 +241,7 @@ def test_the_offset_is_the_largest_displacement_of_a_mark() -> None:
     with pytest.raises(AlignmentRefused) as e:
         check_fit(fit, max_residual=0.3, max_rotation_deg=2.0, max_offset=1.0)
     assert e.value.which == "offset"
-    assert e.value.mark == far
+    assert e.value.mark == far + 1
     assert e.value.value == pytest.approx(chord, abs=1e-9)
 
 
@@ -341,7 +341,7 @@ def test_mismatched_shapes_are_rejected() -> None:
 
 def test_duplicate_expected_marks_are_rejected() -> None:
     expected = np.array([[30.0, 25.0], [185.0, 32.0], [30.0, 25.0]])
-    with pytest.raises(ValueError, match="marks 0 and 2 are at the same place"):
+    with pytest.raises(ValueError, match="marks 1 and 3 are at the same place"):
         fit_rigid(expected, expected + 0.1)
     with pytest.raises(ValueError, match="same place"):
         fit_rigid(np.array([[5.0, 5.0], [5.0, 5.0]]), np.array([[5.0, 5.0], [6.0, 5.0]]))

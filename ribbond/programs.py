@@ -1,0 +1,238 @@
+"""Programs the daemon streams, read as G-code (no printer answers): the time line of a program
+(its own time estimate per command, and the ribbon each command belongs to) for progress and time
+left, and the line-by-line check of a plain G-code program against the printer profile.
+
+Commands are counted exactly as ``printer.link.prepare_program`` makes them (comments, blank lines,
+``N…`` numbers and ``*…`` checksums dropped), so index i here is line i of the stream.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .gcode.estimate import move_times
+from .gcode.profiles import PrinterProfile
+from .printer import codec
+from .printer.link import prepare_program
+
+__all__ = ["Timeline", "check_program", "command_of", "program_timeline"]
+
+_NUMBER = re.compile(r"^N\d+\s+")
+_RIBBON = re.compile(r"^;TYPE:RIBBON\s+\d+\s+\((\d+) of (\d+)\)")
+#: Commands that wait for a heater: the program prints only after the last of them.
+_HEAT_WAITS = ("M109", "M190", "M116")
+
+
+def command_of(raw: str) -> str | None:
+    """The command a program line streams as (None for a comment or blank line)."""
+    command = codec.strip_comment(raw)
+    if not command:
+        return None
+    command = _NUMBER.sub("", command).split("*", 1)[0].strip()
+    return command or None
+
+
+def _words(command: str, where: str) -> tuple[str, dict[str, float | None]]:
+    parts = command.split()
+    code = parts[0].upper()
+    args: dict[str, float | None] = {}
+    for word in parts[1:]:
+        letter, value = word[0].upper(), word[1:]
+        if not value:
+            args[letter] = None
+            continue
+        try:
+            args[letter] = float(value)
+        except ValueError:
+            if code.startswith("M117") or code.startswith("M118"):
+                continue                                    # messages carry text
+            raise ValueError(f"{where}: {word!r} is not a letter and a number") from None
+    return code, args
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """What a program's own time estimate says about each of its commands.
+
+    Attributes
+    ----------
+    at : (n,) estimated seconds from the program's start to the end of command i (heater waits
+        count 0: the estimate is of motion, so heating never inflates the time left).
+    ribbon : (n,) the ribbon command i belongs to, numbered from 1 (0 before the first).
+    ribbons : how many ribbons the program prints (0: no ribbon comments, e.g. plain G-code).
+    first : the index of the first command after the heating (where printing starts).
+    """
+
+    at: np.ndarray
+    ribbon: np.ndarray
+    ribbons: int
+    first: int
+
+    @property
+    def total(self) -> float:
+        """Estimated seconds of the whole program."""
+        return float(self.at[-1]) if len(self.at) else 0.0
+
+    def done_s(self, acknowledged: int) -> float:
+        """Estimated seconds of the program done once ``acknowledged`` commands are (-1: none)."""
+        if acknowledged < 0 or not len(self.at):
+            return 0.0
+        return float(self.at[min(acknowledged, len(self.at) - 1)])
+
+    def ribbon_at(self, acknowledged: int) -> int:
+        if acknowledged < 0 or not len(self.ribbon):
+            return 0
+        return int(self.ribbon[min(acknowledged, len(self.ribbon) - 1)])
+
+
+def program_timeline(lines: Sequence[str], profile: PrinterProfile) -> Timeline:
+    """The time line of a program (text lines), estimated with the profile's accelerations and
+    junction deviation (``gcode.estimate.move_times``, as the program's writer estimates it)."""
+    mo = profile.motion
+    pos = [0.0, 0.0, 0.0]
+    absolute = True
+    feed = mo.travel_speed
+    starts, ends, es, feeds, index = [], [], [], [], []
+    ribbon_of: list[int] = []
+    ribbon = ribbons = 0
+    type_at: int | None = None
+    last_wait = -1
+    first_extrusion: int | None = None
+    n = 0
+    for raw in lines:
+        stripped = raw.strip()
+        found = _RIBBON.match(stripped)
+        if found:
+            ribbon, ribbons = int(found.group(1)), max(ribbons, int(found.group(2)))
+        if stripped.startswith(";TYPE:") and type_at is None:
+            type_at = n
+        command = command_of(raw)
+        if command is None:
+            continue
+        try:
+            code, args = _words(command, f"line {n}")
+        except ValueError:
+            code, args = command.split()[0].upper(), {}
+        if code == "G90":
+            absolute = True
+        elif code == "G91":
+            absolute = False
+        elif code == "G28":
+            axes = [i for i, a in enumerate("XYZ") if a in args] or [0, 1, 2]
+            for i in axes:
+                pos[i] = 0.0
+        elif code in _HEAT_WAITS and first_extrusion is None:
+            last_wait = n
+        elif code in ("G0", "G1"):
+            if args.get("F"):
+                feed = float(args["F"] or 0) / 60.0
+            new = list(pos)
+            for i, a in enumerate("XYZ"):
+                if args.get(a) is not None:
+                    new[i] = float(args[a]) if absolute else pos[i] + float(args[a])  # type: ignore[arg-type]
+            e = float(args.get("E") or 0.0)
+            if e > 0 and first_extrusion is None:
+                first_extrusion = n
+            starts.append(list(pos))
+            ends.append(new)
+            es.append(e)
+            feeds.append(max(feed, 1e-3))
+            index.append(n)
+            pos = new
+        ribbon_of.append(ribbon)
+        n += 1
+    per = np.zeros(n)
+    if index:
+        t = move_times(np.array(starts), np.array(ends), np.array(es), np.array(feeds),
+                       mo.acceleration, mo.junction_deviation, mo.retract_speed)
+        per[np.array(index)] = t
+    first = type_at if type_at is not None else last_wait + 1
+    return Timeline(at=np.cumsum(per), ribbon=np.array(ribbon_of, dtype=int), ribbons=ribbons,
+                    first=min(max(first, 0), max(n - 1, 0)))
+
+
+def check_program(lines: Sequence[str], profile: PrinterProfile, source: str = "program") -> list[str]:
+    """Check a plain G-code program line by line against the printer profile; the commands to stream.
+
+    Refused, naming the line: what ``prepare_program`` refuses (M110, M112, too long, not ASCII);
+    a move whose end is outside the frame's printable rectangle, or below the fabric; a feed above
+    the profile's maximum speeds (X/Y moves: ``max_xy_speed``, Z-only moves: ``max_z_speed``); a
+    temperature above ``nozzle_max`` / ``bed_max``; a relative move before the position is known
+    (home with G28 or move absolutely first); arcs (G2/G3), inches (G20) and G92 on X, Y or Z,
+    which this check cannot follow. Homing (G28: machine 0, as the programs ribbond writes assume)
+    is allowed although home is outside the frame.
+
+    Raises
+    ------
+    ValueError
+        ``"<source>, line L: <what is wrong>"``; an empty program too.
+    """
+    commands = prepare_program(lines, source)
+    if not commands:
+        raise ValueError(f"{source}: no G-code commands in the file")
+    x0, y0, x1, y1 = profile.frame.bounds
+    fabric = profile.layers.fabric_z
+    mo, temps = profile.motion, profile.temperatures
+    eps = 1e-6
+    pos: list[float | None] = [None, None, None]
+    absolute = True
+    for number, raw in enumerate(lines, start=1):
+        command = command_of(raw)
+        if command is None:
+            continue
+        where = f"{source}, line {number}"
+        code, args = _words(command, where)
+        if code in ("G2", "G3"):
+            raise ValueError(f"{where}: {code} arcs are not checked against the frame; convert them to G1 moves")
+        if code == "G20":
+            raise ValueError(f"{where}: G20 (inches) is not supported; the profile's limits are in mm")
+        if code == "G92" and any(a in args for a in "XYZ"):
+            raise ValueError(f"{where}: G92 redefines the X/Y/Z position, which the frame check cannot "
+                             "follow (G92 E… is fine)")
+        if code == "G90":
+            absolute = True
+        elif code == "G91":
+            absolute = False
+        elif code == "G28":
+            for i in [i for i, a in enumerate("XYZ") if a in args] or [0, 1, 2]:
+                pos[i] = 0.0
+        elif code in ("M104", "M109") and args.get("S") is not None and float(args["S"] or 0) > temps.nozzle_max:
+            raise ValueError(f"{where}: nozzle {args['S']:g} °C is above the profile's nozzle_max "
+                             f"({temps.nozzle_max:g} °C)")
+        elif code in ("M140", "M190") and args.get("S") is not None and float(args["S"] or 0) > temps.bed_max:
+            raise ValueError(f"{where}: bed {args['S']:g} °C is above the profile's bed_max ({temps.bed_max:g} °C)")
+        elif code in ("G0", "G1"):
+            axes = [a for a in "XYZ" if args.get(a) is not None]
+            f = args.get("F")
+            if f is not None:
+                xy_move = any(a in axes for a in "XY")
+                limit, name = (mo.max_xy_speed, "max_xy_speed") if xy_move or not axes else (mo.max_z_speed,
+                                                                                             "max_z_speed")
+                if f / 60.0 > limit + eps:
+                    raise ValueError(f"{where}: feed F{f:g} mm/min ({f / 60:g} mm/s) is above the profile's "
+                                     f"{name} ({limit:g} mm/s = F{limit * 60:g})")
+            for i, a in enumerate("XYZ"):
+                if a not in axes:
+                    continue
+                value = float(args[a])  # type: ignore[arg-type]
+                if absolute:
+                    pos[i] = value
+                elif pos[i] is None:
+                    raise ValueError(f"{where}: a relative {a} move before the {a} position is known; "
+                                     "home (G28) or move to an absolute position first")
+                else:
+                    pos[i] = pos[i] + value  # type: ignore[operator]
+            x, y, z = pos
+            outside_x = "X" in axes and x is not None and not x0 - eps <= x <= x1 + eps
+            outside_y = "Y" in axes and y is not None and not y0 - eps <= y <= y1 + eps
+            if outside_x or outside_y:
+                at = ", ".join(f"{a} {v:g}" for a, v in (("x", x), ("y", y)) if v is not None)
+                raise ValueError(f"{where}: the move ends at {at}, outside the frame "
+                                 f"(x {x0:g} to {x1:g}, y {y0:g} to {y1:g} mm)")
+            if "Z" in axes and z is not None and z < fabric - eps:
+                raise ValueError(f"{where}: the move goes down to z {z:g}, below the fabric (z {fabric:g} mm)")
+    return commands
