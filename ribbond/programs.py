@@ -64,7 +64,8 @@ class Timeline:
         count 0: the estimate is of motion, so heating never inflates the time left).
     ribbon : (n,) the ribbon command i belongs to, numbered from 1 (0 before the first).
     ribbons : how many ribbons the program prints (0: no ribbon comments, e.g. plain G-code).
-    first : the index of the first command after the heating (where printing starts).
+    first : how many commands come before the printing (the heating and the preamble): the
+        stream prints once that many are acknowledged.
     """
 
     at: np.ndarray
@@ -77,16 +78,17 @@ class Timeline:
         """Estimated seconds of the whole program."""
         return float(self.at[-1]) if len(self.at) else 0.0
 
-    def done_s(self, acknowledged: int) -> float:
-        """Estimated seconds of the program done once ``acknowledged`` commands are (-1: none)."""
-        if acknowledged < 0 or not len(self.at):
+    def done_s(self, count: int) -> float:
+        """Estimated seconds of the program done once its first ``count`` commands are."""
+        if count <= 0 or not len(self.at):
             return 0.0
-        return float(self.at[min(acknowledged, len(self.at) - 1)])
+        return float(self.at[min(count, len(self.at)) - 1])
 
-    def ribbon_at(self, acknowledged: int) -> int:
-        if acknowledged < 0 or not len(self.ribbon):
+    def ribbon_at(self, count: int) -> int:
+        """The ribbon being printed once the first ``count`` commands are done."""
+        if count <= 0 or not len(self.ribbon):
             return 0
-        return int(self.ribbon[min(acknowledged, len(self.ribbon) - 1)])
+        return int(self.ribbon[min(count, len(self.ribbon)) - 1])
 
 
 def program_timeline(lines: Sequence[str], profile: PrinterProfile) -> Timeline:
@@ -152,7 +154,7 @@ def program_timeline(lines: Sequence[str], profile: PrinterProfile) -> Timeline:
         per[np.array(index)] = t
     first = type_at if type_at is not None else last_wait + 1
     return Timeline(at=np.cumsum(per), ribbon=np.array(ribbon_of, dtype=int), ribbons=ribbons,
-                    first=min(max(first, 0), max(n - 1, 0)))
+                    first=min(max(first, 0), n))
 
 
 def check_program(lines: Sequence[str], profile: PrinterProfile, source: str = "program") -> list[str]:

@@ -540,7 +540,7 @@ class RibbonService:
         if stream.printing_since is None:
             return None
         tl = stream.timeline
-        estimated = tl.done_s(stream.acked) - tl.done_s(tl.first - 1)
+        estimated = tl.done_s(stream.acked) - tl.done_s(tl.first)
         now = stream.paused_at if stream.paused_at is not None else time.monotonic()
         measured = now - stream.printing_since - stream.paused_s
         if estimated < 0.5 or measured <= 0:
@@ -738,6 +738,7 @@ class RibbonService:
                                      JobState.PAUSED):
             # after M400 every acknowledged line has been executed: the checkpoint is exact
             side = job.side or "front"
+            self.store.record_ack(run.job_id, self._acked)
             self.store.checkpoint(run.job_id, f"{side}_stopped", self._acked)
         self._transition(run.job_id, JobState.INTERRUPTED, reason=reason, start_when_ready=False,
                          stage="stopped: heaters off, head lifted" if stopped else "stopped")
@@ -1017,6 +1018,9 @@ class RibbonService:
                 run.stream.paused_at = time.monotonic()
             job = self._transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
             await link.send("M400", timeout=300)
+            # every acknowledged line has now been executed: an exact checkpoint
+            self.store.record_ack(job_id, self._acked)
+            self.store.checkpoint(job_id, f"{job.side or 'front'}_paused", self._acked)
             pos = await link.query_position()
             modal = modal_state(self._run_commands, max(self._acked, 0))
             exact = {k: modal[k] if modal[k] is not None else getattr(pos, k) for k in ("x", "y", "z")}
