@@ -875,18 +875,23 @@ class RibbonService:
 
     # ------------------------------------------------------------------ waiting heaters
 
-    async def _idle_heaters(self, job_id: str, why: str) -> None:
-        """While the job waits for the operator: the heaters follow ``[flip]`` (keep, lower, off),
-        and all go off after ``off_after_s``."""
+    async def _wait_heaters(self, job_id: str, why: str) -> asyncio.Task[None]:
+        """While the job waits for the operator: the heaters follow ``[flip]`` (keep, lower, off)
+        now, and all go off after ``off_after_s`` (the task returned; cancel it to keep them)."""
         policy = self.config.flip
         link = self._require_link()
+        if policy.heaters == "off":
+            await link.send("M104 S0")
+        elif policy.heaters == "lower":
+            await link.send(f"M104 S{policy.lower_to:.0f}")
+        return asyncio.create_task(self._heaters_off_later(job_id, why))
+
+    async def _heaters_off_later(self, job_id: str, why: str) -> None:
+        policy = self.config.flip
+        if policy.off_after_s <= 0:
+            return
+        link = self._require_link()
         try:
-            if policy.heaters == "off":
-                await link.send("M104 S0")
-            elif policy.heaters == "lower":
-                await link.send(f"M104 S{policy.lower_to:.0f}")
-            if policy.off_after_s <= 0:
-                return
             await asyncio.sleep(policy.off_after_s)
             await link.send("M104 S0")
             await link.send("M140 S0")
@@ -909,7 +914,7 @@ class RibbonService:
             self._transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
                              reason="the front is printed: turn the frame over, then flip-done")
         self._publish(self.store.checkpoint(job_id, "flip", self._acked))
-        run.heaters = asyncio.create_task(self._idle_heaters(job_id, "awaiting the flip"))
+        run.heaters = await self._wait_heaters(job_id, "awaiting the flip")
         try:
             await run.flip.wait()
         finally:
@@ -1037,7 +1042,7 @@ class RibbonService:
                                 f"G0 X{x0:.3f} Y{y1:.3f} F{mo.travel_speed * 60:.0f}"):
                     await link.send(command, timeout=120)
                 self._set_head((x0, y1, z))
-            run.heaters = asyncio.create_task(self._idle_heaters(job_id, "paused"))
+            run.heaters = await self._wait_heaters(job_id, "paused")
         finally:
             run.busy = False
         self._publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)

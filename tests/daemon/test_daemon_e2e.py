@@ -18,6 +18,7 @@ import httpx
 import numpy as np
 import pytest
 
+from ribbond.gcode.profiles import load_profile
 from sim.config import FrameConfig
 from sim.frame import Frame, FramePose
 
@@ -61,7 +62,7 @@ def flip_and_align(api: httpx.Client, sim: Sim, job: str, marks: list[list[float
     wait_for(api, job, "aligning", timeout=30)
     answers = []
     for i, jog in enumerate(operator_jogs(marks, dx, dy, rot)):
-        answers.append(api.post(f"/jobs/{job}/align", json={"mark": i, "jog": list(jog)}))
+        answers.append(api.post(f"/jobs/{job}/align", json={"mark": i + 1, "jog": list(jog)}))  # from 1
     return answers
 
 
@@ -149,7 +150,7 @@ def test_full_two_sided_job(api: httpx.Client, shared_sim: Sim, meshes: dict[str
     marks = len(design["registration_marks"])
     assert [r.status_code for r in answers] == [200] * marks, [r.text for r in answers]
     for i, r in enumerate(answers[:-1]):
-        assert r.json()["next_mark"] == i + 1
+        assert r.json()["mark"] == i + 1 and r.json()["next_mark"] == i + 2          # numbered from 1
     last = answers[-1].json()
     assert last["next_mark"] is None and last["accepted"] is True
     assert last["fit"]["rotation_deg"] == pytest.approx(MISALIGNMENT[2], abs=1e-6)
@@ -263,8 +264,9 @@ def test_alignment_beyond_tolerance_is_refused(api: httpx.Client, shared_sim: Si
     assert states(transitions)[-2:] == ["aligning", "awaiting_flip"]
     assert "alignment refused" in transitions[-1]["reason"]
     # Another alignment report now is out of place.
-    r = api.post(f"/jobs/{job}/align", json={"mark": 0, "jog": [0.0, 0.0]})
+    r = api.post(f"/jobs/{job}/align", json={"mark": 1, "jog": [0.0, 0.0]})
     assert r.status_code == 409 and r.json()["state"] == "awaiting_flip"
+    assert r.json()["allowed"] == ["flip-done", "cancel"]
 
     # The operator takes the frame off (front up again) and seats it better.
     shared_sim.flip()
@@ -316,7 +318,8 @@ def test_pause_and_resume(api: httpx.Client, shared_sim: Sim, meshes: dict[str, 
     r = api.post(f"/jobs/{job}/pause")
     assert r.status_code == 409
     assert r.json()["state"] == "paused"
-    assert set(r.json()["allowed"]) == {"printing_front", "printing_back", "cancelled", "failed", "interrupted"}
+    assert r.json()["allowed"] == ["resume", "cancel"]
+    assert r.json()["detail"] == "cannot pause: the job is paused; possible now: resume, cancel"
 
     r = api.post(f"/jobs/{job}/resume")
     assert r.status_code == 200, r.text
@@ -355,7 +358,9 @@ def test_cancel_while_printing(api: httpx.Client, shared_sim: Sim, meshes: dict[
     assert record["last_acked_line"] < record["lines_total"] - 1, "the program ran to its end"
 
     after = [c["command"] for c in shared_sim.commands()[before:]]
-    safe_stop = ["M104 S0", "M140 S0", "M107", "G91", "G0 Z10 F600", "G90", "M84"]
+    profile = load_profile("ultimaker2-tpu")
+    safe_stop = ["M104 S0", "M140 S0", "M107", "G91", f"G0 Z{profile.park_lift:.3f} F{profile.motion.z_speed * 60:.0f}",
+                 "G90", "M400", "M84"]
     at = next((i for i in range(len(after)) if after[i:i + len(safe_stop)] == safe_stop), None)
     assert at is not None, f"no heaters-off-and-lift sequence after the cancel: {after[-20:]}"
     assert "M104 S0" not in after[:at], "the program's own end ran: the cancel came too late to test"
@@ -366,12 +371,12 @@ def test_cancel_while_printing(api: httpx.Client, shared_sim: Sim, meshes: dict[
     assert states(transitions)[-2:] == ["printing_front", "cancelled"]
     assert transitions[-1]["reason"] == "cancelled by the operator"
 
-    for action in ("resume", "pause", "cancel", "start", "flip-done"):
+    for action in ("resume", "pause", "cancel", "flip-done"):
         r = api.post(f"/jobs/{job}/{action}")
         assert r.status_code == 409, (action, r.text)
         body = r.json()
-        assert body["state"] == "cancelled" and body["allowed"] == [], (action, body)
-        assert "cancelled" in body["detail"]
+        assert body["state"] == "cancelled" and body["allowed"] == ["start", "delete"], (action, body)
+        assert body["detail"] == f"cannot {action}: the job is cancelled; possible now: start, delete"
     assert api.post("/jobs/000000000000/resume").status_code == 404
 
 
@@ -461,13 +466,13 @@ def test_daemon_killed_mid_print_and_restarted(tmp_path: Path, meshes: dict[str,
 
         # The new daemon reconnects to the printer that kept running.
         daemon.wait_printer()
-        # What the interrupted job allows: only a cancel; the ready job: heating, cancel, fail.
-        r = client.post(f"/jobs/{job}/start")
+        # What the interrupted job allows: start again, cancel, delete; the ready job: start, cancel, delete.
+        r = client.post(f"/jobs/{job}/pause")
         assert r.status_code == 409 and r.json()["state"] == "interrupted"
-        assert r.json()["allowed"] == ["cancelled"]
+        assert r.json()["allowed"] == ["start", "cancel", "delete"]
         r = client.post(f"/jobs/{other}/pause")
         assert r.status_code == 409
-        assert r.json()["state"] == "ready" and r.json()["allowed"] == ["cancelled", "failed", "heating"]
+        assert r.json()["state"] == "ready" and r.json()["allowed"] == ["start", "cancel", "delete"]
         r = client.post(f"/jobs/{job}/cancel")
         assert r.status_code == 200 and r.json()["state"] == "cancelled"
     finally:
