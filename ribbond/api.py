@@ -137,7 +137,7 @@ class AlignRequest(BaseModel):
     """One registration mark: the head is on it (``here``), or the jog from where the head was sent
     to the mark (no jog: it was on the mark)."""
 
-    mark: int | None = Field(None, ge=1, description="the mark, numbered from 1 (design.json's "
+    mark: int | None = Field(None, description="the mark, numbered from 1 (design.json's "
                                                      "registration_marks[mark - 1]); default: the one the head was sent to")
     jog: tuple[float, float] | None = Field(None, description="(dx, dy) mm from where the head was sent to the mark")
     here: bool = Field(False, description="the nozzle is over the mark now (after jogging it there)")

@@ -1,8 +1,10 @@
-"""ribbonctl against a real daemon: output, --json, exit statuses, errors in one line."""
+"""ribbonctl against a real daemon: output, --json, exit statuses, errors in one line, the progress
+bar of watch, the flip and alignment told plainly, manual control, plain G-code, a fast start."""
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -105,5 +107,132 @@ def test_printer_status_and_the_time_left_of_a_print(shared_daemon: Daemon, api:
             break
         time.sleep(0.05)
     assert eta is not None and eta >= 0
-    wait_for(api, job, "done")
-    assert api.get(f"/jobs/{job}").json()["eta_s"] is None
+    done = wait_for(api, job, "done")
+    assert done["eta_s"] == 0.0 and done["progress"] == 1.0
+
+
+def test_watch_shows_progress_and_stops_at_the_flip_with_the_command_to_run(
+        shared_daemon: Daemon, api: httpx.Client, meshes: dict[str, Path]) -> None:
+    """watch follows the progress events (percentages, the side, ribbon n of N) and ends when the job
+    waits for the operator, printing the instruction with the exact command; status shows the
+    percentage; flip-done prints the new state; global options go before the command too."""
+    job = json.loads(ctl(shared_daemon, "submit", str(meshes["two_sided"]), "--size", "70", "--start",
+                         "--no-wait", "--json").stdout)["id"]
+    watched = subprocess.run([sys.executable, "-m", "ribbond.cli", "--url", shared_daemon.url, "watch", job],
+                             cwd=ROOT, text=True, capture_output=True, timeout=150)
+    assert watched.returncode == 0, watched.stderr
+    out = watched.stdout
+    bars = [line for line in out.splitlines() if line.startswith("  [") and "%" in line]
+    assert bars and any("front" in line and "ribbon " in line and "ETA" in line for line in bars), out
+    percents = [float(line.split("]")[1].split("%")[0]) for line in bars]
+    assert percents == sorted(percents) and 0 < percents[-1] < 100
+    assert "awaiting_flip" in out.splitlines()[-3] or "awaiting_flip" in out
+    assert out.rstrip().endswith(f"then run: ribbonctl flip-done {job}"), out[-400:]
+
+    status = ctl(shared_daemon, "status", job)
+    assert status.returncode == 0 and "%" in status.stdout.splitlines()[0]
+    assert f"next: " in status.stdout and f"ribbonctl flip-done {job}" in status.stdout
+    resume = ctl(shared_daemon, "resume", job)
+    assert resume.returncode == 1 and len(resume.stderr.strip().splitlines()) == 1
+    assert "cannot resume: the job is awaiting_flip; possible now: flip-done, cancel" in resume.stderr
+    flipped = ctl(shared_daemon, "flip-done", job)
+    assert flipped.returncode == 0 and flipped.stdout.split()[1] == "aligning", flipped.stdout
+    wait_for(api, job, "aligning", until=lambda j: j["waits_for_operator"])
+    prompt = subprocess.run([sys.executable, "-m", "ribbond.cli", "--json", "--url", shared_daemon.url, "status", job],
+                            cwd=ROOT, text=True, capture_output=True, timeout=60)
+    assert json.loads(prompt.stdout)["next"]["instruction"].startswith("mark 1 of ")
+    bad = ctl(shared_daemon, "align", job, "--mark", "0", "--jog", "0", "0")
+    assert bad.returncode == 2 and "marks 1 to" in bad.stderr
+    one = ctl(shared_daemon, "align", job, "--here")
+    assert one.returncode == 0 and one.stdout.startswith("mark 1 of "), one.stdout + one.stderr
+    assert ctl(shared_daemon, "cancel", job).stdout.split()[1] == "cancelled"
+
+
+def test_manual_control_plain_gcode_and_delete(shared_daemon: Daemon, api: httpx.Client, tmp_path: Path) -> None:
+    home = ctl(shared_daemon, "home")
+    assert home.returncode == 0 and home.stdout.startswith("head at x 0.000 y 0.000 z 0.000"), home.stdout
+    assert ctl(shared_daemon, "jog", "1", "1").returncode == 2            # home is outside the frame
+    went = ctl(shared_daemon, "goto", "100", "100")
+    assert went.returncode == 0 and "x 100.000 y 100.000" in went.stdout, went.stderr
+    jogged = ctl(shared_daemon, "jog", "1.5", "-2", "0.5")
+    assert jogged.returncode == 0 and "x 101.500 y 98.000 z 2.500" in jogged.stdout, jogged.stdout
+    answer = ctl(shared_daemon, "gcode", "M105", "M114")
+    assert answer.returncode == 0 and "> M105" in answer.stdout and "T:" in answer.stdout
+    assert "X:101.50 Y:98.00 Z:2.50" in answer.stdout
+    heat = ctl(shared_daemon, "heat", "--nozzle", "60")
+    assert heat.returncode == 0 and "/60 °C" in heat.stdout, heat.stdout
+    too_hot = ctl(shared_daemon, "heat", "--nozzle", "999")
+    assert too_hot.returncode == 2 and "nozzle_max" in too_hot.stderr
+    cool = ctl(shared_daemon, "cool")
+    assert cool.returncode == 0 and "T " in cool.stdout and "/0 °C" in cool.stdout
+
+    program = tmp_path / "square.gcode"
+    program.write_text("G28\nG90\nM83\nG0 Z5 F600\nG0 X40 Y40 F6000\nG1 Z0.3 F600\n"
+                       "G1 X60 Y40 E1 F900\nG1 X60 Y60 E1\nG0 Z10 F600\n")
+    printed = ctl(shared_daemon, "print", str(program))
+    assert printed.returncode == 0, printed.stderr
+    job = printed.stdout.split()[0]
+    assert api.get(f"/jobs/{job}").json()["state"] == "done"
+    assert "done" in printed.stdout.splitlines()[-2] or "done" in printed.stdout
+    bad = tmp_path / "far.gcode"
+    bad.write_text("G28\nG90\nG0 X500 Y40 F6000\n")
+    refused = ctl(shared_daemon, "print", str(bad))
+    assert refused.returncode == 2 and "far.gcode, line 3: the move ends at x 500" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
+    deleted = ctl(shared_daemon, "delete", job)
+    assert deleted.returncode == 0 and deleted.stdout.strip() == f"job {job} deleted"
+    assert ctl(shared_daemon, "status", job).returncode == 4
+
+
+def test_client_errors_version_help_and_a_fast_start(shared_daemon: Daemon, tmp_path: Path) -> None:
+    run = [sys.executable, "-m", "ribbond.cli"]
+    version = subprocess.run([*run, "--version"], cwd=ROOT, text=True, capture_output=True, timeout=60)
+    assert version.returncode == 0 and version.stdout.startswith("ribbonctl ")
+    helped = subprocess.run([*run, "--help"], cwd=ROOT, text=True, capture_output=True, timeout=60)
+    assert helped.returncode == 0 and "``" not in helped.stdout and "exit status" in helped.stdout
+    for command in (["submit", "missing.obj"], ["print", "missing.gcode"]):
+        proc = ctl(shared_daemon, *command, "--no-wait")
+        assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+        assert "No such file" in proc.stderr and "Traceback" not in proc.stderr
+    bad_url = subprocess.run([*run, "status", "--url", "127.0.0.1:7125"], cwd=ROOT, text=True,
+                             capture_output=True, timeout=60)
+    assert bad_url.returncode == 2 and "http://HOST:PORT" in bad_url.stderr
+    # the reader of the output goes away at once (ribbonctl status | head): no traceback
+    proc = subprocess.Popen([*run, "status", "--url", shared_daemon.url], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    proc.stdout.close()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode in (0, 141) and "Traceback" not in err, err
+    # the daemon commands load nothing of the design engine, nor a heavy HTTP library
+    probe = subprocess.run([sys.executable, "-c", "import sys, ribbond.cli, ribbond.client; "
+                            "print(sorted(m for m in ('numpy', 'scipy', 'matplotlib', 'httpx', 'tqdm', 'igl') "
+                            "if m in sys.modules))"], cwd=ROOT, text=True, capture_output=True, timeout=60)
+    assert probe.stdout.strip() == "[]", probe.stdout + probe.stderr
+
+
+def test_an_unusable_state_directory_is_a_configuration_error(tmp_path: Path) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    config = tmp_path / "ribbond.toml"
+    config.write_text(f'state_dir = "{blocker}/state"\n[serial]\nport = "{tmp_path}/none"\n[api]\nport = 0\n')
+    proc = subprocess.run([sys.executable, "-m", "ribbond", "--config", str(config)], cwd=ROOT, text=True,
+                          capture_output=True, timeout=60, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cannot use the state directory" in lines[0] and "Traceback" not in proc.stderr
+
+
+def test_emergency_stop_shows_no_stale_temperatures_and_recover(shared_daemon: Daemon, api: httpx.Client) -> None:
+    """Last in this module: it halts the shared printer, then recovers it."""
+    assert "°C" in ctl(shared_daemon, "printer").stdout
+    stopped = ctl(shared_daemon, "stop")
+    assert stopped.returncode == 0 and "halted" in stopped.stdout
+    printer = ctl(shared_daemon, "printer")
+    assert printer.returncode == 0 and "halted" in printer.stdout and "°C" not in printer.stdout
+    assert "ribbonctl recover" in printer.stdout
+    assert ctl(shared_daemon, "home").returncode == 1                      # 503: halted
+    recovered = ctl(shared_daemon, "recover")
+    assert recovered.returncode == 0 and "ready" in recovered.stdout, recovered.stdout + recovered.stderr
+    again = ctl(shared_daemon, "recover")
+    assert again.returncode == 1 and "not halted" in again.stderr
