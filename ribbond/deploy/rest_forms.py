@@ -1,0 +1,339 @@
+"""Rest fundamental forms ā and b̄ of the flat surface, from the ribbons as placed.
+
+The homogenized model behind the paper's Eq. 10 (§6.1): where ribbons cover a fraction f_d of a
+line along the ribbon direction d and f_p of a line across it, the released fabric there contracts
+to c = f + (1 − f)/s in each direction (a motif of length μ1 holding a ribbon of length l_r
+contracts to l_r + (μ1 − l_r)/s); bare fabric contracts by 1/s in every direction. The rest
+curvature along the ribbons is the side table's κ(τ, μ2) (§5), signed by the side (design-format.md:
+front ribbons bulge toward +n, the front = +z of flat.obj), and zero across. In flat Cartesian
+coordinates, per face,
+
+    Ā = c_d² d dᵀ + c_p² d⊥ d⊥ᵀ,        B̄ = ±κ c_d² d dᵀ.
+
+Everything is measured from the layout (centerlines, width, thickness, side), never from the
+flattening's intended σ:
+
+- the ribbons are rasterized at their real width with flat ends (``coverage_image``);
+- at each face centroid, the direction d and the thickness, side and curvature are averages over
+  the ribbon centerline samples within a pattern cell's reach (Gaussian weights);
+- f_d is the coverage along lines in direction d over ± μ1 with triangular weights (exact for any
+  pattern of period μ1): the nearest centerline's row and the rows μ2 to either side, weighted
+  ¼, ½, ¼ (a cell holds a row of each staggered grid); each line may stray sideways by a third of
+  μ2 (a curved ribbon), never onto the next row;
+- f_p is the coverage across, over ± μ2 with triangular weights, of the union of the ribbons met
+  within half a cell (± μ1/2) along d: staggered rows each cover w_r of every μ2 (Eq. 10's model).
+
+The windows' lengths come from the nearest ribbon's μ1, μ2 (``Ribbon.spacing``); only the window, not
+the measured fraction. The measured μ2 = w_r / f_p enters the table.
+
+No Python loop over faces, vertices or ribbons' points: a loop over sample offsets is all.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from scipy.ndimage import map_coordinates
+from scipy.spatial import cKDTree
+
+from ribbond.design.format import Ribbon
+from ribbond.design.thickness import CurvatureTable, table_curvature
+
+__all__ = ["RibbonSamples", "Coverage", "RestForms", "ribbon_samples", "coverage_image", "face_coverage",
+           "rest_forms", "contraction"]
+
+#: Samples of a ribbon's centerline per pixel of the coverage image.
+_SAMPLES_PER_PIXEL = 2.0
+#: Largest coverage image, pixels (a 220 × 220 mm frame at 0.25 mm is 775k).
+MAX_PIXELS = 2_000_000
+
+
+@dataclass(frozen=True)
+class RibbonSamples:
+    """Points along every ribbon's centerline.
+
+    Attributes
+    ----------
+    xy : (k, 2) positions, mm; tangent : (k, 2) unit tangents; ribbon : (k,) ribbon index;
+    end : (k,) 0 inside, −1 the first point, +1 the last point (the flat ends).
+    """
+
+    xy: np.ndarray
+    tangent: np.ndarray
+    ribbon: np.ndarray
+    end: np.ndarray
+
+
+def ribbon_samples(ribbons: Sequence[Ribbon], spacing: float) -> RibbonSamples:
+    """Resample every ribbon's polyline every ``spacing`` mm or closer (vectorized over segments)."""
+    if not ribbons:
+        z = np.zeros((0, 2))
+        return RibbonSamples(xy=z, tangent=z, ribbon=np.zeros(0, np.int64), end=np.zeros(0, np.int64))
+    pts = [np.asarray(r.points, dtype=float) for r in ribbons]
+    counts = np.array([len(p) for p in pts])
+    P = np.vstack(pts)
+    rid = np.repeat(np.arange(len(ribbons)), counts)
+    last = np.cumsum(counts) - 1
+    seg = np.ones(len(P), dtype=bool)
+    seg[last] = False                                   # a segment starts at every point but the last
+    a = P[seg]
+    b = P[np.flatnonzero(seg) + 1]
+    sr = rid[seg]
+    L = np.linalg.norm(b - a, axis=1)
+    ok = L > 1e-12
+    a, b, sr, L = a[ok], b[ok], sr[ok], L[ok]
+    t_hat = (b - a) / L[:, None]
+    k = np.maximum(np.ceil(L / spacing).astype(np.int64), 1)
+    j = np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k)
+    si = np.repeat(np.arange(len(a)), k)
+    xy = a[si] + (j / k[si])[:, None] * (b[si] - a[si])
+    tangent = t_hat[si]
+    ribbon = sr[si]
+    end = np.zeros(len(xy), dtype=np.int64)
+    first_seg = np.r_[True, sr[1:] != sr[:-1]]
+    end[np.flatnonzero(np.repeat(first_seg, k) & (j == 0))] = -1
+    last_seg = np.r_[sr[1:] != sr[:-1], True]
+    xy = np.vstack([xy, b[last_seg]])
+    tangent = np.vstack([tangent, t_hat[last_seg]])
+    ribbon = np.concatenate([ribbon, sr[last_seg]])
+    end = np.concatenate([end, np.ones(int(last_seg.sum()), dtype=np.int64)])
+    return RibbonSamples(xy=xy, tangent=tangent, ribbon=ribbon, end=end)
+
+
+@dataclass(frozen=True)
+class CoverageImage:
+    """A raster of the plastic: ``covered`` and ``inside`` (ny, nx) in [0, 1] with pixel centres at
+    origin + (i, j) · pixel (x along columns)."""
+
+    covered: np.ndarray
+    inside: np.ndarray
+    origin: np.ndarray
+    pixel: float
+
+    def sample(self, image: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """Bilinear values of ``image`` at points xy (..., 2); 0 outside the raster."""
+        ij = (xy - self.origin) / self.pixel
+        flat = ij.reshape(-1, 2)
+        out = map_coordinates(image, [flat[:, 1], flat[:, 0]], order=1, mode="constant", cval=0.0)
+        return out.reshape(xy.shape[:-1])
+
+
+def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geometry, pixel: float
+                   ) -> CoverageImage:
+    """Rasterize the ribbons (centerline buffered by width/2, flat ends) and the flat domain.
+
+    Parameters
+    ----------
+    samples : centerline samples at ≤ pixel / 2; width : ribbon width w_r, mm;
+    outline : the flat domain; pixel : pixel size, mm.
+    """
+    lo = np.asarray(outline.bounds[:2]) - 2 * pixel
+    hi = np.asarray(outline.bounds[2:]) + 2 * pixel
+    nx, ny = (np.ceil((hi - lo) / pixel).astype(int) + 1)
+    if nx * ny > MAX_PIXELS:
+        pixel *= float(np.sqrt(nx * ny / MAX_PIXELS))
+        nx, ny = (np.ceil((hi - lo) / pixel).astype(int) + 1)
+    gx, gy = np.meshgrid(lo[0] + pixel * np.arange(nx), lo[1] + pixel * np.arange(ny))
+    P = np.column_stack([gx.ravel(), gy.ravel()])
+    inside = shapely.contains_xy(outline, P[:, 0], P[:, 1]).astype(float)
+    covered = np.zeros(len(P))
+    if len(samples.xy):
+        tree = cKDTree(samples.xy)
+        dist, idx = tree.query(P, distance_upper_bound=0.5 * width + pixel, workers=-1)
+        hit = np.isfinite(dist)
+        i = idx[hit]
+        offset = P[hit] - samples.xy[i]
+        tan = samples.tangent[i]
+        # anti-aliased: a ramp one pixel wide at the sides and at the flat ends, so that a band of
+        # width w covers exactly w whatever the pixel grid
+        perp = np.abs(offset[:, 0] * tan[:, 1] - offset[:, 1] * tan[:, 0])
+        along = samples.end[i] * np.einsum("kc,kc->k", offset, tan)          # > 0 beyond an end
+        side = np.clip((0.5 * width - perp) / pixel + 0.5, 0.0, 1.0)
+        ends = np.where(samples.end[i] != 0, np.clip(0.5 - along / pixel, 0.0, 1.0), 1.0)
+        covered[np.flatnonzero(hit)] = side * ends
+    return CoverageImage(covered=(covered * inside).reshape(ny, nx), inside=inside.reshape(ny, nx),
+                         origin=lo, pixel=float(pixel))
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """What the layout puts on each face of the reference mesh.
+
+    Attributes
+    ----------
+    direction : (m, 2) unit ribbon direction d (flat coordinates; (1, 0) on bare faces).
+    f_along, f_across : (m,) coverage fractions f_d and f_p in [0, 1] (0 on bare faces).
+    kappa : (m,) signed rest curvature along d, 1/mm (> 0: toward the front).
+    thickness : (m,) mean plastic thickness τ near the face, mm (0 on bare faces).
+    mu2 : (m,) measured spacing across, w_r / f_p, mm (inf on bare faces).
+    bare : (m,) bool, no ribbon within reach.
+    """
+
+    direction: np.ndarray
+    f_along: np.ndarray
+    f_across: np.ndarray
+    kappa: np.ndarray
+    thickness: np.ndarray
+    mu2: np.ndarray
+    bare: np.ndarray
+
+    @property
+    def area_fraction(self) -> np.ndarray:
+        """(m,) share of the face's surroundings under plastic, f_d f_p (exact for a regular pattern)."""
+        return self.f_along * self.f_across
+
+
+def _windows(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """n offsets in (−1, 1) and their triangular weights 1 − |t| (midpoint rule)."""
+    t = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    return t, 1.0 - np.abs(t)
+
+
+def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribbon_width: float,
+                  table: CurvatureTable, *, pixel: float | None = None,
+                  n_along: int = 48, n_across: int = 48) -> Coverage:
+    """Per-face coverage, direction, thickness and rest curvature measured from the layout.
+
+    Parameters
+    ----------
+    uv : (n, 2) flat positions, mm; F : (m, 3) faces, counter-clockwise.
+    ribbons : the ribbons as placed (front-side print coordinates).
+    ribbon_width : w_r, mm; table : the curvature table (κ by side, τ, μ2).
+    pixel : raster size, mm (default w_r / 6).
+    n_along, n_across : samples of the two measuring lines.
+    """
+    uv = np.asarray(uv, dtype=float)
+    F = np.asarray(F, dtype=np.int64)
+    if uv.ndim != 2 or uv.shape[1] != 2:
+        raise ValueError(f"uv must have shape (n, 2), got {uv.shape}")
+    if not ribbon_width > 0:
+        raise ValueError(f"ribbon_width must be > 0, got {ribbon_width!r}")
+    m = len(F)
+    centroid = uv[F].mean(axis=1)
+    bare_cov = Coverage(direction=np.tile([1.0, 0.0], (m, 1)), f_along=np.zeros(m), f_across=np.zeros(m),
+                        kappa=np.zeros(m), thickness=np.zeros(m), mu2=np.full(m, np.inf),
+                        bare=np.ones(m, dtype=bool))
+    if not ribbons:
+        return bare_cov
+    pixel = float(pixel if pixel is not None else ribbon_width / 6.0)
+    samples = ribbon_samples(ribbons, pixel / _SAMPLES_PER_PIXEL)
+    outline = _outline(uv, F)
+    image = coverage_image(samples, ribbon_width, outline, pixel)
+
+    thick = np.array([r.thickness for r in ribbons])
+    sign = np.array([1.0 if r.side == "front" else -1.0 for r in ribbons])
+    mu = np.array([r.spacing for r in ribbons], dtype=float)                 # (R, 2) windows only
+
+    # the ribbons within reach of each centroid: coarse samples (~1 mm), Gaussian weights
+    stride = max(int(round(1.0 / (pixel / _SAMPLES_PER_PIXEL))), 1)
+    coarse = np.arange(0, len(samples.xy), stride)
+    reach = 0.5 * float(np.median(mu[:, 0]))                                 # half a cell along
+    tree = cKDTree(samples.xy[coarse])
+    k = min(48, len(coarse))
+    dist, idx = tree.query(centroid, k=k, distance_upper_bound=reach, workers=-1)
+    dist, idx = dist.reshape(m, k), idx.reshape(m, k)
+    near = np.isfinite(dist)
+    bare = ~near.any(axis=1)
+    safe = np.where(near, idx, 0)
+    sid = coarse[safe]                                                       # (m, k) sample ids
+    w = np.where(near, np.exp(-0.5 * (np.where(near, dist, 0.0) / (0.5 * reach)) ** 2), 0.0)
+    wsum = np.maximum(w.sum(axis=1), 1e-300)
+    t = samples.tangent[sid]                                                 # (m, k, 2)
+    T = np.einsum("mk,mki,mkj->mij", w, t, t) / wsum[:, None, None]
+    _, U = np.linalg.eigh(T)
+    d = U[:, :, 1]
+    d[bare] = (1.0, 0.0)
+    n = np.column_stack([-d[:, 1], d[:, 0]])
+
+    # the nearest centerline point and its ribbon's windows
+    fine = cKDTree(samples.xy)
+    _, i0 = fine.query(centroid, workers=-1)
+    c0 = samples.xy[i0]
+    mu1_w, mu2_w = mu[samples.ribbon[i0], 0], mu[samples.ribbon[i0], 1]
+
+    # f_d: along d over ± μ1 (triangular), on the nearest centerline's row and the rows μ2 to either
+    # side (weights ¼, ½, ¼: both staggered grids of a cell), each line straying ± μ2/3 sideways
+    ta, wa = _windows(n_along)
+    lat = np.linspace(-1.0, 1.0, 5)
+    base = c0[:, None, :] + (mu1_w[:, None] * ta[None, :])[:, :, None] * d[:, None, :]     # (m, na, 2)
+    num = np.zeros(m)
+    den = np.zeros(m)
+    for row, wr in ((-1.0, 0.25), (0.0, 0.5), (1.0, 0.25)):
+        line = base + ((row * mu2_w)[:, None, None]) * n[:, None, :]
+        cov = np.zeros((m, n_along))
+        for off in lat:
+            p = line + ((off * mu2_w / 3.0)[:, None, None]) * n[:, None, :]
+            cov = np.maximum(cov, image.sample(image.covered, p))
+        ins = image.sample(image.inside, line)
+        num += wr * (cov * wa).sum(axis=1)
+        den += wr * (ins * wa).sum(axis=1)
+    f_d = num / np.maximum(den, 1e-12)
+
+    # f_p: across over ± μ2 (triangular) of the union of the ribbons met within ± μ1/2 along
+    tc, wc = _windows(n_across)
+    across = centroid[:, None, :] + (mu2_w[:, None] * tc[None, :])[:, :, None] * n[:, None, :]
+    cov = np.zeros((m, n_across))
+    for off in np.linspace(-0.5, 0.5, 9):
+        p = across + ((off * mu1_w)[:, None, None]) * d[:, None, :]
+        cov = np.maximum(cov, image.sample(image.covered, p))
+    ins = image.sample(image.inside, across)
+    f_p = (cov * wc).sum(axis=1) / np.maximum((ins * wc).sum(axis=1), 1e-12)
+    f_d, f_p = np.clip(f_d, 0.0, 1.0), np.clip(f_p, 0.0, 1.0)
+
+    # thickness, side and the table's curvature at the measured μ2
+    mu2 = np.where(f_p > 1e-9, ribbon_width / np.maximum(f_p, 1e-9), np.inf)
+    mu2_tab = np.clip(mu2, table.spacing[0], table.spacing[-1])
+    rib = samples.ribbon[sid]                                                # (m, k)
+    tau = thick[rib]
+    mu2k = np.broadcast_to(mu2_tab[:, None], rib.shape).ravel()
+    kf = table_curvature(table, "front", tau.ravel(), mu2k).reshape(rib.shape)
+    kb = table_curvature(table, "back", tau.ravel(), mu2k).reshape(rib.shape)
+    kap = np.where(sign[rib] > 0, kf, -kb)
+    kappa = (w * kap).sum(axis=1) / wsum
+    tau_mean = (w * tau).sum(axis=1) / wsum
+    kappa[bare], tau_mean[bare], f_d[bare], f_p[bare] = 0.0, 0.0, 0.0, 0.0
+    mu2[bare] = np.inf
+    return Coverage(direction=d, f_along=f_d, f_across=f_p, kappa=kappa, thickness=tau_mean, mu2=mu2,
+                    bare=bare)
+
+
+def _outline(uv: np.ndarray, F: np.ndarray) -> shapely.Geometry:
+    """The flat domain as a polygon (the union of the faces' boundary loop)."""
+    import igl
+    loop = np.asarray(igl.boundary_loop(np.asarray(F, dtype=np.int64)))
+    poly = shapely.Polygon(uv[loop])
+    if not poly.is_valid:
+        poly = shapely.make_valid(poly)
+    shapely.prepare(poly)
+    return poly
+
+
+def contraction(f: np.ndarray, prestretch: float) -> np.ndarray:
+    """c = f + (1 − f)/s: the length a unit of pre-stretched fabric keeps when released (Eq. 10's model)."""
+    if not prestretch > 1:
+        raise ValueError(f"prestretch must be > 1, got {prestretch!r}")
+    return f + (1.0 - f) / prestretch
+
+
+@dataclass(frozen=True)
+class RestForms:
+    """ā and b̄ per face in flat Cartesian coordinates, (m, 2, 2) each."""
+
+    abar: np.ndarray
+    bbar: np.ndarray
+
+
+def rest_forms(coverage: Coverage, prestretch: float) -> RestForms:
+    """Ā = c_d² d dᵀ + c_p² d⊥ d⊥ᵀ and B̄ = κ c_d² d dᵀ from the coverage (module docstring)."""
+    d = coverage.direction
+    n = np.column_stack([-d[:, 1], d[:, 0]])
+    cd = contraction(coverage.f_along, prestretch)
+    cp = contraction(coverage.f_across, prestretch)
+    dd = d[:, :, None] * d[:, None, :]
+    nn = n[:, :, None] * n[:, None, :]
+    abar = cd[:, None, None] ** 2 * dd + cp[:, None, None] ** 2 * nn
+    bbar = (coverage.kappa * cd ** 2)[:, None, None] * dd
+    return RestForms(abar=abar, bbar=bbar)

@@ -1,0 +1,502 @@
+"""A discrete thin shell in fundamental-form form (Chen et al. 2018, libshell's formulation).
+
+The reference domain is the flat (pre-stretched) mesh; each face f carries a rest first
+fundamental form ā and a rest second fundamental form b̄ (``rest_forms.py``), both 2 × 2 in the
+basis of the face's two flat edge vectors (ū1 = p̄1 − p̄0, ū2 = p̄2 − p̄0), so a_ij = e_i · e_j with
+e1 = x1 − x0, e2 = x2 − x0 the deformed edges. The energy is Chen et al.'s Eq. (4)/(5):
+
+    E = Σ_f  A_f/(1 − ν²) · [ D_s/8 · Φ(ā⁻¹a − I)  +  D_b/2 · Φ(ā⁻¹(b − b̄)) ],
+    Φ(M) = ν tr(M)² + (1 − ν) tr(M²),
+
+A_f the rest area (½ √det ā), D_s = Σ Y h the membrane and D_b = Σ Y h³/12 the bending stiffness
+of the face (St.Venant–Kirchhoff on the 2D metric, plane stress).
+
+Second fundamental form: the mid-edge shape operator (Chen et al. §4; libshell's
+``MidedgeAverageFormulation``). The mid-edge normal of edge i (opposite vertex i) is
+m_i = cos φ_i n + sin φ_i t_i (t_i the outward in-plane normal of the edge, φ_i half the dihedral
+angle, > 0 where the surface bulges toward +n); n is linear on the face through the three mid-edge
+values, which gives, with h_i the height of vertex i over edge i,
+
+    b = 2 [ s0 h0 [[1, 1], [1, 1]] + s1 h1 [[1, 0], [0, 0]] + s2 h2 [[0, 0], [0, 1]] ],
+
+here with s_i = tan(θ_i / 2) (θ_i the signed dihedral angle; = φ_i to first order, smooth at 0) and the
+heights h_i taken in the rest metric ā (the in-plane weights at rest, as Grinspun et al.'s discrete
+shells take rest lengths and areas). The sign follows design-format.md: b > 0 where the surface
+bulges toward the face normal n of the winding. With the heights at rest, b is linear in the edge
+vector s, and the bending energy is a fixed quadratic in s, assembled once:
+
+    E_b(x) = ½ s(x)ᵀ H s(x) + gᵀ s(x) + c.
+
+Boundary edges have no dihedral angle: their mid-edge normal is a free variable (Chen et al.'s
+edge degrees of freedom), eliminated here in closed form per face (a Schur complement), so a free
+boundary bends without resistance of its own.
+
+Every term has its analytic gradient and Hessian next to it, vectorized over faces or edges;
+``tests/deploy/test_shell.py`` checks each against finite differences.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["ShellTopology", "shell_topology", "hinge_tan", "stretch_energy", "BendingQuadratic",
+           "bending_quadratic", "ShellEnergy", "quadratic_form", "edge_basis_forms"]
+
+
+# -- small vectorized helpers ------------------------------------------------------------------------
+
+def _cross_matrix(v: np.ndarray) -> np.ndarray:
+    """[v]× (k, 3, 3) with [v]× w = v × w, for v (k, 3)."""
+    z = np.zeros(len(v))
+    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1),
+                     np.stack([v[:, 2], z, -v[:, 0]], -1),
+                     np.stack([-v[:, 1], v[:, 0], z], -1)], 1)
+
+
+def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[:, :, None] * b[:, None, :]
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ki,ki->k", a, b)
+
+
+def quadratic_form(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Q (k, 3, 3) and l (k, 3) such that for symmetric X with X_vec = (x11, x12, x22):
+    tr(P X P X) = X_vecᵀ Q X_vec and tr(P X) = l · X_vec.
+
+    Parameters
+    ----------
+    P : (k, 2, 2) symmetric matrices (here ā⁻¹).
+    """
+    p, q, r = P[:, 0, 0], P[:, 0, 1], P[:, 1, 1]
+    Q = np.stack([np.stack([p * p, 2 * p * q, q * q], -1),
+                  np.stack([2 * p * q, 2 * q * q + 2 * p * r, 2 * q * r], -1),
+                  np.stack([q * q, 2 * q * r, r * r], -1)], 1)
+    return Q, np.stack([p, 2 * q, r], -1)
+
+
+def edge_basis_forms(uv: np.ndarray, F: np.ndarray, A_cart: np.ndarray) -> np.ndarray:
+    """A symmetric 2-tensor given in flat Cartesian coordinates, in each face's edge basis.
+
+    Parameters
+    ----------
+    uv : (n, 2) flat positions; F : (m, 3) faces; A_cart : (m, 2, 2) the tensor per face.
+
+    Returns
+    -------
+    (m, 3) (X11, X12, X22) with X_ij = ū_iᵀ A ū_j, ū1 = p̄1 − p̄0, ū2 = p̄2 − p̄0.
+    """
+    u1 = uv[F[:, 1]] - uv[F[:, 0]]
+    u2 = uv[F[:, 2]] - uv[F[:, 0]]
+    return np.stack([np.einsum("ki,kij,kj->k", u1, A_cart, u1),
+                     np.einsum("ki,kij,kj->k", u1, A_cart, u2),
+                     np.einsum("ki,kij,kj->k", u2, A_cart, u2)], -1)
+
+
+# -- topology -----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ShellTopology:
+    """Edges and hinges of a triangle mesh.
+
+    Attributes
+    ----------
+    F : (m, 3) faces.
+    face_edge : (m, 3) index of the edge opposite vertex i of each face.
+    hinge : (h, 4) interior edges as hinges (v0, v1, v2, v3): face f0 = (v0, v1, v2) counter-clockwise
+        (so the shared edge runs v1 -> v2 in f0), v3 the opposite vertex of the other face.
+    hinge_edge : (h,) the edge index of each hinge.
+    boundary_edge : (E,) bool, the edge has one face.
+    n_edges : E.
+    """
+
+    F: np.ndarray
+    face_edge: np.ndarray
+    hinge: np.ndarray
+    hinge_edge: np.ndarray
+    boundary_edge: np.ndarray
+    n_edges: int
+
+
+def shell_topology(F: np.ndarray) -> ShellTopology:
+    """Edges, hinges and the face-edge incidence of a consistently oriented manifold mesh F (m, 3)."""
+    F = np.asarray(F, dtype=np.int64)
+    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0:
+        raise ValueError(f"faces must have shape (m, 3) with m ≥ 1, got {F.shape}")
+    m = len(F)
+    # half-edge (a, b) of face f opposite local vertex i: a = F[f, i+1], b = F[f, i+2]
+    a = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
+    b = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
+    opp = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
+    face = np.tile(np.arange(m), 3)
+    local = np.repeat(np.arange(3), m)
+    key = np.minimum(a, b) * (F.max() + 1) + np.maximum(a, b)
+    uniq, edge, counts = np.unique(key, return_inverse=True, return_counts=True)
+    if counts.max() > 2:
+        raise ValueError("the mesh has an edge shared by more than two faces: a shell needs a manifold mesh")
+    face_edge = np.empty((m, 3), dtype=np.int64)
+    face_edge[face, local] = edge
+    order = np.argsort(edge, kind="stable")
+    e_sorted = edge[order]
+    first = np.r_[True, e_sorted[1:] != e_sorted[:-1]]
+    starts = np.flatnonzero(first)
+    two = counts[e_sorted[starts]] == 2
+    h0 = order[starts[two]]          # half-edge in f0
+    h1 = order[starts[two] + 1]      # half-edge in the other face
+    if np.any(a[h0] != b[h1]):
+        raise ValueError("the faces are not consistently oriented (an interior edge runs the same way in "
+                         "both its faces)")
+    hinge = np.column_stack([opp[h0], a[h0], b[h0], opp[h1]])
+    boundary = counts == 1
+    return ShellTopology(F=F, face_edge=face_edge, hinge=hinge, hinge_edge=edge[h0],
+                         boundary_edge=boundary, n_edges=len(uniq))
+
+
+# -- the hinge quantity s = tan(θ/2) ---------------------------------------------------------------
+
+def hinge_tan(X: np.ndarray, hinge: np.ndarray, derivatives: int = 0
+              ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """s = tan(θ/2) of each hinge, θ the signed dihedral angle (> 0 where the surface bulges toward +n).
+
+    With N_f = (v1 − v0) × (v2 − v0), N_g = (v1 − v2) × (v3 − v2) and e = v2 − v1,
+    tan(θ/2) = sin θ / (1 + cos θ) = (N_f × N_g)·e / (|e| (|N_f||N_g| + N_f·N_g)).
+
+    Parameters
+    ----------
+    X : (n, 3) positions; hinge : (h, 4) from ``shell_topology``.
+    derivatives : 0 value only, 1 with the gradient, 2 with the gradient and Hessian.
+
+    Returns
+    -------
+    s (h,), gradient (h, 12) or None, Hessian (h, 12, 12) or None, over (v0, v1, v2, v3) xyz.
+    """
+    v0, v1, v2, v3 = (X[hinge[:, k]] for k in range(4))
+    Nf = np.cross(v1 - v0, v2 - v0)
+    Ng = np.cross(v1 - v2, v3 - v2)
+    e = v2 - v1
+    nf = np.linalg.norm(Nf, axis=1)
+    ng = np.linalg.norm(Ng, axis=1)
+    L = np.linalg.norm(e, axis=1)
+    P = _dot(np.cross(Nf, Ng), e)
+    Qv = nf * ng + _dot(Nf, Ng)
+    D = L * Qv
+    s = P / D
+    if derivatives == 0:
+        return s, None, None
+    h = len(hinge)
+    # gradients in u = (N_f, N_g, e)
+    gP = np.concatenate([np.cross(Ng, e), np.cross(e, Nf), np.cross(Nf, Ng)], 1)
+    Nfh, Ngh, eh = Nf / nf[:, None], Ng / ng[:, None], e / L[:, None]
+    gQ = np.concatenate([ng[:, None] * Nfh + Ng, nf[:, None] * Ngh + Nf, np.zeros((h, 3))], 1)
+    gL = np.concatenate([np.zeros((h, 6)), eh], 1)
+    gD = Qv[:, None] * gL + L[:, None] * gQ
+    gT = gP / D[:, None] - (P / D ** 2)[:, None] * gD
+    # Jacobian of u in x (h, 9, 12): N_f(v0, v1, v2), N_g(v2, v1, v3), e = v2 − v1
+    J = np.zeros((h, 9, 12))
+    J[:, 0:3, 0:3] = _cross_matrix(v2 - v1)
+    J[:, 0:3, 3:6] = -_cross_matrix(v2 - v0)
+    J[:, 0:3, 6:9] = _cross_matrix(v1 - v0)
+    J[:, 3:6, 6:9] = _cross_matrix(v3 - v1)
+    J[:, 3:6, 3:6] = -_cross_matrix(v3 - v2)
+    J[:, 3:6, 9:12] = _cross_matrix(v1 - v2)
+    eye = np.broadcast_to(np.eye(3), (h, 3, 3))
+    J[:, 6:9, 6:9] = eye
+    J[:, 6:9, 3:6] = -eye
+    grad = (gT[:, None, :] @ J)[:, 0, :]
+    if derivatives == 1:
+        return s, grad, None
+    # Hessians in u
+    HP = np.zeros((h, 9, 9))
+    Ce, CNf, CNg = _cross_matrix(e), _cross_matrix(Nf), _cross_matrix(Ng)
+    HP[:, 0:3, 3:6], HP[:, 3:6, 0:3] = -Ce, Ce
+    HP[:, 0:3, 6:9], HP[:, 6:9, 0:3] = CNg, -CNg
+    HP[:, 3:6, 6:9], HP[:, 6:9, 3:6] = -CNf, CNf
+    HQ = np.zeros((h, 9, 9))
+    HQ[:, 0:3, 0:3] = (ng / nf)[:, None, None] * (eye - _outer(Nfh, Nfh))
+    HQ[:, 3:6, 3:6] = (nf / ng)[:, None, None] * (eye - _outer(Ngh, Ngh))
+    HQ[:, 0:3, 3:6] = _outer(Nfh, Ngh) + eye
+    HQ[:, 3:6, 0:3] = np.swapaxes(HQ[:, 0:3, 3:6], 1, 2)
+    HL = np.zeros((h, 9, 9))
+    HL[:, 6:9, 6:9] = (eye - _outer(eh, eh)) / L[:, None, None]
+    HD = (Qv[:, None, None] * HL + L[:, None, None] * HQ + _outer(gL, gQ) + _outer(gQ, gL))
+    HT = (HP / D[:, None, None]
+          - (_outer(gP, gD) + _outer(gD, gP)) / (D ** 2)[:, None, None]
+          + (2 * P / D ** 3)[:, None, None] * _outer(gD, gD)
+          - (P / D ** 2)[:, None, None] * HD)
+    hess = np.swapaxes(J, 1, 2) @ HT @ J
+    # second derivatives of N_f, N_g contracted with ∂T/∂N (λ · ((b − a) × (c − a)) blocks)
+    for lam, (ia, ib, ic) in ((gT[:, 0:3], (0, 1, 2)), (gT[:, 3:6], (2, 1, 3))):
+        Xl = _cross_matrix(lam)
+        for (i, j, sign) in ((ia, ib, -1.0), (ia, ic, 1.0), (ib, ic, -1.0)):
+            hess[:, 3 * i:3 * i + 3, 3 * j:3 * j + 3] += sign * Xl
+            hess[:, 3 * j:3 * j + 3, 3 * i:3 * i + 3] -= sign * Xl
+    return s, grad, hess
+
+
+# -- stretching -------------------------------------------------------------------------------------
+
+def stretch_energy(X: np.ndarray, F: np.ndarray, abar: np.ndarray, coef: np.ndarray, nu: float,
+                   derivatives: int = 0) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """St.Venant–Kirchhoff membrane energy per face, c [(1 − ν) tr(M²) + ν tr(M)²], M = ā⁻¹a − I.
+
+    Parameters
+    ----------
+    X : (n, 3) positions; F : (m, 3) faces.
+    abar : (m, 3) rest first fundamental form (ā11, ā12, ā22) in the edge basis.
+    coef : (m,) c = A D_s / (8 (1 − ν²)).
+    nu : Poisson's ratio.
+    derivatives : 0, 1 or 2 (3: the Hessian's two parts, Jᵀ∇²W J (m, 6, 6) and ∇W (m, 3)).
+
+    Returns
+    -------
+    W (m,), gradient (m, 9) over (x0, x1, x2) or None, Hessian (m, 6, 6) in (e1, e2) or None
+    (``E_TO_X`` maps it to (x0, x1, x2)).
+    """
+    x0, x1, x2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
+    e1, e2 = x1 - x0, x2 - x0
+    a = np.stack([_dot(e1, e1), _dot(e1, e2), _dot(e2, e2)], -1)
+    P = _inverse_2x2(abar)
+    Q, l = quadratic_form(P)
+    tr = _dot(l, a) - 2.0
+    tr2 = np.einsum("ki,kij,kj->k", a, Q, a) - 2 * _dot(l, a) + 2.0
+    W = coef * ((1 - nu) * tr2 + nu * tr ** 2)
+    if derivatives == 0:
+        return W, None, None
+    Wa = coef[:, None] * ((1 - nu) * (2 * np.einsum("kij,kj->ki", Q, a) - 2 * l) + 2 * nu * tr[:, None] * l)
+    ge1 = 2 * Wa[:, 0:1] * e1 + Wa[:, 1:2] * e2
+    ge2 = Wa[:, 1:2] * e1 + 2 * Wa[:, 2:3] * e2
+    grad = np.concatenate([-(ge1 + ge2), ge1, ge2], 1)
+    if derivatives == 1:
+        return W, grad, None
+    m = len(F)
+    Waa = coef[:, None, None] * (2 * (1 - nu) * Q + 2 * nu * _outer(l, l))
+    Ja = np.zeros((m, 3, 6))
+    Ja[:, 0, 0:3] = 2 * e1
+    Ja[:, 1, 0:3], Ja[:, 1, 3:6] = e2, e1
+    Ja[:, 2, 3:6] = 2 * e2
+    GN = np.swapaxes(Ja, 1, 2) @ Waa @ Ja
+    if derivatives == 3:
+        return W, grad, (GN, Wa)
+    He = GN + _stress_term(Wa)
+    return W, grad, He   # Hessian in (e1, e2): callers map it to (x0, x1, x2) with E_TO_X
+
+
+#: (6, 9) the map from (x0, x1, x2) to (e1, e2) = (x1 − x0, x2 − x0).
+E_TO_X = np.hstack([np.vstack([-np.eye(3), -np.eye(3)]), np.vstack([np.eye(3), np.zeros((3, 3))]),
+                    np.vstack([np.zeros((3, 3)), np.eye(3)])])
+
+
+def _inverse_2x2(A: np.ndarray) -> np.ndarray:
+    """(k, 2, 2) inverses of symmetric forms given as (k, 3) (x11, x12, x22)."""
+    det = A[:, 0] * A[:, 2] - A[:, 1] ** 2
+    if np.any(det <= 0):
+        bad = int(np.flatnonzero(det <= 0)[0])
+        raise ValueError(f"the rest metric of face {bad} is not positive definite (det = {det[bad]:.3g})")
+    inv = np.empty((len(A), 2, 2))
+    inv[:, 0, 0] = A[:, 2] / det
+    inv[:, 1, 1] = A[:, 0] / det
+    inv[:, 0, 1] = inv[:, 1, 0] = -A[:, 1] / det
+    return inv
+
+
+# -- bending: a fixed quadratic in the edge values s ---------------------------------------------------
+
+@dataclass(frozen=True)
+class BendingQuadratic:
+    """E_b = ½ sᵀ H s + g · s + c over the edge values s (E,) (boundary entries unused, zero).
+
+    Attributes
+    ----------
+    H : (E, E) sparse symmetric positive semidefinite; g : (E,); c : float.
+    """
+
+    H: sp.csr_matrix
+    g: np.ndarray
+    c: float
+
+    def value(self, s: np.ndarray) -> float:
+        return float(0.5 * s @ (self.H @ s) + self.g @ s + self.c)
+
+
+def bending_quadratic(topo: ShellTopology, abar: np.ndarray, bbar: np.ndarray, coef: np.ndarray,
+                      nu: float) -> BendingQuadratic:
+    """Assemble Σ_f c_f [(1 − ν) tr(N²) + ν tr(N)²], N = ā⁻¹(b − b̄), as a quadratic in the edge values.
+
+    b_vec = C s_f with C's columns 2 h0 (1, 1, 1), 2 h1 (1, 0, 0), 2 h2 (0, 0, 1) (module docstring),
+    h_i = √det ā / ℓ_i the rest heights (ℓ0² = ā11 − 2ā12 + ā22, ℓ1² = ā22, ℓ2² = ā11). Boundary
+    edges' values are minimized out per face (Schur complement): H_eff = H − H Z (Z H Z + I − Z)⁻¹ Z H.
+
+    Parameters
+    ----------
+    topo : the mesh topology; abar, bbar : (m, 3) rest forms in the edge basis;
+    coef : (m,) c = A D_b / (2 (1 − ν²)); nu : Poisson's ratio.
+    """
+    m = len(topo.F)
+    P = _inverse_2x2(abar)
+    Q, l = quadratic_form(P)
+    K = coef[:, None, None] * ((1 - nu) * Q + nu * _outer(l, l))          # W = dᵀ K d
+    sq = np.sqrt(abar[:, 0] * abar[:, 2] - abar[:, 1] ** 2)
+    ell = np.sqrt(np.stack([abar[:, 0] - 2 * abar[:, 1] + abar[:, 2], abar[:, 2], abar[:, 0]], -1))
+    hgt = sq[:, None] / ell                                                # (m, 3)
+    C = np.zeros((m, 3, 3))
+    C[:, :, 0] = 2 * hgt[:, 0:1]
+    C[:, 0, 1] = 2 * hgt[:, 1]
+    C[:, 2, 2] = 2 * hgt[:, 2]
+    H = 2 * np.swapaxes(C, 1, 2) @ K @ C
+    g = -2 * np.einsum("kai,kab,kb->ki", C, K, bbar)
+    c = np.einsum("ka,kab,kb->k", bbar, K, bbar)
+    free = topo.boundary_edge[topo.face_edge].astype(float)               # (m, 3)
+    if free.any():
+        Z = free[:, :, None] * np.eye(3)
+        Mz = Z @ H @ Z + (np.eye(3) - Z)
+        S = Z @ np.linalg.inv(Mz) @ Z                                      # (m, 3, 3)
+        HS = H @ S
+        c = c - 0.5 * np.einsum("ki,kij,kj->k", g, S, g)
+        g = g - np.einsum("kij,kj->ki", HS, g)
+        H = H - HS @ H
+        H = 0.5 * (H + np.swapaxes(H, 1, 2))
+        keep = 1.0 - free                                                  # boundary entries: no s
+        H = H * keep[:, :, None] * keep[:, None, :]
+        g = g * keep
+    fe = topo.face_edge
+    rows = np.repeat(fe, 3, axis=1).ravel()
+    cols = np.tile(fe, (1, 3)).ravel()
+    Hs = sp.csr_matrix((H.ravel(), (rows, cols)), shape=(topo.n_edges, topo.n_edges))
+    gs = np.bincount(fe.ravel(), weights=g.ravel(), minlength=topo.n_edges)
+    return BendingQuadratic(H=Hs, g=gs, c=float(c.sum()))
+
+
+# -- the whole energy ---------------------------------------------------------------------------------
+
+def _project_psd(H: np.ndarray, floor: float = 0.0) -> np.ndarray:
+    """Per-element projection of symmetric (k, d, d) matrices onto the positive semidefinite cone."""
+    w, U = np.linalg.eigh(H)
+    return (U * np.maximum(w, floor)[:, None, :]) @ np.swapaxes(U, 1, 2)
+
+
+class ShellEnergy:
+    """The shell energy of positions X (n, 3) with its analytic gradient and (projected) Hessian.
+
+    Parameters
+    ----------
+    F : (m, 3) faces (counter-clockwise in the reference domain).
+    abar, bbar : (m, 3) rest fundamental forms in the edge basis (``edge_basis_forms``).
+    stretch_coef : (m,) A D_s / (8 (1 − ν²)); bend_coef : (m,) A D_b / (2 (1 − ν²)).
+    nu : Poisson's ratio.
+    """
+
+    def __init__(self, F: np.ndarray, abar: np.ndarray, bbar: np.ndarray, stretch_coef: np.ndarray,
+                 bend_coef: np.ndarray, nu: float) -> None:
+        self.topo = shell_topology(F)
+        self.F = self.topo.F
+        self.n = int(self.F.max()) + 1
+        self.abar = np.asarray(abar, dtype=float)
+        self.stretch_coef = np.asarray(stretch_coef, dtype=float)
+        self.nu = float(nu)
+        self.bending = bending_quadratic(self.topo, self.abar, np.asarray(bbar, dtype=float),
+                                         np.asarray(bend_coef, dtype=float), self.nu)
+        dof = 3 * self.F[:, :, None] + np.arange(3)                        # (m, 3, 3)
+        self._fdof = dof.reshape(-1, 9)
+        hd = 3 * self.topo.hinge[:, :, None] + np.arange(3)
+        self._hdof = hd.reshape(-1, 12)
+        self._hedge = self.topo.hinge_edge
+        self._frows = np.repeat(self._fdof, 9, axis=1).ravel()
+        self._fcols = np.tile(self._fdof, (1, 9)).ravel()
+        self._rows = np.concatenate([self._frows, np.repeat(self._hdof, 12, axis=1).ravel()])
+        self._cols = np.concatenate([self._fcols, np.tile(self._hdof, (1, 12)).ravel()])
+
+    def _edge_values(self, s_h: np.ndarray) -> np.ndarray:
+        s = np.zeros(self.topo.n_edges)
+        s[self._hedge] = s_h
+        return s
+
+    def energy(self, X: np.ndarray) -> float:
+        """E(X) (a float): stretching plus bending."""
+        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu)
+        s_h, _, _ = hinge_tan(X, self.topo.hinge)
+        return float(W.sum()) + self.bending.value(self._edge_values(s_h))
+
+    def parts(self, X: np.ndarray) -> tuple[float, float]:
+        """(stretching, bending) energies."""
+        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu)
+        s_h, _, _ = hinge_tan(X, self.topo.hinge)
+        return float(W.sum()), self.bending.value(self._edge_values(s_h))
+
+    def gradient(self, X: np.ndarray) -> np.ndarray:
+        """∇E (3n,), xyz interleaved per vertex."""
+        _, g, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=1)
+        s_h, gs, _ = hinge_tan(X, self.topo.hinge, derivatives=1)
+        lam = (self.bending.H @ self._edge_values(s_h) + self.bending.g)[self._hedge]
+        out = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=3 * self.n)
+        out += np.bincount(self._hdof.ravel(), weights=(lam[:, None] * gs).ravel(), minlength=3 * self.n)
+        return out
+
+    def gradient_and_hessian(self, X: np.ndarray, project: bool = True
+                             ) -> tuple[np.ndarray, sp.csr_matrix]:
+        """∇E (3n,) and the Hessian (3n, 3n) sparse: exact, or (``project``) positive semidefinite.
+
+        The positive semidefinite approximation keeps the parts of the Hessian that are positive by
+        construction and projects the rest per element: the membrane's Jᵀ ∇²W J (W is convex in a)
+        plus the stress term with the stress's positive part only (the 2 × 2 stress projected in
+        closed form per face), and the bending's Gauss–Newton term Jᵀ H_s J without the hinges'
+        second derivatives. So −H⁻¹∇E is a descent direction even where the sheet is compressed.
+        """
+        grad, exact, psd = self.gradient_and_hessians(X)
+        return grad, (psd() if project else exact())
+
+    def gradient_and_hessians(self, X: np.ndarray):
+        """(∇E, exact(), psd()): the gradient and two functions assembling each Hessian on demand."""
+        _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3)
+        GN_e, Wa = parts
+        s_h, gs, hs = hinge_tan(X, self.topo.hinge, derivatives=2)
+        lam = (self.bending.H @ self._edge_values(s_h) + self.bending.g)[self._hedge]
+        n3 = 3 * self.n
+        grad = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=n3)
+        grad += np.bincount(self._hdof.ravel(), weights=(lam[:, None] * gs).ravel(), minlength=n3)
+        h = len(s_h)
+        J = sp.csr_matrix((gs.ravel(), (np.repeat(np.arange(h), 12), self._hdof.ravel())), shape=(h, n3))
+        Hb = self.bending.H[self._hedge][:, self._hedge]
+        gauss_newton = (J.T @ (Hb @ J)).tocsr()
+
+        def assemble(He: np.ndarray, Hh: np.ndarray | None) -> sp.csr_matrix:
+            Hx = E_TO_X.T @ He @ E_TO_X
+            if Hh is None:
+                H = sp.csr_matrix((Hx.ravel(), (self._frows, self._fcols)), shape=(n3, n3))
+            else:
+                H = sp.csr_matrix((np.concatenate([Hx.ravel(), Hh.ravel()]), (self._rows, self._cols)),
+                                  shape=(n3, n3))
+            return (H + gauss_newton).tocsr()
+
+        def exact() -> sp.csr_matrix:
+            return assemble(GN_e + _stress_term(Wa), lam[:, None, None] * hs)
+
+        def psd() -> sp.csr_matrix:
+            return assemble(GN_e + _stress_term(Wa, positive=True), None)
+
+        return grad, exact, psd
+
+
+def _stress_term(Wa: np.ndarray, positive: bool = False) -> np.ndarray:
+    """The membrane Hessian's stress term kron(G, I3) (k, 6, 6), G = [[2 W_a11, W_a12], [W_a12, 2 W_a22]];
+    with ``positive``, G's positive part (closed-form 2 × 2 eigen-decomposition)."""
+    G = np.empty((len(Wa), 2, 2))
+    G[:, 0, 0], G[:, 1, 1] = 2 * Wa[:, 0], 2 * Wa[:, 2]
+    G[:, 0, 1] = G[:, 1, 0] = Wa[:, 1]
+    if positive:
+        tr = G[:, 0, 0] + G[:, 1, 1]
+        disc = np.sqrt(0.25 * (G[:, 0, 0] - G[:, 1, 1]) ** 2 + G[:, 0, 1] ** 2)
+        l1, l2 = 0.5 * tr + disc, 0.5 * tr - disc                     # l1 ≥ l2
+        # eigenvector of l1: (G01, l1 − G00) or (l1 − G11, G01), whichever is longer
+        v = np.stack([G[:, 0, 1], l1 - G[:, 0, 0]], -1)
+        alt = np.stack([l1 - G[:, 1, 1], G[:, 0, 1]], -1)
+        use = np.linalg.norm(alt, axis=1) > np.linalg.norm(v, axis=1)
+        v[use] = alt[use]
+        nv = np.linalg.norm(v, axis=1)
+        v = np.where(nv[:, None] > 0, v / np.where(nv > 0, nv, 1)[:, None], np.array([1.0, 0.0]))
+        w = np.stack([-v[:, 1], v[:, 0]], -1)
+        G = (np.maximum(l1, 0)[:, None, None] * _outer(v, v) + np.maximum(l2, 0)[:, None, None] * _outer(w, w))
+    return (G[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]).reshape(len(G), 6, 6)
