@@ -2,8 +2,9 @@
 
 The flat (pre-stretched) surface in front-side print coordinates, as in Fig. 2 (c–d) of the paper:
 the stretch σ2 across the ribbons as a colour map underneath, the outline of the flat surface,
-front ribbons in red and back ribbons in blue at their real width, the registration marks and the
-printable frame.
+front ribbons in red and back ribbons in blue at their real width, the registration marks numbered
+from 1 (as the daemon's alignment step counts them), the printable frame and the flip axis the frame
+is turned over about for the back side.
 
 ``render_preview`` is a pure function: it returns the bytes of both files and writes nothing (the
 caller writes them atomically with the rest of the design folder). It uses matplotlib's object API
@@ -238,7 +239,8 @@ def render_preview(flat_uv: np.ndarray,
                    frame_bounds: tuple[float, float, float, float] | None = None,
                    title: str = "",
                    sigma2_bounds: tuple[float, float] | None = None,
-                   dpi: int = 150) -> tuple[bytes, bytes]:
+                   dpi: int = 150,
+                   flip_axis: str | None = "y") -> tuple[bytes, bytes]:
     """Render the layout preview of a design: ``(preview.svg, preview.png)`` as bytes.
 
     Parameters
@@ -255,7 +257,7 @@ def render_preview(flat_uv: np.ndarray,
     ribbon_width : float
         ribbon width, mm (> 0): ribbons are drawn at this width in data units.
     marks : (k, 2) float, optional
-        registration marks, mm.
+        registration marks, mm; labelled 1..k in their order (SVG ids ``registration-mark-i``).
     frame_bounds : (x_min, y_min, x_max, y_max), optional
         the printable frame, drawn as a dashed rectangle.
     title : str
@@ -265,6 +267,10 @@ def render_preview(flat_uv: np.ndarray,
         end colours and the colour bar shows arrows.
     dpi : int
         resolution of the PNG and of the rasterized colour map in the SVG.
+    flip_axis : "x", "y" or None
+        the frame's axis the fabric is turned over about for the back side (the printer profile's
+        ``frame.flip_axis``; the shipped profiles use "y"), drawn through the frame's centre when
+        ``frame_bounds`` is given (SVG id ``flip-axis``); None draws none.
 
     Returns
     -------
@@ -292,6 +298,8 @@ def render_preview(flat_uv: np.ndarray,
     if marks is not None:
         mk = _float_array(marks, "marks", "(k, 2)", 2)
     frame = _frame(frame_bounds) if frame_bounds is not None else None
+    if flip_axis not in ("x", "y", None):
+        raise ValueError(f"flip_axis = {flip_axis!r}: must be 'x', 'y' or None")
     if sigma2_bounds is not None:
         vmin, vmax = _bounds_pair(sigma2_bounds, "sigma2_bounds")
     else:
@@ -332,6 +340,12 @@ def render_preview(flat_uv: np.ndarray,
                          edgecolor=FRAME_COLOR, linestyle="--", linewidth=1.0, zorder=0.5)
         rect.set_gid("frame")
         ax.add_patch(rect)
+        if flip_axis is not None:
+            cx, cy = (frame[0] + frame[2]) / 2, (frame[1] + frame[3]) / 2
+            xs, ys = ([cx, cx], [frame[1], frame[3]]) if flip_axis == "y" else ([frame[0], frame[2]], [cy, cy])
+            axis_line = Line2D(xs, ys, color=FRAME_COLOR, linestyle="-.", linewidth=1.0, zorder=0.6)
+            axis_line.set_gid("flip-axis")
+            ax.add_line(axis_line)
 
     # Ribbons at their real width: one compound path per side, in data units.
     counts = {"front": 0, "back": 0}
@@ -366,11 +380,18 @@ def render_preview(flat_uv: np.ndarray,
                            **mark_style)
                 m.set_gid(f"registration-marks-{part}")
                 ax.add_line(m)
+            for number, (x, y) in enumerate(mk, start=1):
+                label = ax.annotate(str(number), (x, y), xytext=(5, 5), textcoords="offset points",
+                                    fontsize=9, fontweight="bold", color="black", zorder=5)
+                label.set_gid(f"registration-mark-{number}")
         handles.append((circle, cross))
-        labels.append(f"registration marks ({len(mk)})")
+        labels.append(f"registration marks 1–{len(mk)}" if len(mk) else "registration marks (0)")
     if frame is not None:
         handles.append(Line2D([], [], color=FRAME_COLOR, linestyle="--", linewidth=1.0))
         labels.append("printable frame")
+        if flip_axis is not None:
+            handles.append(Line2D([], [], color=FRAME_COLOR, linestyle="-.", linewidth=1.0))
+            labels.append(f"flip axis ({flip_axis})")
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(handles), 5),
                frameon=False, fontsize=9, handlelength=2.2)
     if title:

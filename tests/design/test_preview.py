@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import io
 import threading
 import xml.etree.ElementTree as ET
@@ -118,6 +120,27 @@ def test_svg_is_well_formed_with_vector_layers_and_a_raster_colour_map(full: tup
     assert list(root.iter(f"{SVG}image"))
     uv, F = rect_mesh()
     assert len(list(root.iter(f"{SVG}path"))) < len(F) / 2
+
+
+def test_marks_are_numbered_from_1_and_the_flip_axis_is_drawn(full: tuple[bytes, bytes]) -> None:
+    """Each registration mark carries its number (1..k, as the daemon's alignment counts them), and
+    the flip axis goes through the frame's centre (a vertical line for the default axis "y")."""
+    root = ET.fromstring(full[0])
+    ids = {el.get("id"): el for el in root.iter() if el.get("id")}
+    numbered = sorted(int(i.rsplit("-", 1)[1]) for i in ids if re.fullmatch(r"registration-mark-\d+", i))
+    assert numbered == list(range(1, len(MARKS) + 1))
+    assert "flip-axis" in ids
+    [path] = list(ids["flip-axis"].iter(f"{SVG}path"))
+    xs, ys = zip(*((float(a), float(b)) for a, b in re.findall(r"(-?[\d.]+)[ ,](-?[\d.]+)", path.get("d"))))
+    assert max(xs) - min(xs) < 1e-6 < max(ys) - min(ys)                  # vertical: x = centre
+    svg, _ = render(marks=MARKS, frame_bounds=(-10.0, -10.0, 110.0, 110.0), flip_axis="x")
+    [path] = list({el.get("id"): el for el in ET.fromstring(svg).iter() if el.get("id")}["flip-axis"].iter(f"{SVG}path"))
+    xs, ys = zip(*((float(a), float(b)) for a, b in re.findall(r"(-?[\d.]+)[ ,](-?[\d.]+)", path.get("d"))))
+    assert max(ys) - min(ys) < 1e-6 < max(xs) - min(xs)                  # horizontal
+    svg, _ = render(marks=MARKS, frame_bounds=(-10.0, -10.0, 110.0, 110.0), flip_axis=None)
+    assert b'id="flip-axis"' not in svg
+    with pytest.raises(ValueError, match="flip_axis"):
+        render(marks=MARKS, frame_bounds=(-10.0, -10.0, 110.0, 110.0), flip_axis="z")
 
 
 def test_svg_is_deterministic(full: tuple[bytes, bytes]) -> None:
