@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import re
-
 import io
+import re
 import threading
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
