@@ -5,10 +5,13 @@ and the daemon (`ribbond`, its own process, in a temporary state directory), the
 would:
 
 1. `ribbonctl submit examples/meshes/saddle.obj --start`: upload, compile, heat, print the front;
-2. turns the simulated frame over with a small known misalignment and says `ribbonctl flip-done`;
-3. the alignment check: the head goes above each registration mark, and the operator reports the
-   jog that puts it on the mark (`ribbonctl align --mark i --jog dx dy`; here computed from the
-   known misalignment, as a person would read it off the machine);
+2. `ribbonctl watch`: the progress bar of the front, until the job waits for the flip (it prints the
+   instruction and the command to run); turns the simulated frame over with a small known
+   misalignment and says `ribbonctl flip-done`;
+3. the alignment check: the head goes above where each registration mark should be, and the
+   operator jogs the nozzle onto the mark (`ribbonctl jog dx dy`; here the jog is computed from the
+   known misalignment, as a person would find it by looking through the nozzle), then says
+   `ribbonctl align JOB --here`;
 4. ribbond fits the correction, prints the back, and the demo prints the job's summary and the path
    of a PNG of what the simulator deposited, front and back, in machine and fabric coordinates.
 
@@ -25,6 +28,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -46,11 +50,12 @@ def ribbonctl(url: str, *args: str, check: bool = True) -> subprocess.CompletedP
     return proc
 
 
-def wait_for(url: str, job: str, states: set[str], timeout: float = 300.0) -> dict[str, object]:
+def wait_for(url: str, job: str, states: set[str], timeout: float = 300.0,
+             until: Any = None) -> dict[str, Any]:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         status = json.loads(ribbonctl(url, "status", job, "--json").stdout)
-        if status["state"] in states:
+        if status["state"] in states and (until is None or until(status)):
             return status
         if status["state"] in ("failed", "cancelled", "interrupted"):
             raise SystemExit(f"demo: the job {status['state']}: {status.get('error')}")
@@ -82,24 +87,31 @@ def main() -> int:
         submit = ribbonctl(url, "submit", str(MESH), "--size", str(SIZE_MM), "--start")
         print(submit.stdout.rstrip())
         job = submit.stdout.split()[1]
+        print(f"$ ribbonctl watch {job}")
+        watch = ribbonctl(url, "watch", job)
+        print("\n".join("  " + line for line in watch.stdout.rstrip().splitlines()[-4:]))
         wait_for(url, job, {"awaiting_flip", "done"})
-        print("front printed; the job awaits the flip")
         sim.request({"cmd": "flip", **MISALIGNMENT})
         print(f"frame turned over about its y axis and put back off by ({MISALIGNMENT['dx']}, "
               f"{MISALIGNMENT['dy']}) mm and {MISALIGNMENT['rotation_deg']}°")
-        ribbonctl(url, "flip-done", job)
-        wait_for(url, job, {"aligning"})
+        print(f"$ ribbonctl flip-done {job}")
+        print("  " + ribbonctl(url, "flip-done", job).stdout.splitlines()[0])
         design = json.loads((Path(json.loads(ribbonctl(url, "status", job, "--json").stdout)["design_dir"])
                              / "design.json").read_text())
         a = math.radians(MISALIGNMENT["rotation_deg"])
         cx, cy = CENTER
-        for i, (x, y) in enumerate(design["registration_marks"]):
+        for k, (x, y) in enumerate(design["registration_marks"], start=1):
+            status = wait_for(url, job, {"aligning"}, until=lambda s: s.get("waits_for_operator"))
+            print(f"  {status['next']['instruction'].split('. ')[0]}")
             px, py = 2 * cx - x, y                             # where the mark should be: mirrored
             mx = cx + math.cos(a) * (px - cx) - math.sin(a) * (py - cy) + MISALIGNMENT["dx"]
             my = cy + math.sin(a) * (px - cx) + math.cos(a) * (py - cy) + MISALIGNMENT["dy"]
-            jog = (f"{mx - px:.3f}", f"{my - py:.3f}")
-            print(f"$ ribbonctl align {job} --mark {i} --jog {jog[0]} {jog[1]}")
-            print("  " + ribbonctl(url, "align", job, "--mark", str(i), "--jog", *jog).stdout.strip())
+            head = json.loads(ribbonctl(url, "printer", "--json").stdout)["head"]
+            jog = (f"{mx - head[0]:.3f}", f"{my - head[1]:.3f}")   # what the operator's eye finds
+            print(f"$ ribbonctl jog {jog[0]} {jog[1]}")
+            print("  " + ribbonctl(url, "jog", *jog).stdout.strip())
+            print(f"$ ribbonctl align {job} --here")
+            print("  " + ribbonctl(url, "align", job, "--here").stdout.strip().replace("\n", "\n  "))
         final = wait_for(url, job, {"done"})
         png = OUT / "deposits.png"
         sim.request({"cmd": "render", "path": str(png)})

@@ -226,8 +226,9 @@ def _line(job: dict[str, Any]) -> str:
 def _detail(job: dict[str, Any]) -> str:
     lines = [_line(job)]
     more = progress_text(job)
-    if job.get("lines_total") and job["state"] not in ("submitted", "compiling", "ready"):
-        more = f"line {max(job.get('last_acked_line', -1), 0) + 1} of {job['lines_total']}" + (
+    if job.get("lines_total") and job["state"] in ("heating", "printing_front", "printing_back", "paused"):
+        # last_acked_line counts the lines the printer acknowledged
+        more = f"line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}" + (
             f"  {more}" if more else "")
     if more:
         lines.append(f"  {bar_text(job.get('progress') or 0)}  {more}")
