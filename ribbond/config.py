@@ -79,14 +79,16 @@ class Limits(BaseModel):
 
 
 class FlipPolicy(BaseModel):
-    """What happens to the heaters while the fabric waits to be flipped for the back side."""
+    """What happens to the heaters while a job waits for the operator: the fabric to be flipped for
+    the back side, or a pause (resume reheats first)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     heaters: Literal["keep", "lower", "off"] = Field(
         "lower", description="keep the print temperatures, lower the nozzle to lower_to, or turn them off")
     lower_to: float = Field(170.0, gt=0, description="nozzle temperature while waiting (heaters = 'lower'), °C")
-    off_after_s: float = Field(1800.0, ge=0, description="heaters off after this long awaiting the flip, s")
+    off_after_s: float = Field(1800.0, ge=0, description="heaters off after this long waiting (the flip, "
+                               "a pause), s; 0: never")
 
 
 class DaemonConfig(BaseModel):
