@@ -27,7 +27,12 @@ program (heat-and-wait in real time, then moves the printer consumes far below t
 so neither the rate nor the starvations would test the host; A and B run the daemon's own code
 paths (``PrinterLink.stream``, the worker subprocess and its reader) in one loop instead.
 
+Then (issue 13) the client's start: the wall time of ``ribbonctl status`` against a real
+``ribbond`` process (no printer needed), median and worst of 10 runs. Goal: at most 0.3 s (it
+imported the design engine and took 1.1-1.5 s before).
+
     python bench/daemon.py [--quick] [--faces N] [--lines N]
+    python bench/daemon.py --client-only      # only the ribbonctl timing
 """
 
 from __future__ import annotations
@@ -310,5 +315,52 @@ async def main() -> int:
     return 0 if c.code == 0 else 1
 
 
+#: ``ribbonctl status``: at most this many seconds (issue 13).
+CLIENT_GOAL_S = 0.3
+
+
+def client_timing(runs: int = 10) -> bool:
+    """Time ``ribbonctl status`` against a real daemon; print the figures; whether the goal is met."""
+    import statistics
+    import subprocess
+    import tempfile
+    import time
+
+    root = Path(__file__).resolve().parent.parent
+    with tempfile.TemporaryDirectory(prefix="ribbond-bench-") as tmp:
+        state = Path(tmp)
+        config = state / "ribbond.toml"
+        config.write_text(f'state_dir = "{state}"\nlog_level = "warning"\n[serial]\nport = "{state}/no-printer"\n'
+                          "[api]\nport = 0\n", encoding="utf-8")
+        daemon = subprocess.Popen([sys.executable, "-m", "ribbond", "--config", str(config)], cwd=root,
+                                  stderr=subprocess.DEVNULL)
+        try:
+            url_file = state / "api.url"
+            deadline = time.monotonic() + 60
+            while not (url_file.exists() and url_file.read_text().endswith("\n")):
+                if time.monotonic() > deadline or daemon.poll() is not None:
+                    print("client timing: the daemon did not start")
+                    return False
+                time.sleep(0.05)
+            url = url_file.read_text().strip()
+            times = []
+            for _ in range(runs):
+                t0 = time.perf_counter()
+                subprocess.run([sys.executable, "-m", "ribbond.cli", "status", "--url", url], cwd=root,
+                               stdout=subprocess.DEVNULL, check=True)
+                times.append(time.perf_counter() - t0)
+        finally:
+            daemon.terminate()
+            daemon.wait(30)
+    median, worst = statistics.median(times), max(times)
+    print(f"ribbonctl status: median {median:.3f} s, worst {worst:.3f} s of {runs} runs (goal <= "
+          f"{CLIENT_GOAL_S:.1f} s): {'met' if median <= CLIENT_GOAL_S else 'NOT met'} "
+          f"(load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)")
+    return median <= CLIENT_GOAL_S
+
+
 if __name__ == "__main__":
-    sys.exit(asyncio.run(main()))
+    if "--client-only" in sys.argv[1:]:
+        sys.exit(0 if client_timing() else 1)
+    code = asyncio.run(main())
+    sys.exit(code if client_timing() else 1)
