@@ -228,7 +228,7 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
                     out.write(chunk)
             if mesh is not None:
                 return status(service.submit(tmp, mesh.filename or "mesh.obj", params, start))
-            return status(service.submit_gcode(tmp, upload.filename or "program.gcode", start))
+            return status(await service.submit_gcode(tmp, upload.filename or "program.gcode", start))
         finally:
             tmp.unlink(missing_ok=True)
 

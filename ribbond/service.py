@@ -147,7 +147,6 @@ class _Run:
     done: asyncio.Event = field(default_factory=asyncio.Event)
     heaters: asyncio.Task[None] | None = None   # the idle-heater policy while waiting
     started: float = field(default_factory=time.time)
-    timelines: dict[str, Timeline] = field(default_factory=dict)
     stream: _Stream | None = None
 
     def check(self) -> None:
@@ -209,6 +208,11 @@ def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
     return state
 
 
+def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[list[str], Timeline]:
+    lines = text.splitlines()
+    return check_program(lines, profile, source=source), program_timeline(lines, profile)
+
+
 class RibbonService:
     """Jobs on one printer. Create it in the event loop; ``start()`` its tasks; ``close()``."""
 
@@ -230,7 +234,6 @@ class RibbonService:
         self._acked = -1                 # program lines acknowledged in the current stream
         self._run_commands: list[str] = []
         self._rate: float | None = None  # measured seconds per estimated second, from the last stream
-        self._timelines: dict[tuple[str, str, float], Timeline] = {}
         self._manual = asyncio.Lock()    # one sequence of moves at a time (manual, marks, pause)
         self._head: tuple[float, float, float] | None = None   # commanded position (exact)
         self._head_sender: object = None # the link's sender the position was commanded through
@@ -358,7 +361,7 @@ class RibbonService:
         self._compile_queue.put_nowait(job.id)
         return job
 
-    def submit_gcode(self, upload: Path, name: str, start: bool) -> JobRecord:
+    async def submit_gcode(self, upload: Path, name: str, start: bool) -> JobRecord:
         """Take an uploaded G-code program, check it line by line against the profile (refused with
         the line named: nothing is kept), and make it a ``ready`` job (queued if ``start``)."""
         safe = re.sub(r"[^A-Za-z0-9._-]", "_", Path(name).name) or "program.gcode"
@@ -368,7 +371,8 @@ class RibbonService:
             text = upload.read_text(encoding="utf-8")
         except UnicodeDecodeError:
             raise ValueError(f"{name}: not a text file (G-code is ASCII text)") from None
-        commands = check_program(text.splitlines(), self.profile, source=safe)
+        # checked and estimated beside the loop: a long program must not hold up the printer's stream
+        commands, timeline = await asyncio.to_thread(_check_and_estimate, text, self.profile, safe)
         if start:
             self._check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
@@ -378,7 +382,8 @@ class RibbonService:
         program = folder / "program.gcode"
         shutil.move(str(upload), program)
         job = self._transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
-                               mesh_path=str(program), design_dir=str(folder), lines_total=len(commands))
+                               mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
+                               estimate_s={"front": timeline.total})
         if start:
             self._print_queue.put_nowait(job.id)
         return job
@@ -459,38 +464,12 @@ class RibbonService:
 
     # ------------------------------------------------------------------ what a person sees
 
-    def _timeline(self, job: JobRecord, side: str) -> Timeline | None:
-        """The time line of one of the job's programs (cached by file and modification time)."""
-        if not job.design_dir:
-            return None
-        folder = Path(job.design_dir)
-        if job.kind == "gcode":
-            path = folder / "program.gcode"
-        elif side == "back" and (self.job_dir(job.id) / "back-corrected.gcode").is_file() and job.correction:
-            path = self.job_dir(job.id) / "back-corrected.gcode"
-        else:
-            path = folder / f"{side}.gcode"
-        try:
-            key = (job.id, str(path), path.stat().st_mtime)
-        except OSError:
-            return None
-        if key not in self._timelines:
-            if len(self._timelines) > 64:
-                self._timelines.clear()
-            self._timelines[key] = program_timeline(path.read_text(encoding="utf-8").splitlines(), self.profile)
-        return self._timelines[key]
-
-    def _sides(self, job: JobRecord) -> list[str]:
-        if job.kind == "gcode":
-            return ["front"]
-        back = self._timeline(job, "back")
-        return ["front", "back"] if back is not None and back.total > 0 else ["front"]
-
     def progress(self, job: JobRecord) -> dict[str, Any]:
         """How far the job is: ``progress`` 0–1 (of the compile while compiling, else of the print,
         both sides), ``eta_s`` (seconds left of the print: the programs' own time estimate, scaled
         by the rate measured once the stream is past the heating), ``elapsed_s`` of the run, the
-        ``ribbon`` n of ``ribbons`` being printed, and ``print_side``."""
+        ``ribbon`` n of ``ribbons`` being printed, and ``print_side``. Reads no file: the totals are
+        the job's ``estimate_s``; the program streaming now has its full time line."""
         s = job.state
         out: dict[str, Any] = {"progress": 0.0, "eta_s": None, "elapsed_s": None, "ribbon": None,
                                "ribbons": None, "print_side": job.side}
@@ -498,38 +477,39 @@ class RibbonService:
             stage = job.stage if job.stage in COMPILE_STAGES else None
             out["progress"] = COMPILE_STAGES.index(stage) / len(COMPILE_STAGES) if stage else 0.0
             return out
-        if s in (JobState.SUBMITTED,) or not job.design_dir:
+        if s is JobState.DONE:
+            out.update(progress=1.0, eta_s=0.0)
             return out
-        sides = self._sides(job)
-        lines = {side: self._timeline(job, side) for side in sides}
-        totals = {side: (tl.total if tl is not None else 0.0) for side, tl in lines.items()}
-        total = sum(totals.values()) or 1.0
+        totals = {k: float(v) for k, v in (job.estimate_s or {}).items() if v}
+        if not totals:
+            return out
         run = self._run if self._run is not None and self._run.job_id == job.id else None
         stream = run.stream if run is not None else None
         rate = self._rate or 1.0
         side = job.side or "front"
+        done_side: float | None = None
         if stream is not None:
             side = stream.side
-            lines[side] = stream.timeline
-            totals[side] = stream.timeline.total
-            total = sum(totals.values()) or 1.0
+            totals[side] = stream.timeline.total or totals.get(side, 0.0)
+            done_side = stream.timeline.done_s(stream.acked)
             rate = self._stream_rate(stream) or rate
-        tl = lines.get(side)
-        acked = stream.acked if stream is not None else job.last_acked_line
-        if s is JobState.DONE:
-            out.update(progress=1.0, eta_s=0.0)
-        elif s is JobState.READY:
+            out["ribbon"] = stream.timeline.ribbon_at(stream.acked) or None
+            out["ribbons"] = stream.timeline.ribbons or None
+        elif job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT, JobState.PRINTING_BACK,
+                                       JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
+            # not streaming now: where it stood, by the lines acknowledged
+            done_side = totals.get(side, 0.0) * min(1.0, max(job.last_acked_line, 0) / job.lines_total)
+        total = sum(totals.values()) or 1.0
+        front = totals.get("front", 0.0)
+        if s in (JobState.READY, JobState.SUBMITTED):
             out.update(progress=0.0, eta_s=total * rate)
         elif s in (JobState.AWAITING_FLIP, JobState.ALIGNING):
-            out.update(progress=totals["front"] / total, eta_s=totals.get("back", 0.0) * rate,
-                       print_side="back")
-        elif tl is not None:
-            done = (totals["front"] if side == "back" else 0.0) + tl.done_s(acked)
+            out.update(progress=min(1.0, front / total), eta_s=totals.get("back", 0.0) * rate, print_side="back")
+        elif done_side is not None:
+            done = (front if side == "back" else 0.0) + done_side
             out["progress"] = min(1.0, done / total)
             if not s.terminal:
                 out["eta_s"] = max(0.0, total - done) * rate
-            out["ribbon"] = tl.ribbon_at(acked) or None
-            out["ribbons"] = tl.ribbons or None
         if run is not None:
             out["elapsed_s"] = time.time() - run.started
         return out
@@ -665,7 +645,10 @@ class RibbonService:
         if self.job(job_id).state is not JobState.COMPILING:
             return                                            # cancelled meanwhile
         if code == 0 and last.get("event") == "done":
-            job = self._transition(job_id, JobState.READY, design_dir=last["design_dir"], stage=None, progress=None)
+            printed = (last.get("report") or {}).get("print") or {}
+            estimate = {side: float((printed.get(side) or {}).get("time_s") or 0.0) for side in ("front", "back")}
+            job = self._transition(job_id, JobState.READY, design_dir=last["design_dir"], stage=None, progress=None,
+                                   estimate_s=estimate)
             if job.start_when_ready:
                 self._print_queue.put_nowait(job_id)
         elif last.get("event") == "error":
@@ -797,7 +780,8 @@ class RibbonService:
         tmp.write_text(program.text, encoding="utf-8")
         os.replace(tmp, corrected)
         self._transition(job.id, JobState.PRINTING_BACK, side="back", correction=correction.model_dump(mode="json"),
-                         stage="printing back", error=None)
+                         stage="printing back", error=None,
+                         estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
         await self._stream(job.id, program.text, "back", None)
         await link.send("M400", timeout=600)
         self._publish(self.store.checkpoint(job.id, "back_done", self._acked))
@@ -813,7 +797,7 @@ class RibbonService:
         run.check()
         lines = text.splitlines()
         commands = prepare_program(lines, f"{side}.gcode")
-        timeline = program_timeline(lines, self.profile)
+        timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
         first_part = timeline.first
         stream = run.stream = _Stream(side=side, timeline=timeline)
         self._run_commands = commands

@@ -60,6 +60,8 @@ class JobRecord(BaseModel):
                                              "plain G-code program (mesh_name/mesh_path: the program)")
     runs: list[dict[str, Any]] = Field(default_factory=list, description="earlier print runs of this job, "
                                        "oldest first: run, started, ended, state, error, side, lines")
+    estimate_s: dict[str, float] | None = Field(None, description="the programs' own time estimate per side "
+                                                "(front, back), s: for progress and time left")
 
     @field_validator("mesh_name")
     @classmethod
@@ -95,7 +97,7 @@ class JobNotFound(KeyError):
 
 #: Fields ``transition`` and ``update`` may set (the id, the state and the timestamps are the store's).
 MUTABLE_FIELDS = frozenset(JobRecord.model_fields) - {"id", "state", "created", "updated"}
-_JSON_FIELDS = frozenset({"parameters", "correction", "runs"})
+_JSON_FIELDS = frozenset({"parameters", "correction", "runs", "estimate_s"})
 _COLUMNS = tuple(JobRecord.model_fields)
 
 _SCHEMA = """
@@ -121,7 +123,8 @@ CREATE TABLE jobs (
     correction       TEXT,                               -- JSON
     paused_from      TEXT,
     kind             TEXT NOT NULL DEFAULT 'design',
-    runs             TEXT                                -- JSON list, NULL: none
+    runs             TEXT,                               -- JSON list, NULL: none
+    estimate_s       TEXT                                -- JSON
 );
 CREATE INDEX jobs_state ON jobs (state);
 CREATE TABLE transitions (
@@ -138,7 +141,8 @@ CREATE INDEX transitions_job ON transitions (job_id, seq);
 #: ``_MIGRATIONS[v]`` brings a database from version v to v + 1.
 _MIGRATIONS: dict[int, str] = {
     # 2: plain G-code jobs and the history of print runs (issue 13)
-    1: "ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'design'; ALTER TABLE jobs ADD COLUMN runs TEXT",
+    1: "ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'design'; ALTER TABLE jobs ADD COLUMN runs TEXT; "
+       "ALTER TABLE jobs ADD COLUMN estimate_s TEXT",
 }
 
 
