@@ -184,8 +184,15 @@ def _version() -> str:
         return __version__
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line, exit status 2 (as every bad input)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ribbonctl", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="ribbonctl: design self-actuated surfaces locally (design), and drive the ribbond "
                     "daemon and its printer (every other command).")
