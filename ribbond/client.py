@@ -445,7 +445,11 @@ def cmd_align(args: argparse.Namespace) -> int:
     while True:                                          # interactive: jog, then Enter, per mark
         job = c.request("GET", f"/jobs/{args.job}")
         print((job.get("next") or {}).get("instruction", ""))
-        answer = input("jog 'dx dy [dz]' (mm), Enter when the nozzle is on the mark: ").split()
+        try:
+            answer = input("jog 'dx dy [dz]' (mm), Enter when the nozzle is on the mark: ").split()
+        except EOFError:
+            raise ClientError("no more input: the alignment goes on where it is (ribbonctl align "
+                              f"{args.job} --here, or run ribbonctl align {args.job} again)", 2) from None
         if answer:
             try:
                 d = [float(v) for v in answer]

@@ -8,7 +8,8 @@ reason) and ``interrupted`` (the daemon stopped, or the print task failed, while
 printer). A one-sided design goes from ``printing_front`` to ``done``; a plain G-code program needs
 no compile (``submitted → ready``) and prints as ``printing_front``. A job that ended (``done``,
 ``failed``, ``cancelled``, ``interrupted``) goes back to ``ready`` when it is started again: a new
-print run of the same design (the store keeps the earlier runs).
+print run of the same design (the store keeps the earlier runs); an interrupted compile goes back to
+``submitted`` to be compiled again.
 
 Every state change goes through ``check_transition``. What a person can do in each state is
 ``COMMANDS`` (ribbonctl's verbs); a request the state does not allow raises ``IllegalTransition``
@@ -82,7 +83,8 @@ TRANSITIONS: dict[JobState, frozenset[JobState]] = {
     _J.DONE: frozenset({_J.READY}),
     _J.CANCELLED: frozenset({_J.READY}),
     _J.FAILED: frozenset({_J.READY}),
-    _J.INTERRUPTED: frozenset({_J.READY, _J.CANCELLED}),
+    # (and a compile the daemon's stop interrupted is made again)
+    _J.INTERRUPTED: frozenset({_J.READY, _J.SUBMITTED, _J.CANCELLED}),
 }
 
 #: What a person can do with a job in each state: ribbonctl's commands (``ribbonctl CMD JOB``).

@@ -402,6 +402,14 @@ class RibbonService:
             job = self.store.update(job_id, start_when_ready=True)
             self._publish(job)
             return job
+        if job.state is JobState.INTERRUPTED and job.kind == "design" and not self._has_program(job) \
+                and Path(job.mesh_path).is_file():
+            # the daemon stopped during the compile: compile it again
+            self._check_queue()
+            job = self._transition(job_id, JobState.SUBMITTED, reason="compiled again", start_when_ready=True,
+                                   error=None, stage=None, progress=None)
+            self._compile_queue.put_nowait(job_id)
+            return job
         if job.state.terminal:
             if not self._has_program(job):
                 raise ServiceError(f"cannot start: job {job_id} has no design to print"

@@ -38,7 +38,7 @@ def test_an_ended_job_can_only_be_started_again(state: JobState) -> None:
     """An ended run goes back to ready (a new run of the same design); interrupted can also be
     cancelled; nothing else."""
     assert state.terminal and "start" in COMMANDS[state] and "delete" in COMMANDS[state]
-    extra = {J.CANCELLED} if state is J.INTERRUPTED else set()
+    extra = {J.CANCELLED, J.SUBMITTED} if state is J.INTERRUPTED else set()   # (a compile made again)
     for other in JobState:
         if other is J.READY or other in extra:
             check_transition(state, other)
@@ -53,7 +53,7 @@ def test_a_gcode_program_needs_no_compile() -> None:
 
 def test_every_command_names_a_possible_move() -> None:
     """Each state's commands lead somewhere the table allows (manual commands are not job commands)."""
-    target = {"start": {J.READY, J.HEATING}, "cancel": {J.CANCELLED}, "pause": {J.PAUSED},
+    target = {"start": {J.READY, J.HEATING, J.SUBMITTED}, "cancel": {J.CANCELLED}, "pause": {J.PAUSED},
               "resume": {J.PRINTING_FRONT, J.PRINTING_BACK}, "flip-done": {J.ALIGNING},
               "align": {J.PRINTING_BACK, J.AWAITING_FLIP}}
     assert set(COMMANDS) == set(JobState)

@@ -170,6 +170,16 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
         assert done["runs"][0]["checkpoint"] == "front_stopped" and done["runs"][0]["last_acked_line"] == line
         states = [t["to_state"] for t in api.get(f"/jobs/{job}/transitions").json()]
         assert states[-5:] == ["interrupted", "ready", "heating", "printing_front", "done"]
+
+        # a fatal error of the print task (the board resets mid-print): interrupted, not failed,
+        # and the job can be printed again
+        assert api.post(f"/jobs/{job}/start").status_code == 200
+        wait_for(api, job, "printing_front", timeout=60, poll=0.02, until=lambda j: j["last_acked_line"] > 50)
+        sim.request({"cmd": "reset"})
+        broken = wait_for(api, job, "interrupted", timeout=60)
+        assert broken["error"].startswith("printer: ") and "reset" in broken["error"], broken["error"]
+        assert f"ribbonctl start {job}" in broken["next"]["commands"]
+        assert len(broken["runs"]) == 2
     finally:
         daemon.stop()
         sim.stop()
@@ -177,12 +187,26 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
 
 def test_a_job_started_while_the_printer_is_away_waits_for_it(tmp_path: Path, meshes: dict[str, Path]) -> None:
     """No printer: a started job stays ready, queued, saying it waits for the printer (it does not
-    fail); deleting it removes its files; the state directory keeps nothing of it."""
+    fail); deleting it removes its files; the state directory keeps nothing of it. A compile the
+    daemon's stop interrupted is made again when the job is started."""
     daemon = Daemon(tmp_path / "state", str(tmp_path / "no-printer"))
     try:
         daemon.start()
         api = daemon.client
         assert api is not None
+        design = submit(api, meshes["one_sided"], start=True)
+        wait_for(api, design, "compiling", timeout=30, poll=0.02)
+        daemon.stop()                                             # SIGTERM during the compile
+        daemon.start()
+        api = daemon.client
+        assert api is not None
+        assert api.get(f"/jobs/{design}").json()["state"] == "interrupted"
+        r = api.post(f"/jobs/{design}/start")
+        assert r.status_code == 200 and r.json()["state"] == "submitted", r.text
+        ready = wait_for(api, design, "ready", timeout=90, until=lambda j: j["stage"] == "waiting for the printer")
+        assert ready["estimate_s"]["front"] > 0 and ready["eta_s"] > 0
+        assert api.delete(f"/jobs/{design}").status_code == 204
+
         program = tmp_path / "line.gcode"
         program.write_text("G28\nG90\nG0 Z5 F600\nG0 X50 Y50 F3000\n")
         with program.open("rb") as f:
