@@ -194,7 +194,7 @@ def _windows(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribbon_width: float,
                   table: CurvatureTable, *, pixel: float | None = None,
-                  n_along: int = 48, n_across: int = 48) -> Coverage:
+                  n_along: int = 96, n_across: int = 48) -> Coverage:
     """Per-face coverage, direction, thickness and rest curvature measured from the layout.
 
     Parameters

@@ -1,13 +1,18 @@
 """Newton's method for the shell's static equilibrium: min_X E(X) with six degrees of freedom pinned.
 
-Each iteration assembles the gradient and the per-element projected Hessian (``ShellEnergy``),
-adds a small multiple of its diagonal (Levenberg regularization, raised when the factorization fails
-or the step does not descend, lowered when it works), solves on the free degrees of freedom with a
-sparse Cholesky factorization (cholespy, as the rest of the engine) and backtracks along the step
-until the energy decreases (Armijo). Six coordinates of three vertices are held fixed, which removes
+Each iteration assembles the gradient and a Hessian (``ShellEnergy``), solves on the free degrees of
+freedom with a sparse Cholesky factorization (cholespy, as the rest of the engine) and backtracks
+along the step until the energy decreases enough (Armijo), the largest move capped at a tenth of
+the size. Six coordinates of three vertices are held fixed, which removes
 the rigid motions (the free body has no net force, so they carry no load at equilibrium).
 
-It stops when the step and the relative energy decrease are both tiny (converged), or at the cap.
+Each iteration first tries the exact Hessian (with a tiny diagonal shift): near a stable equilibrium it
+is positive definite and the iteration is Newton's, quadratically convergent. Where it is indefinite
+(the sheet under compression, the flat start) the factorization fails and the positive semidefinite
+approximation of ``ShellEnergy.gradient_and_hessian(project=True)`` is used for that iteration.
+
+It stops when the step and the relative energy decrease are both tiny (converged), when no decrease is
+left to find, or at the cap.
 """
 
 from __future__ import annotations
@@ -55,7 +60,6 @@ def _quiet_fds() -> Iterator[None]:
                 os.close(fd)
 
 #: progress(iteration, energy, gradient norm)
-_DEBUG = False
 Progress = Callable[[int, float, float], None]
 
 
@@ -179,8 +183,6 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
         if not accepted:
             break
         step = alpha * float(np.abs(d).max())
-        if _DEBUG:
-            print(f"it {it} alpha {alpha:.3g} mu {mu_rel:.3g} step {step:.3g} E {En:.6g}")
         dE = E - En
         X, E = Xn, En
         e_ref = max(e_ref, abs(E))
