@@ -456,7 +456,7 @@ class RibbonService:
             # the printer task finishes the cancel (heaters off, head up)
             return await self._wait_state(job_id, lambda s: s.terminal, 60)
         return self._transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
-                                start_when_ready=False)
+                                start_when_ready=False, stage=None)
 
     def delete(self, job_id: str) -> None:
         """Remove a job and its files (uploads, design, programs); refused while it compiles or
@@ -591,6 +591,9 @@ class RibbonService:
     def status(self, job: JobRecord) -> dict[str, Any]:
         """The job as people see it: the record, its progress and time left, what to do next."""
         data = job.model_dump(mode="json")
+        run = self._run
+        if run is not None and run.job_id == job.id and run.stream is not None:
+            data["last_acked_line"] = max(job.last_acked_line, run.stream.acked)   # stored every 0.5 s
         info = self.progress(job)
         data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
                     compile_progress=job.progress, waits_for_operator=self._waits(job))
@@ -722,7 +725,7 @@ class RibbonService:
             return
         if run.cancel_requested and error is None:
             self._transition(run.job_id, JobState.CANCELLED, reason="cancelled by the operator",
-                             start_when_ready=False)
+                             start_when_ready=False, stage="cancelled: heaters off, head lifted" if stopped else None)
             return
         reason = error or run.stop_reason or "stopped"
         if stopped and job.state in (JobState.HEATING, JobState.PRINTING_FRONT, JobState.PRINTING_BACK,
