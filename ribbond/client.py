@@ -442,9 +442,13 @@ def cmd_align(args: argparse.Namespace) -> int:
     if job["state"] != "aligning":
         raise ClientError(f"cannot align: job {args.job} is {job['state']}; "
                           + (job.get("next") or {}).get("instruction", ""), 1)
+    shown = None
     while True:                                          # interactive: jog, then Enter, per mark
         job = c.request("GET", f"/jobs/{args.job}")
-        print((job.get("next") or {}).get("instruction", ""))
+        instruction = (job.get("next") or {}).get("instruction", "")
+        if instruction != shown:
+            print(instruction.split(". Jog")[0] + ". Jog the nozzle onto the mark here:")
+            shown = instruction
         try:
             answer = input("jog 'dx dy [dz]' (mm), Enter when the nozzle is on the mark: ").split()
         except EOFError:
@@ -459,7 +463,9 @@ def cmd_align(args: argparse.Namespace) -> int:
                 print("  two or three numbers, e.g. 0.3 -0.2, or Enter", file=sys.stderr)
                 continue
             try:
-                c.request("POST", "/printer/jog", json={"dx": d[0], "dy": d[1], "dz": d[2] if len(d) == 3 else 0})
+                moved = c.request("POST", "/printer/jog", json={"dx": d[0], "dy": d[1],
+                                                                "dz": d[2] if len(d) == 3 else 0})
+                print(f"  {_position(moved)}")
             except ClientError as exc:
                 print(f"  {exc}", file=sys.stderr)
             continue

@@ -143,8 +143,13 @@ def test_watch_shows_progress_and_stops_at_the_flip_with_the_command_to_run(
     assert json.loads(prompt.stdout)["next"]["instruction"].startswith("mark 1 of ")
     bad = ctl(shared_daemon, "align", job, "--mark", "0", "--jog", "0", "0")
     assert bad.returncode == 2 and "marks 1 to" in bad.stderr
+    # interactive: a jog typed, then Enter with the nozzle on mark 1; the input ends at mark 2
+    asked = ctl(shared_daemon, "align", job, stdin="0.5 -0.25\n\n")
+    assert asked.returncode == 2 and "no more input" in asked.stderr, asked.stdout + asked.stderr
+    assert "offset (+0.500, -0.250) mm from where it was expected" in asked.stdout, asked.stdout
+    assert any(line.startswith("mark 2 of ") for line in asked.stdout.splitlines()), asked.stdout
     one = ctl(shared_daemon, "align", job, "--here")
-    assert one.returncode == 0 and one.stdout.startswith("mark 1 of "), one.stdout + one.stderr
+    assert one.returncode == 0 and one.stdout.startswith("mark 2 of "), one.stdout + one.stderr
     assert ctl(shared_daemon, "cancel", job).stdout.split()[1] == "cancelled"
 
 
