@@ -137,11 +137,17 @@ class Client:
             bar.close()
 
     def events(self) -> Iterator[dict[str, Any]]:
-        """Server-sent events, parsed (the daemon sends a keep-alive every 15 s)."""
+        """Server-sent events, parsed (the daemon sends a keep-alive every 15 s). Subscribed when
+        this returns: a state read afterwards misses no change."""
         conn, r = self._send("GET", "/events", None, None, None, {"Accept": "text/event-stream"}, 60.0)
+        if r.status >= 400:
+            body = r.read()
+            conn.close()
+            raise self._error(r.status, body)
+        return self._read_events(conn, r)
+
+    def _read_events(self, conn: http.client.HTTPConnection, r: http.client.HTTPResponse) -> Iterator[dict[str, Any]]:
         try:
-            if r.status >= 400:
-                raise self._error(r.status, r.read())
             data: list[str] = []
             while True:
                 try:
@@ -359,6 +365,9 @@ def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
     # the job may have changed between the first GET and the subscription: look once more
     job = c.request("GET", f"/jobs/{job_id}")
     state = job["state"]
+    if waits(job):
+        print(json.dumps(job) if args.json else _detail(job), flush=True)
+        return _exit_code(job)
     shown = -1
     try:
         for event in events:

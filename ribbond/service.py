@@ -763,6 +763,9 @@ class RibbonService:
             self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
             return
         expected = expected_marks(design.registration_marks or [], self.profile.frame)
+        if len(expected) < 2:
+            raise ValueError(f"the design has {len(expected)} registration marks: the back side cannot be "
+                             "aligned (at least 2 are needed)")
         while True:
             await self._await_flip(job.id)
             run.alignment = _Alignment(expected=expected)
@@ -772,8 +775,7 @@ class RibbonService:
                 await link.send("G28", timeout=300)
                 self._head = None
             run.check()
-            if len(expected):
-                await self._go_to_mark(1)
+            await self._go_to_mark(1)
             await run.aligned.wait()
             run.check()
             correction, refused = run.alignment.correction, run.alignment.refused
