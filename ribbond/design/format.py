@@ -22,8 +22,11 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from ribbond.design.params import DesignParameters, SizeSpec
 
-#: The format this module reads and writes; a different ``format`` in a file is refused.
-FORMAT = "ribbond-design/1"
+#: The format this module writes; it reads it and the formats of ``READABLE_FORMATS``.
+FORMAT = "ribbond-design/2"
+
+#: Every format this module reads (format 2 only adds report fields to format 1).
+READABLE_FORMATS = ("ribbond-design/1", "ribbond-design/2")
 
 #: Largest tolerated deviation of a ribbon direction from unit length.
 UNIT_TOLERANCE = 1e-6
@@ -158,6 +161,35 @@ class Quantiles(BaseModel):
     p95: float
 
 
+class Deviation(BaseModel):
+    """An angle distribution (degrees): median, mean and 95th percentile."""
+
+    model_config = _CONFIG
+    median: float = Field(ge=0)
+    mean: float = Field(ge=0)
+    p95: float = Field(ge=0)
+
+
+class DeviationPct(BaseModel):
+    """A distance distribution as % of the target's bounding-box diagonal (Table 1's "Dev.")."""
+
+    model_config = _CONFIG
+    mean: float = Field(ge=0)
+    p99: float = Field(ge=0)
+    max: float = Field(ge=0)
+
+
+class DeployedReport(BaseModel):
+    """``report.deployed`` (format 2): the predicted deployed shape against the target."""
+
+    model_config = _CONFIG
+    deviation_pct: DeviationPct
+    faces: int = Field(ge=1, description="faces of the mesh the prediction was computed on")
+    iterations: int = Field(ge=0, description="Newton iterations of the winning start")
+    time_s: float = Field(ge=0)
+    start: Literal["target", "flat"] = Field(description="the start whose equilibrium had the lower energy")
+
+
 class RibbonsReport(BaseModel):
     """``report.ribbons``: what the ribbon stage made.
 
@@ -174,7 +206,8 @@ class RibbonsReport(BaseModel):
     direction_deviation_deg: Quantiles
     spacing_error_pct: Quantiles = Field(description="both spacing checks pooled, %")
     spacing_error_across_pct: Quantiles | None = Field(
-        None, description="neighbouring centerlines (one from each grid) against μ2, %")
+        None, description="from each ribbon midpoint along its normal to the next centerline, against "
+        "the harmonic mean of μ2 over that gap, %")
     spacing_error_along_pct: Quantiles | None = Field(
         None, description="neighbouring ribbon midpoints on a centerline against μ1, %")
 
@@ -218,8 +251,15 @@ class Report(_Updatable):
     timings_s: dict[str, float] = Field(description="seconds per stage")
     converged: bool | None = Field(None, description="whether the flattening met its tolerance")
     time_per_iteration_s: float | None = Field(None, ge=0, description="mean time of one iteration, s")
+    field_k1_deviation_deg: Deviation | None = Field(
+        None, description="line field vs the target's k1 on faces with anisotropy > 0.3 (format 2)")
+    ribbon_k1_deviation_deg: Deviation | None = Field(
+        None, description="ribbon centerlines vs the target's k1 there, length-weighted (format 2)")
+    umbilic_pct: float | None = Field(None, ge=0, le=100,
+                                      description="% of faces with anisotropy ≤ 0.3 (format 2)")
     ribbons: RibbonsReport | None = None
     print_: PrintReport | None = Field(None, alias="print")
+    deployed: DeployedReport | None = None
 
 
 class Design(_Updatable):
@@ -238,8 +278,9 @@ class Design(_Updatable):
     @field_validator("format")
     @classmethod
     def _known_format(cls, v: str) -> str:
-        if v != FORMAT:
-            raise ValueError(f"format {v!r} is not supported: this version reads and writes {FORMAT!r}")
+        if v not in READABLE_FORMATS:
+            raise ValueError(f"format {v!r} is not supported: this version reads "
+                             f"{' and '.join(map(repr, READABLE_FORMATS))} and writes {FORMAT!r}")
         return v
 
     @model_validator(mode="after")
@@ -336,8 +377,9 @@ def design_from_json(text: str, *, where: str = "design.json") -> Design:
     if not isinstance(data, dict):
         raise ValueError(f"{where}: expected a JSON object at the top level")
     fmt = data.get("format")
-    if fmt != FORMAT:
-        raise ValueError(f"{where}: format: {fmt!r} is not supported: this version reads {FORMAT!r}")
+    if fmt not in READABLE_FORMATS:
+        raise ValueError(f"{where}: format: {fmt!r} is not supported: this version reads "
+                         f"{' and '.join(map(repr, READABLE_FORMATS))}")
     try:
         return Design.model_validate(data)
     except ValidationError as exc:

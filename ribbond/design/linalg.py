@@ -42,3 +42,52 @@ class SymmetricFactor:
         x = np.empty_like(b)
         self._chol.solve(b, x)
         return x
+
+
+
+class TwoLevelSolver:
+    """A sparse Hermitian positive definite M (m, m), solved by conjugate gradients with a two-level
+    preconditioner: the Galerkin coarse problem Pᴴ M P on the columns of P (factorized once), plus
+    Jacobi.
+
+    The coarse space carries the smooth part of a solution (what varies slowly over a patch), which
+    plain CG would need many iterations to propagate. Without ``x0`` the start is the coarse solution.
+
+    Parameters
+    ----------
+    M : (m, m) sparse Hermitian positive definite.
+    P : (m, k) sparse prolongation from the coarse space, k ≪ m.
+    rtol, max_iterations : CG's relative residual tolerance and iteration cap.
+    """
+
+    def __init__(self, M: sp.spmatrix, P: sp.spmatrix, *, rtol: float = 1e-6,
+                 max_iterations: int = 500) -> None:
+        import scipy.sparse.linalg as spla
+
+        self.M = sp.csr_matrix(M)
+        self.P = sp.csr_matrix(P)
+        self.PH = self.P.conj().T.tocsr()
+        self._coarse = spla.splu((self.PH @ self.M @ self.P).tocsc())
+        self._inv_diag = 1.0 / self.M.diagonal().real
+        self.rtol, self.max_iterations = rtol, max_iterations
+        dtype = np.result_type(self.M.dtype, self.P.dtype)
+        self._pre = spla.LinearOperator(self.M.shape, matvec=self._precondition, dtype=dtype)
+
+    def coarse_solve(self, b_coarse: np.ndarray) -> np.ndarray:
+        """(k,) the solution of the coarse problem Pᴴ M P y = ``b_coarse``."""
+        return self._coarse.solve(b_coarse)
+
+    def _precondition(self, r: np.ndarray) -> np.ndarray:
+        return self.P @ self._coarse.solve(self.PH @ r) + self._inv_diag * r
+
+    def solve(self, b: np.ndarray, x0: np.ndarray | None = None,
+              rtol: float | None = None) -> tuple[np.ndarray, bool]:
+        """x (m,) with M x = b (to ``rtol``, default the solver's), and whether CG met the tolerance
+        within its iteration cap."""
+        import scipy.sparse.linalg as spla
+
+        if x0 is None:
+            x0 = self.P @ self._coarse.solve(self.PH @ b)
+        x, info = spla.cg(self.M, b, x0=x0, rtol=self.rtol if rtol is None else rtol, M=self._pre,
+                          maxiter=self.max_iterations)
+        return x, info == 0

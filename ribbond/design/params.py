@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -53,7 +53,8 @@ class DesignParameters(BaseModel):
     sigma2_bounds: tuple[float, float] | None = Field(
         None, description="stretch bounds across k1; default [1.3, σ2max(μ2max = l_r)]")
     smoothing_lambda: float = Field(
-        0.0, le=0.0, description="line-field smoothing λ (Table 1): 0 default, negative smooths less")
+        0.0, le=0.0, description="line-field smoothing λ (Table 1): 0 default, negative smooths less; "
+        "for the default aligned field in (-1, 0], the relative change of its smoothing length")
     min_ribbon_length: float = Field(2.0, gt=0, description="shorter ribbons are dropped, mm")
     max_trim_angle: float = Field(25.0, gt=0, lt=90, description="trim where a ribbon turns away "
                                   "from the direction field by more than this, degrees")
@@ -100,18 +101,35 @@ class SolverSettings(BaseModel):
     stripe_edge_fraction: float = Field(
         0.15, gt=0, le=1, description="the stripe patterns are computed on a triangulation of the flat "
         "surface with edges of this share of the shortest stripe period")
+    stripe_spacing_weight: float | None = Field(
+        None, gt=0, description="when set, θ's frequency is made integrable along the ribbon direction "
+        "first, with this weight on Eq. 10's spacing (smaller: centerlines closer to the field, spacing "
+        "further from Eq. 10); unset: Eq. 10's frequency as it is")
     stripe_max_faces: int = Field(
         150_000, ge=100, description="that triangulation is made coarser rather than exceed this many faces")
     coarse_faces: int = Field(
         12_000, ge=0, description="meshes of 4× more faces start from a flattening of a copy "
         "decimated to this many faces (coarse to fine); 0 turns it off")
+    line_field: Literal["aligned", "kcps13"] = Field(
+        "aligned", description="'aligned': k1 where it is defined, smooth where it is not; 'kcps13': "
+        "the previous engine's (A − λB) z = B q with λ in units of the surface scaled to unit area")
     umbilic_tolerance: float = Field(
-        0.1, ge=0, description="a face is umbilic where |κ1| − |κ2| < this × max(|κ1|, κ_flat)")
+        0.3, ge=0, lt=1, description="a face is umbilic where the curvature anisotropy "
+        "(|κ1| − |κ2|) / (|κ1| + |κ2|) is at most this")
     max_faces: int = Field(400_000, ge=1, description="meshes with more faces are refused")
     merge_tolerance: float = Field(
         1e-7, ge=0, description="vertices closer than this × bbox diagonal are merged")
     layout_margin: float = Field(
         10.0, ge=0, description="free border kept inside the frame around the flat layout, mm")
+
+
+def check_smoothing(params: "DesignParameters", solver: "SolverSettings") -> None:
+    """Raise ValueError when ``smoothing_lambda`` is outside what ``solver.line_field`` accepts."""
+    if solver.line_field == "aligned" and not params.smoothing_lambda > -1.0:
+        raise ValueError(
+            f"smoothing_lambda = {params.smoothing_lambda:g}: the aligned line field takes λ in (-1, 0] "
+            "(the relative change of its smoothing length; Table 1's -0.01 and -0.1 smooth slightly "
+            "less); the previous engine's unbounded λ needs line_field = 'kcps13' under [solver]")
 
 
 class DesignSettings(BaseModel):
@@ -120,6 +138,11 @@ class DesignSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     parameters: DesignParameters = DesignParameters()
     solver: SolverSettings = SolverSettings()
+
+    @model_validator(mode="after")
+    def _smoothing(self) -> "DesignSettings":
+        check_smoothing(self.parameters, self.solver)
+        return self
 
 
 def load_settings(path: Path) -> DesignSettings:

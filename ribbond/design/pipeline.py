@@ -24,12 +24,12 @@ from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
-from .format import (Design, Faces, Parameters, PrintReport, Quantiles, Report, Ribbon, RibbonsReport,
-                     SidePrintReport, Source)
+from .format import (Deviation, Design, Faces, Parameters, PrintReport, Quantiles, Report, Ribbon,
+                     RibbonsReport, SidePrintReport, Source)
 from .frames import face_frames
 from .intake import TargetMesh, load_target
-from .line_field import LineField, curvature_line_field
-from .params import DesignParameters, SolverSettings
+from .line_field import ANISOTROPY_THRESHOLD, LineField, curvature_line_field, field_k1_deviation
+from .params import DesignParameters, SolverSettings, check_smoothing
 from .placement import fit_scale, place_in_frame, registration_marks
 from .preview import render_preview
 from .report import flattening_report
@@ -132,6 +132,10 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     progress = progress or NoProgress()
     profile = load_profile(params.printer_profile)
     frame = frame or profile.frame
+    try:
+        check_smoothing(params, solver)
+    except ValueError as exc:
+        raise DesignError(str(exc)) from None
     table = load_curvature_table(params.curvature_table)
     if abs(table.prestretch - params.prestretch) > 1e-9:
         raise DesignError(f"the curvature table {table.name!r} was measured at pre-stretch s = "
@@ -159,10 +163,13 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     frames = face_frames(V, F)
     curvature = face_curvature(V, F, frames)
     field = curvature_line_field(V, F, frames, curvature, params.smoothing_lambda,
-                                 solver.umbilic_tolerance)
+                                 solver.umbilic_tolerance, method=solver.line_field)
     timings["curvature"] = time.perf_counter() - t
+    field_dev = field_k1_deviation(field, curvature)
     progress.stage_finished("curvature", timings["curvature"],
-                            f"{100 * field.umbilic.mean():.1f} % of the surface umbilic"
+                            f"{100 * field.umbilic.mean():.1f} % of the surface umbilic, field "
+                            f"{field_dev['median']:.2f}° median off k1, {len(field.singular_vertices)} "
+                            "singular vertices"
                             + ("" if field.aligned else "; no curvature direction anywhere: "
                                "smoothest field in an arbitrary direction"))
 
@@ -197,7 +204,11 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                             + ("converged" if flat.converged else "stopped at the iteration cap"))
 
     c, s = np.cos(rotation), np.sin(rotation)
-    direction = flat.ribbon_direction @ np.array([[c, s], [-s, c]])
+    placed = np.array([[c, s], [-s, c]])
+    direction = flat.ribbon_direction @ placed
+    k1_pushed = np.einsum("mij,mj->mi", flat.jacobians, np.column_stack([np.cos(curvature.angle),
+                                                                         np.sin(curvature.angle)]))
+    k1_direction = (k1_pushed / np.linalg.norm(k1_pushed, axis=1, keepdims=True)) @ placed
     kappa1 = curvature.normal_curvature(field.local) / scale
     report = flattening_report(flat, frames.area, params.bounds, timings,
                                total_time=time.perf_counter() - t_start)
@@ -206,7 +217,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     progress.stage_started("stripes", "ribbon spacing (Eq. 10) and the stripe patterns θ and ψ")
     t = time.perf_counter()
     stripes = stripe_grid(uv, F, target.boundary, flat.sigma, direction, kappa1, params,
-                          edge_fraction=solver.stripe_edge_fraction, max_faces=solver.stripe_max_faces)
+                          k1_direction=k1_direction, anisotropic=field.anisotropy > ANISOTROPY_THRESHOLD,
+                          edge_fraction=solver.stripe_edge_fraction, max_faces=solver.stripe_max_faces,
+                          spacing_weight=solver.stripe_spacing_weight)
     timings["stripes"] = time.perf_counter() - t
     singular = int(stripes.theta.singular.sum() + stripes.psi.singular.sum())
     progress.stage_finished("stripes", timings["stripes"],
@@ -231,6 +244,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                             f"{clamped} thicknesses clamped to the table")
 
     q = ribbon_quantiles(layout)
+    report["field_k1_deviation_deg"] = Deviation(**field_dev)
+    report["ribbon_k1_deviation_deg"] = Deviation(**q.pop("ribbon_k1_deviation_deg"))
+    report["umbilic_pct"] = float(100.0 * np.mean(field.anisotropy <= ANISOTROPY_THRESHOLD))
     report["ribbons"] = RibbonsReport(
         front=front, back=layout.count - front, dropped_short=layout.dropped_short,
         trimmed_angle=layout.trimmed_angle, thickness_clamped=clamped,

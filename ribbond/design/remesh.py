@@ -48,8 +48,9 @@ class FlatRemesh:
         return np.einsum("pc,pc...->p...", self.bary, v)
 
 
-def _locate(points: np.ndarray, uv: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The design face nearest to (holding) each point, and the barycentric coordinates there."""
+def locate(points: np.ndarray, uv: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The face of (uv, F) nearest to (holding) each point (k, 2), and the barycentric coordinates
+    (k, 3) there."""
     P3 = np.column_stack([points, np.zeros(len(points))])
     V3 = np.column_stack([uv, np.zeros(len(uv))])
     _, face, closest = igl.point_mesh_squared_distance(P3, V3, F)
@@ -118,7 +119,7 @@ def remesh_flat(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, spacing: fl
     index = np.full(len(points), -1, dtype=np.int64)
     index[used] = np.arange(len(used))
     points, tri = points[used], index[tri]
-    face, bary = _locate(points, uv, F)
-    parent, _ = _locate(points[tri].mean(axis=1), uv, F)
+    face, bary = locate(points, uv, F)
+    parent, _ = locate(points[tri].mean(axis=1), uv, F)
     return FlatRemesh(uv=points, F=tri, face=face, bary=bary, parent=parent, spacing=float(spacing),
                       design_F=np.asarray(F, dtype=np.int64))

@@ -18,18 +18,21 @@ Everything is done on arc-length intervals of the centerlines, for all ribbons a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import shapely
 
 from .params import DesignParameters, spacing_for_sigma
-from .remesh import remesh_flat
-from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, vertex_average,
-                      vertex_line_field)
+from .remesh import locate, remesh_flat
+from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, integrable_frequency,
+                      vertex_average, vertex_line_field)
 
 #: Largest usable stretch as a share of the way from 1 to s: Eq. 10 diverges at σ = s.
 _SIGMA_CAP = 0.98
+
+
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,8 @@ class StripeGrid:
     mu1, mu2 : (n,) spacing along and across the ribbons at the vertices (Eq. 10), mm.
     kappa1 : (n,) signed curvature along the ribbons at the vertices, 1/mm.
     direction : (m, 2) the ribbon direction k̄1 per face.
+    k1_direction : (m, 2) the target's own k1 (before the line field's smoothing) pushed forward;
+    anisotropic : (m,) True where k1 is defined (anisotropy above ``ANISOTROPY_THRESHOLD``).
     theta, psi : the stripe patterns across (period 2μ2) and along (period μ1) the ribbons.
     spacing : the edge length of the stripe mesh, mm.
     """
@@ -53,9 +58,16 @@ class StripeGrid:
     mu2: np.ndarray
     kappa1: np.ndarray
     direction: np.ndarray
+    k1_direction: np.ndarray
+    anisotropic: np.ndarray
     theta: StripePattern
     psi: StripePattern
     spacing: float
+
+    def mu2_at(self, points: np.ndarray) -> np.ndarray:
+        """μ2 (k,) interpolated at ``points`` (k, 2) of the flat domain (nearest face outside it)."""
+        face, bary = locate(points, self.uv, self.F)
+        return np.einsum("kc,kc->k", bary, self.mu2[self.F[face]])
 
 
 def face_spacing(sigma: np.ndarray, params: DesignParameters) -> np.ndarray:
@@ -80,7 +92,9 @@ def stripe_spacing(shortest_period: float, area: float, edge_fraction: float, ma
 
 def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.ndarray,
                 ribbon_direction: np.ndarray, kappa1: np.ndarray, params: DesignParameters, *,
-                edge_fraction: float = 0.15, max_faces: int = 150_000) -> StripeGrid:
+                k1_direction: np.ndarray | None = None, anisotropic: np.ndarray | None = None,
+                edge_fraction: float = 0.15, max_faces: int = 150_000,
+                spacing_weight: float | None = None) -> StripeGrid:
     """Spacing fields and the θ and ψ stripe patterns on the flat surface (§6.1–6.2).
 
     Parameters
@@ -89,9 +103,15 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
         boundary loop.
     sigma : (m, 2) final principal stretches (σ1 along the ribbons, σ2 across).
     ribbon_direction : (m, 2) unit k̄1 per face; kappa1 : (m,) signed curvature along it, 1/mm.
+    k1_direction : (m, 2) the target's k1 pushed forward (default: ``ribbon_direction``);
+    anisotropic : (m,) where k1 is defined (default: everywhere); both only for the report.
     edge_fraction, max_faces : the stripes are computed on a triangulation of the flat domain with
         edges of ``edge_fraction`` × the shortest stripe period (5th percentile), within
         ``max_faces`` faces (``remesh``).
+    spacing_weight : when given, θ's frequency is first made as integrable along the ribbon
+        direction as this weight of Eq. 10's spacing allows (``stripes.integrable_frequency``):
+        centerlines closer to the field, spacing further from Eq. 10. None (default): Eq. 10's
+        frequency as it is (KCPS15 as published).
     """
     n = len(uv)
     area = face_areas(uv, F)
@@ -106,10 +126,17 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
     X1 = vertex_line_field(mesh.F, direction, face_areas(mesh.uv, mesh.F), len(mesh.uv))
     X2 = np.column_stack([-X1[:, 1], X1[:, 0]])
     solver = StripeSolver(mesh.uv, mesh.F)
-    theta = solver.solve(X2, 2 * np.pi / (2 * mu_r[:, 1]))
+    nu_theta = 2 * np.pi / (2 * mu_r[:, 1])
+    if spacing_weight is not None:
+        nu_theta = np.clip(integrable_frequency(solver, X2, nu_theta, spacing_weight),
+                           0.5 * nu_theta, 2.0 * nu_theta)
+    theta = solver.solve(X2, nu_theta)
     psi = solver.solve(X1, 2 * np.pi / mu_r[:, 0])
+    k1_dir = (ribbon_direction if k1_direction is None else k1_direction)[mesh.parent]
+    aniso = np.ones(len(mesh.F), dtype=bool) if anisotropic is None else np.asarray(anisotropic)[mesh.parent]
     return StripeGrid(uv=mesh.uv, F=mesh.F, parent=mesh.parent, mu1=mu_r[:, 0], mu2=mu_r[:, 1],
-                      kappa1=k1_r, direction=direction, theta=theta, psi=psi, spacing=h)
+                      kappa1=k1_r, direction=direction, k1_direction=k1_dir, anisotropic=aniso,
+                      theta=theta, psi=psi, spacing=h)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -130,8 +157,11 @@ class RibbonLayout:
     dropped_short, trimmed_angle : ribbons dropped for length, ribbons trimmed for direction.
     direction_deviation : (q,) angle between ribbon segments and the direction field, degrees,
         with ``direction_weight`` (q,) their lengths.
-    spacing_error_across, spacing_error_along : relative spacing errors (fractions) between
-        neighbouring centerlines against μ2 and between neighbouring midpoints against μ1.
+    k1_deviation : (p,) angle between ribbon segments on faces where k1 is defined and the
+        target's own k1 there, degrees, with ``k1_weight`` (p,) their lengths.
+    spacing_error_across, spacing_error_along : relative spacing errors (fractions): from each
+        ribbon midpoint along its normal to the next centerline against the harmonic mean of μ2
+        over that gap (``across_spacing``), and between neighbouring midpoints against μ1.
     centerlines : per grid, the centerline polylines (list of (k, 2) arrays).
     """
 
@@ -144,6 +174,8 @@ class RibbonLayout:
     trimmed_angle: int
     direction_deviation: np.ndarray
     direction_weight: np.ndarray
+    k1_deviation: np.ndarray
+    k1_weight: np.ndarray
     spacing_error_across: np.ndarray
     spacing_error_along: np.ndarray
     centerlines: tuple[list[np.ndarray], list[np.ndarray]]
@@ -286,7 +318,12 @@ def _weighted_quantiles(values: np.ndarray, weights: np.ndarray, q: tuple[float,
 def ribbon_quantiles(layout: RibbonLayout) -> dict[str, dict[str, float]]:
     """The report's distributions: direction deviation (degrees) and spacing error (%)."""
     dev = _weighted_quantiles(layout.direction_deviation, layout.direction_weight, (0.5, 0.95))
-    out = {"direction_deviation_deg": {"median": dev[0], "p95": dev[1]}}
+    out: dict[str, dict[str, float]] = {"direction_deviation_deg": {"median": dev[0], "p95": dev[1]}}
+    k1 = _weighted_quantiles(layout.k1_deviation, layout.k1_weight, (0.5, 0.95))
+    total = float(np.sum(layout.k1_weight))
+    out["ribbon_k1_deviation_deg"] = {
+        "median": k1[0], "p95": k1[1],
+        "mean": float(np.sum(layout.k1_deviation * layout.k1_weight) / total) if total > 0 else 0.0}
     for key, errs in (("spacing_error_pct", np.concatenate([layout.spacing_error_across,
                                                             layout.spacing_error_along])),
                       ("spacing_error_across_pct", layout.spacing_error_across),
@@ -294,6 +331,63 @@ def ribbon_quantiles(layout: RibbonLayout) -> dict[str, dict[str, float]]:
         qs = np.percentile(100 * errs, [50, 95]) if len(errs) else [0.0, 0.0]
         out[key] = {"median": float(qs[0]), "p95": float(qs[1])}
     return out
+
+
+#: Samples of μ2 along a gap for its harmonic mean; gaps longer than this many μ2 are not gaps.
+_GAP_SAMPLES = 8
+_GAP_REACH = 3.0
+
+
+def across_spacing(midpoints: np.ndarray, tangents: np.ndarray, own_line: np.ndarray,
+                   centerlines: list[np.ndarray], mu2_at: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Relative error of the spacing across the ribbons, measured as with a ruler.
+
+    From each ribbon midpoint, both ways along the centerline's normal, to the first other
+    centerline (of either grid: the staggered grids alternate, μ2 apart); the gap d is compared with
+    the harmonic mean H of μ2 over it: the spacing Eq. 10 asks for there, as the phase of θ must
+    advance by π over the gap (∫ ds / μ2 = 1 ⇔ d = H). μ2 can change a lot inside one gap, so μ2
+    at either end is the wrong reference.
+
+    Parameters
+    ----------
+    midpoints : (R, 2); tangents : (R, 2) the centerline's direction there; own_line : (R,) the
+        index in ``centerlines`` of each midpoint's own centerline.
+    centerlines : polylines (k, 2) of both grids; mu2_at : μ2 at points (k, 2) -> (k,).
+
+    Returns
+    -------
+    (q,) |d − H| / H for every direction that meets a centerline within ``_GAP_REACH`` μ2.
+    """
+    lines = [line for line in centerlines if len(line) >= 2]
+    index = np.array([k for k, line in enumerate(centerlines) if len(line) >= 2], dtype=np.int64)
+    if len(midpoints) == 0 or len(lines) == 0:
+        return np.zeros(0)
+    normal = np.column_stack([-tangents[:, 1], tangents[:, 0]])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    mu = mu2_at(midpoints)
+    p = np.concatenate([midpoints, midpoints])
+    n = np.concatenate([normal, -normal])
+    reach = _GAP_REACH * np.concatenate([mu, mu])
+    own = np.concatenate([own_line, own_line])
+    rays = shapely.linestrings(np.stack([p, p + reach[:, None] * n], axis=1))
+    tree = shapely.STRtree([shapely.LineString(line) for line in lines])
+    ray, hit = tree.query(rays, predicate="intersects")
+    pts = shapely.intersection(rays[ray], tree.geometries[hit])
+    coords, which = shapely.get_coordinates(pts, return_index=True)
+    ray_of, line_of = ray[which], index[hit[which]]
+    dist = np.einsum("kc,kc->k", coords - p[ray_of], n[ray_of])
+    # the own centerline passes through the midpoint; further along the ray it may come back
+    valid = (dist > 1e-6) & ((line_of != own[ray_of]) | (dist > 0.5 * reach[ray_of] / _GAP_REACH))
+    gap = np.full(len(p), np.inf)
+    np.minimum.at(gap, ray_of[valid], dist[valid])
+    found = np.isfinite(gap)
+    if not found.any():
+        return np.zeros(0)
+    t = (np.arange(_GAP_SAMPLES) + 0.5) / _GAP_SAMPLES
+    samples = p[found][:, None, :] + (gap[found][:, None] * t[None, :])[..., None] * n[found][:, None, :]
+    mu_s = mu2_at(samples.reshape(-1, 2)).reshape(-1, _GAP_SAMPLES)
+    harmonic = 1.0 / np.mean(1.0 / mu_s, axis=1)
+    return np.abs(gap[found] - harmonic) / harmonic
 
 
 def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters) -> RibbonLayout:
@@ -315,9 +409,10 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
 
     pts_all: list[np.ndarray] = []
     grids, kappas, spacings, lengths = [], [], [], []
-    dev_all, devw_all, along_all = [], [], []
-    mids_xy: list[np.ndarray] = [np.zeros((0, 2)), np.zeros((0, 2))]
-    mids_mu2: list[np.ndarray] = [np.zeros(0), np.zeros(0)]
+    dev_all, devw_all, along_all, k1dev_all, k1w_all = [], [], [], [], []
+    mids_xy: list[np.ndarray] = []
+    mids_tangent: list[np.ndarray] = []
+    mids_line: list[np.ndarray] = []
     centerlines: list[list[np.ndarray]] = [[], []]
     dropped = trimmed = 0
     for g, level in enumerate((0.0, np.pi)):
@@ -404,6 +499,11 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
             continue
         dev_all.append(np.degrees(np.arccos(np.clip(cosang[kept_interval], 0.0, 1.0))))
         devw_all.append((hi - lo)[kept_interval])
+        k1dir = grid.k1_direction[np.maximum(face, 0)]
+        cos_k1 = np.abs(np.einsum("kc,kc->k", vec, k1dir)) / np.maximum(vlen, 1e-300)
+        on_k1 = kept_interval & grid.anisotropic[np.maximum(face, 0)]
+        k1dev_all.append(np.degrees(np.arccos(np.clip(cos_k1[on_k1], 0.0, 1.0))))
+        k1w_all.append((hi - lo)[on_k1])
 
         # geometry and means along each piece
         inner_lo = np.searchsorted(c.s, A, side="right")
@@ -441,18 +541,17 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
         pair = kept_mid[:-1] & kept_mid[1:] & (pid[1:] == pid[:-1])
         along = np.abs(np.diff(s_mid) - 0.5 * (mu1_mid[1:] + mu1_mid[:-1])) / (0.5 * (mu1_mid[1:] + mu1_mid[:-1]))
         along_all.append(along[pair])
-        mids_xy[g] = np.column_stack([np.interp(s_mid[kept_mid], c.s, c.xy[:, 0]),
-                                      np.interp(s_mid[kept_mid], c.s, c.xy[:, 1])])
-        mids_mu2[g] = np.interp(s_mid[kept_mid], c.s, mu2)
+        mids_xy.append(np.column_stack([np.interp(s_mid[kept_mid], c.s, c.xy[:, 0]),
+                                        np.interp(s_mid[kept_mid], c.s, c.xy[:, 1])]))
+        at = node_of[kept_mid]
+        nxt = np.where(has_next[at], at + 1, at)
+        prv = np.where(has_next[at], at, np.maximum(at - 1, 0))
+        mids_tangent.append(c.xy[nxt] - c.xy[prv])
+        mids_line.append(g * len(centerlines[0]) + pid[kept_mid])
 
-    across = []
-    for g in (0, 1):
-        others = [line for line in centerlines[1 - g] if len(line) >= 2]
-        if len(mids_xy[g]) == 0 or not others:
-            continue
-        tree = shapely.STRtree([shapely.LineString(line) for line in others])
-        _, dist = tree.query_nearest(shapely.points(mids_xy[g]), return_distance=True, all_matches=False)
-        across.append(np.abs(dist - mids_mu2[g]) / mids_mu2[g])
+    lines_all = centerlines[0] + centerlines[1]
+    across = ([across_spacing(np.concatenate(mids_xy), np.concatenate(mids_tangent), np.concatenate(mids_line),
+                              lines_all, grid.mu2_at)] if mids_xy else [])
 
     def cat(parts: list[np.ndarray], shape: tuple[int, ...] = (0,)) -> np.ndarray:
         return np.concatenate(parts) if parts else np.zeros(shape)
@@ -460,6 +559,7 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
     return RibbonLayout(points=pts_all, grid=cat(grids).astype(np.int64), kappa1=cat(kappas),
                         spacing=cat(spacings, (0, 2)), length=cat(lengths), dropped_short=dropped,
                         trimmed_angle=trimmed, direction_deviation=cat(dev_all),
-                        direction_weight=cat(devw_all), spacing_error_across=cat(across),
+                        direction_weight=cat(devw_all), k1_deviation=cat(k1dev_all), k1_weight=cat(k1w_all),
+                        spacing_error_across=cat(across),
                         spacing_error_along=cat(along_all),
                         centerlines=(centerlines[0], centerlines[1]))

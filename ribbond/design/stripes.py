@@ -444,3 +444,56 @@ def chain_segments(n_points: int, segments: np.ndarray, segment_face: np.ndarray
     src, dst = nodes[has_next], nodes[np.flatnonzero(has_next) + 1]
     link_face[has_next] = np.asarray(face_of[src, dst]).ravel().astype(np.int64) - 1
     return Polylines(nodes=nodes, offsets=offsets, closed=loop_of_begin, link_face=link_face)
+
+
+def integrable_frequency(solver: StripeSolver, direction: np.ndarray, frequency: np.ndarray,
+                         spacing_weight: float) -> np.ndarray:
+    """The frequency ν' (n,) nearest to ``frequency`` for which the 1-form ν' ⟨X, dx⟩ is closed.
+
+    The stripe energy can follow both the direction X and the frequency ν only where the 1-form
+    ω = ν ⟨X, dx⟩ is closed (curl(ν X) = 0); elsewhere KCPS15's eigenvector trades one for the
+    other, and isolines leave the direction field. With X fixed, closedness leaves ν free across
+    the stripes and fixes how it may change along them (the geometry of the curves decides). This
+    finds that ν', in the least-squares sense:
+
+        min_ν'  Σ_f circ_f(ν')² / A_f + β Σ_v m_v ν̄² ((ν'_v − ν_v) / ν_v)²,   β = spacing_weight / area
+
+    circ_f the circulation of ω around face f (with the line field's sign flips; faces where the
+    field turns over are left out), m_v the vertex areas, ν̄ the mean frequency. Small β: closed
+    (isolines along X, spacing per isoline the best compromise); large β: ν' → ν.
+
+    Parameters
+    ----------
+    solver : the mesh's stripe solver; direction : (n, 2) X; frequency : (n,) ν > 0.
+    spacing_weight : β · area, dimensionless, > 0.
+    """
+    if not spacing_weight > 0:
+        raise ValueError(f"spacing_weight = {spacing_weight}: must be > 0")
+    topo = solver.topology
+    i, j = topo.edges.T
+    flip = np.einsum("ec,ec->e", direction[i], direction[j]) < 0
+    s = np.where(flip, -1.0, 1.0)
+    a = 0.5 * np.einsum("ec,ec->e", direction[i], solver.edge_vector)         # ω_e = a ν_i + b ν_j
+    b = 0.5 * s * np.einsum("ec,ec->e", direction[j], solver.edge_vector)
+    fe = topo.face_edges
+    sf = s[fe]
+    # half-edge k's advance in its tail's orientation is ω (forward) or −s ω; corner k's
+    # orientation relative to corner 0 is σ_k
+    sigma = np.ones_like(sf)
+    sigma[:, 1] = sf[:, 0]
+    sigma[:, 2] = sf[:, 0] * sf[:, 1]
+    coef = sigma * np.where(topo.forward, 1.0, -sf)                            # (m, 3)
+    turned = sf.prod(axis=1) < 0
+    area = face_areas(solver.uv, solver.F)
+    keep = ~turned & (area > 0)
+    rows = np.repeat(np.arange(len(fe)), 3)[np.repeat(keep, 3)]
+    ck, ek = coef[keep].ravel(), fe[keep].ravel()
+    C = sp.csr_matrix((np.concatenate([ck * a[ek], ck * b[ek]]),
+                       (np.concatenate([rows, rows]), np.concatenate([i[ek], j[ek]]))),
+                      shape=(len(fe), solver.n))
+    nu = np.asarray(frequency, dtype=float)
+    beta = spacing_weight / float(area.sum())
+    prior = beta * solver.vertex_area * np.mean(nu) ** 2 / nu ** 2
+    W = sp.diags(np.where(keep, 1.0 / np.maximum(area, 1e-300), 0.0))
+    lhs = (C.T @ W @ C + sp.diags(prior)).tocsc()
+    return SymmetricFactor(lhs).solve(prior * nu)

@@ -7,6 +7,8 @@ each docstring, because the sign of κ1 (front or back) follows from it.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import Delaunay
 
@@ -117,3 +119,162 @@ def plane_disk(diameter: float = 80.0, rings: int = 12) -> tuple[np.ndarray, np.
     """A flat disk in the plane z = 0 (n = +z): every point umbilic, κ = 0."""
     P, F = disk(rings)
     return np.column_stack([0.5 * diameter * P, np.zeros(len(P))]), F
+
+
+def bump_on_plane(diameter: float = 110.0, bump_radius: float = 35.0, height: float = 12.0,
+                  rings: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """A hat: the disk of ``diameter`` on z = h (1 − r²/a²)³ for r < a, z = 0 beyond (n up).
+
+    The bump is C² where it meets the plane. Its top is umbilic, the plane around it is flat
+    (umbilic), and in between k1 turns from circumferential (on the flank) to radial (at the foot)
+    through a ring where |κr| = |κθ|: large umbilic regions around anisotropic ones.
+    """
+    P, F = disk(rings)
+    xy = 0.5 * diameter * P
+    return np.column_stack([xy, _bump(xy, bump_radius, height)[0]]), F
+
+
+def cap_cylinder_blend(radius: float = 40.0, cylinder_length: float = 50.0, cap_extent: float = 28.0,
+                       half_width: float = 28.0, n_x: int = 40, n_y: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """Half a capsule, as a graph (n up): a cylinder of ``radius`` along x for x ≤ 0 (z = √(r² − y²))
+    blended C¹ into a sphere cap of the same radius for x > 0 (z = √(r² − x² − y²)).
+
+    The grid spans x ∈ [−cylinder_length, cap_extent], y ∈ [−half_width, half_width]; k1 runs
+    around the cylinder (along y); the cap is umbilic.
+    """
+    if not (cap_extent ** 2 + half_width ** 2 < radius ** 2):
+        raise ValueError(f"cap_extent = {cap_extent} and half_width = {half_width} must stay inside "
+                         f"the sphere of radius {radius}")
+    UV, F = grid(n_x, n_y)
+    x = -cylinder_length + (cylinder_length + cap_extent) * UV[:, 0]
+    y = half_width * (2.0 * UV[:, 1] - 1.0)
+    xy = np.column_stack([x, y])
+    return np.column_stack([xy, _blend(xy, radius)[0]]), F
+
+
+# ---------------------------------------------------------------------------------------------
+# exact principal curvatures (the truth the engine is measured against)
+
+
+@dataclass(frozen=True)
+class ExactCurvature:
+    """Exact principal curvatures at points of an analytic surface, signed as design-format.md.
+
+    Attributes
+    ----------
+    kappa1 : (p,) the principal curvature of largest |κ|; kappa2 : (p,) the other one.
+    direction1 : (p, 3) unit tangent along kappa1 (a line: its sign is arbitrary).
+    normal : (p, 3) unit normal of the winding the generators use.
+    """
+
+    kappa1: np.ndarray
+    kappa2: np.ndarray
+    direction1: np.ndarray
+    normal: np.ndarray
+
+    @property
+    def anisotropy(self) -> np.ndarray:
+        """(p,) (|κ1| − |κ2|) / (|κ1| + |κ2|), 0 where both vanish (a plane)."""
+        a, b = np.abs(self.kappa1), np.abs(self.kappa2)
+        total = a + b
+        return np.where(total > 0, (a - b) / np.where(total > 0, total, 1.0), 0.0)
+
+
+def _principal(tangents: tuple[np.ndarray, np.ndarray], normal: np.ndarray, first: np.ndarray,
+               second: np.ndarray) -> ExactCurvature:
+    """Principal curvatures from the fundamental forms in a parametrization.
+
+    tangents : ∂X/∂u, ∂X/∂v (p, 3); normal : (p, 3) unit; first, second : (p, 2, 2) forms I and II
+    with II = ⟨∂²X, n⟩. The shape operator is I⁻¹ II; its eigenvalues are the standard curvatures
+    (positive where the surface bends toward n), negated for the design format's sign (positive
+    where it bulges toward n).
+    """
+    S = np.linalg.solve(first, second)                         # (p, 2, 2), not symmetric
+    tr, det = S[:, 0, 0] + S[:, 1, 1], np.linalg.det(S)
+    disc = np.sqrt(np.maximum(0.25 * tr ** 2 - det, 0.0))
+    k_a, k_b = 0.5 * tr + disc, 0.5 * tr - disc
+    big = np.where(np.abs(k_a) >= np.abs(k_b), k_a, k_b)
+    small = np.where(np.abs(k_a) >= np.abs(k_b), k_b, k_a)
+    # eigenvector of S for `big`: (S − big I) w = 0; take the better-conditioned row
+    r0 = np.column_stack([S[:, 0, 1], big - S[:, 0, 0]])
+    r1 = np.column_stack([big - S[:, 1, 1], S[:, 1, 0]])
+    w = np.where((np.linalg.norm(r0, axis=1) >= np.linalg.norm(r1, axis=1))[:, None], r0, r1)
+    w = np.where(np.linalg.norm(w, axis=1)[:, None] > 0, w, np.array([1.0, 0.0]))
+    d = w[:, :1] * tangents[0] + w[:, 1:] * tangents[1]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return ExactCurvature(kappa1=-big, kappa2=-small, direction1=d, normal=normal)
+
+
+def graph_curvature(xy: np.ndarray, gradient: np.ndarray, hessian: np.ndarray) -> ExactCurvature:
+    """Exact curvatures of a graph z = f(x, y) with n up, from f's gradient (p, 2) and Hessian (p, 2, 2)."""
+    fx, fy = gradient[:, 0], gradient[:, 1]
+    W = np.sqrt(1.0 + fx ** 2 + fy ** 2)
+    zero, one = np.zeros_like(fx), np.ones_like(fx)
+    tu, tv = np.column_stack([one, zero, fx]), np.column_stack([zero, one, fy])
+    n = np.column_stack([-fx, -fy, one]) / W[:, None]
+    first = np.stack([np.stack([1 + fx ** 2, fx * fy], -1), np.stack([fx * fy, 1 + fy ** 2], -1)], -2)
+    return _principal((tu, tv), n, first, hessian / W[:, None, None])
+
+
+def _bump(xy: np.ndarray, a: float, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """f = h (1 − t)³ with t = r²/a² inside r < a, 0 outside; its gradient and Hessian."""
+    t = np.minimum((xy ** 2).sum(axis=1) / a ** 2, 1.0)
+    inside = t < 1.0
+    f = np.where(inside, h * (1 - t) ** 3, 0.0)
+    # ∂f/∂x_i = −6h (1 − t)² x_i / a²; ∂²f = 24h (1 − t) x_i x_j / a⁴ − 6h (1 − t)² δ_ij / a²
+    g = (-6 * h * (1 - t) ** 2 / a ** 2)[:, None] * xy
+    H = ((24 * h * (1 - t) / a ** 4)[:, None, None] * np.einsum("pi,pj->pij", xy, xy)
+         - (6 * h * (1 - t) ** 2 / a ** 2)[:, None, None] * np.eye(2))
+    return f, np.where(inside[:, None], g, 0.0), np.where(inside[:, None, None], H, 0.0)
+
+
+def _blend(xy: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """f = √(r² − max(x, 0)² − y²); its gradient and Hessian."""
+    x = np.maximum(xy[:, 0], 0.0)
+    y = xy[:, 1]
+    f = np.sqrt(r ** 2 - x ** 2 - y ** 2)
+    g = np.column_stack([-x / f, -y / f])
+    f3 = f ** 3
+    H = np.stack([np.stack([-(r ** 2 - y ** 2) / f3, -x * y / f3], -1),
+                  np.stack([-x * y / f3, -(r ** 2 - x ** 2) / f3], -1)], -2)
+    H[:, 0, 0] = np.where(xy[:, 0] > 0, H[:, 0, 0], 0.0)
+    return f, g, H
+
+
+def saddle_curvature(xy: np.ndarray, kappa_x: float, kappa_y: float) -> ExactCurvature:
+    """Exact curvatures of ``saddle``'s z = (κx x² − κy y²) / 2 at points ``xy`` (p, 2)."""
+    g = np.column_stack([kappa_x * xy[:, 0], -kappa_y * xy[:, 1]])
+    H = np.broadcast_to(np.diag([kappa_x, -kappa_y]), (len(xy), 2, 2)).copy()
+    return graph_curvature(xy, g, H)
+
+
+def bump_curvature(xy: np.ndarray, bump_radius: float = 35.0, height: float = 12.0) -> ExactCurvature:
+    """Exact curvatures of ``bump_on_plane`` at points ``xy`` (p, 2)."""
+    _, g, H = _bump(xy, bump_radius, height)
+    return graph_curvature(xy, g, H)
+
+
+def blend_curvature(xy: np.ndarray, radius: float = 40.0) -> ExactCurvature:
+    """Exact curvatures of ``cap_cylinder_blend`` at points ``xy`` (p, 2)."""
+    _, g, H = _blend(xy, radius)
+    return graph_curvature(xy, g, H)
+
+
+def torus_curvature(points: np.ndarray, R: float = 50.0, r: float = 20.0) -> ExactCurvature:
+    """Exact curvatures of ``torus_patch`` at the points of the torus nearest to ``points`` (p, 3):
+    1/r along the meridians (the tube), cos v / (R + r cos v) along the parallels, n outward."""
+    u = np.arctan2(points[:, 1], points[:, 0])
+    v = np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]) - R)
+    meridian = np.column_stack([-np.sin(v) * np.cos(u), -np.sin(v) * np.sin(u), np.cos(v)])
+    n = np.column_stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)])
+    return ExactCurvature(kappa1=np.full(len(points), 1.0 / r), kappa2=np.cos(v) / (R + r * np.cos(v)),
+                          direction1=meridian, normal=n)
+
+
+def cylinder_curvature(points: np.ndarray, radius: float = 40.0) -> ExactCurvature:
+    """Exact curvatures of ``cylinder_patch`` (axis z, n outward): 1/radius around, 0 along."""
+    t = np.arctan2(points[:, 1], points[:, 0])
+    around = np.column_stack([-np.sin(t), np.cos(t), np.zeros(len(t))])
+    n = np.column_stack([np.cos(t), np.sin(t), np.zeros(len(t))])
+    return ExactCurvature(kappa1=np.full(len(points), 1.0 / radius), kappa2=np.zeros(len(points)),
+                          direction1=around, normal=n)

@@ -136,7 +136,7 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert len(folder.target_F) == len(F)
     assert np.array_equal(folder.target_F, F)          # a clean mesh keeps its faces and order
     d = design_json(out)
-    assert d["format"] == "ribbond-design/1" and d["units"] == "mm"
+    assert d["format"] == "ribbond-design/2" and d["units"] == "mm"
     assert d["source"]["file"] == "cylinder.obj" and d["source"]["faces"] == len(F)
     p = d["parameters"]
     assert p["prestretch"] == 1.6 and p["ribbon_length"] == 15.0 and p["ribbon_width"] == 1.5

@@ -98,7 +98,7 @@ def test_round_trip_is_exact() -> None:
 def test_keys_are_the_documented_ones() -> None:
     data = as_dict(make_design(8))
     assert set(data) == DOC_TOP
-    assert data["format"] == FORMAT == "ribbond-design/1" and data["units"] == "mm"
+    assert data["format"] == FORMAT == "ribbond-design/2" and data["units"] == "mm"
     assert set(data["source"]) == DOC_SOURCE
     assert set(data["parameters"]) == DOC_PARAMETERS
     assert data["parameters"]["size"] == {"bbox_diagonal": 110.0}
@@ -113,6 +113,28 @@ def test_keys_are_the_documented_ones() -> None:
     assert set(data["report"]["print"]["back"]) == DOC_SIDE_PRINT
     assert data["faces"]["ribbon_direction"][0] == [1.0, 0.0]
     assert data["registration_marks"] == [[-5.0, -5.0], [15.0, -5.0]]
+
+
+def test_format_1_files_are_still_read() -> None:
+    # format 2 only adds report fields: a format-1 file reads as it was written
+    design = design_from_json(edited(lambda d: d.update(format="ribbond-design/1")))
+    assert design.format == "ribbond-design/1" and design.report.field_k1_deviation_deg is None
+
+
+def test_format_2_report_fields_round_trip() -> None:
+    from ribbond.design.format import DeployedReport, Deviation, DeviationPct, Report
+    d = make_design(8)
+    report = Report(**{**d.report.model_dump(by_alias=True),
+                       "field_k1_deviation_deg": Deviation(median=0.1, mean=0.2, p95=0.5),
+                       "ribbon_k1_deviation_deg": Deviation(median=0.8, mean=1.0, p95=3.0),
+                       "umbilic_pct": 12.5,
+                       "deployed": DeployedReport(deviation_pct=DeviationPct(mean=0.4, p99=1.2, max=1.5),
+                                                  faces=6000, iterations=12, time_s=2.5, start="target")})
+    d2 = d.updated(report=report)
+    data = json.loads(design_to_json(d2))["report"]
+    assert data["field_k1_deviation_deg"] == {"median": 0.1, "mean": 0.2, "p95": 0.5}
+    assert data["deployed"]["deviation_pct"] == {"mean": 0.4, "p99": 1.2, "max": 1.5}
+    assert design_from_json(design_to_json(d2)) == d2
 
 
 def test_print_key_is_spelled_print() -> None:
@@ -153,8 +175,8 @@ def edited(change: Any) -> str:
 
 
 def test_wrong_format_is_refused_by_name() -> None:
-    with pytest.raises(ValueError, match=r"design\.json.*format.*'ribbond-design/2'"):
-        design_from_json(edited(lambda d: d.update(format="ribbond-design/2")))
+    with pytest.raises(ValueError, match=r"design\.json.*format.*'ribbond-design/3'"):
+        design_from_json(edited(lambda d: d.update(format="ribbond-design/3")))
     with pytest.raises(ValueError, match="format"):
         Design(**{**make_design(8).__dict__, "format": "other/1"})
 
