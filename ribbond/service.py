@@ -499,9 +499,11 @@ class RibbonService:
         if stream is not None:
             side = stream.side
             totals[side] = stream.timeline.total or totals.get(side, 0.0)
-            done_side = stream.timeline.done_s(stream.acked)
+            # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
+            acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
+            done_side = stream.timeline.done_s(acked)
             rate = self._stream_rate(stream) or rate
-            out["ribbon"] = stream.timeline.ribbon_at(stream.acked) or None
+            out["ribbon"] = stream.timeline.ribbon_at(acked) or None
             out["ribbons"] = stream.timeline.ribbons or None
         elif job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT, JobState.PRINTING_BACK,
                                        JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
@@ -591,9 +593,6 @@ class RibbonService:
     def status(self, job: JobRecord) -> dict[str, Any]:
         """The job as people see it: the record, its progress and time left, what to do next."""
         data = job.model_dump(mode="json")
-        run = self._run
-        if run is not None and run.job_id == job.id and run.stream is not None:
-            data["last_acked_line"] = max(job.last_acked_line, run.stream.acked)   # stored every 0.5 s
         info = self.progress(job)
         data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
                     compile_progress=job.progress, waits_for_operator=self._waits(job))
@@ -685,24 +684,26 @@ class RibbonService:
                 continue                                      # deleted while queued
             if job.state is not JobState.READY or not job.start_when_ready:
                 continue
+            if self._stopping:
+                continue                                      # the daemon stops: queued again at its next start
             if not self._connected():                         # wait for the printer, do not fail
                 log.info("job %s waits for the printer to connect", job_id)
                 self._publish(self.store.update(job_id, stage="waiting for the printer"))
-                while not self._connected() and self._job_exists(job_id) \
+                while not self._connected() and not self._stopping and self._job_exists(job_id) \
                         and self.job(job_id).state is JobState.READY:
                     await asyncio.sleep(0.2)
-                if not self._job_exists(job_id) or self.job(job_id).state is not JobState.READY:
+                if not self._job_exists(job_id) or self.job(job_id).state is not JobState.READY or self._stopping:
                     continue
                 job = self.store.update(job_id, stage=None)
             self._run = run = _Run(job_id)
             try:
                 await self._print(job)
             except StreamCancelled:
-                await self._end_run(run, None)
+                await self._end_run_logged(run, None)
             except Exception as exc:  # noqa: BLE001 - any fatal error of the print task: stop safely
                 log.exception("printing job %s", job_id)
                 kind = "printer" if isinstance(exc, (LinkError, OSError)) else "internal error"
-                await self._end_run(run, f"{kind}: {exc}")
+                await self._end_run_logged(run, f"{kind}: {exc}")
             finally:
                 if run.heaters is not None:
                     run.heaters.cancel()
@@ -715,6 +716,12 @@ class RibbonService:
         except KeyError:
             return False
         return True
+
+    async def _end_run_logged(self, run: _Run, error: str | None) -> None:
+        try:
+            await self._end_run(run, error)
+        except Exception:  # noqa: BLE001 - the print queue goes on with the next job
+            log.exception("ending the run of job %s", run.job_id)
 
     async def _end_run(self, run: _Run, error: str | None) -> None:
         """After the stream ended early: heaters off, head lifted; the job ``cancelled`` (asked for),
