@@ -369,6 +369,55 @@ def test_plain_gcode_is_checked_line_by_line_and_printed(api: httpx.Client, shar
     wait_for(api, job["id"], "done", timeout=60, until=lambda j: len(j["runs"]) == 1)
 
 
+def test_a_plain_gcode_job_pauses_resumes_and_cancels_like_a_design(api: httpx.Client, shared_sim: Sim,
+                                                                     tmp_path: Path) -> None:
+    """The same pause (no line while paused), resume (reheat first) and cancel (heaters off, head
+    lifted) as a design's program, with progress."""
+    x0, y0, _, _ = PROFILE.frame.bounds
+    moves = [f"G1 X{x0 + 10 + (i % 2) * 40} Y{y0 + 10 + i * 0.05:.2f} E0.2 F600" for i in range(1500)]
+    program = tmp_path / "zigzag.gcode"
+    program.write_text("\n".join(["G28", "M104 S210", "M109 S210", "G90", "M83", "G0 Z0.3 F600", *moves,
+                                   "M104 S0"]) + "\n")
+    with program.open("rb") as f:
+        r = api.post("/jobs", files={"gcode": ("zigzag.gcode", f)}, data={"start": "true"})
+    assert r.status_code == 201, r.text
+    job = r.json()["id"]
+    assert r.json()["estimate_s"]["front"] == pytest.approx(program_time(moves), rel=1e-3)
+    wait_for(api, job, "printing_front", timeout=60, poll=0.02, until=lambda j: j["last_acked_line"] > 50)
+    r = api.post(f"/jobs/{job}/pause")
+    assert r.status_code == 200 and r.json()["state"] == "paused", r.text
+    paused = r.json()
+    assert 0 < paused["progress"] < 1 and paused["checkpoint"] == "front_paused"
+    executed_now = len(shared_sim.program_commands())
+    time.sleep(0.5)
+    assert len(shared_sim.program_commands()) == executed_now, "lines went to the printer while paused"
+    before = len(shared_sim.commands())
+    assert api.post(f"/jobs/{job}/resume").json()["state"] == "printing_front"
+    assert executed(shared_sim, before)[:2] == ["M104 S210", "M109 S210"]
+    wait_for(api, job, "printing_front", timeout=30, poll=0.02,
+             until=lambda j: j["last_acked_line"] > paused["checkpoint_line"] + 20)
+    before = len(shared_sim.commands())
+    r = api.post(f"/jobs/{job}/cancel")
+    assert r.status_code == 200 and r.json()["state"] == "cancelled", r.text
+    assert r.json()["last_acked_line"] < len(moves)
+    after = executed(shared_sim, before)
+    assert replay(after)["nozzle"] == 0.0 and f"G0 Z{PROFILE.park_lift:.3f} F{PROFILE.motion.z_speed * 60:.0f}" in after
+
+
+def program_time(moves: list[str]) -> float:
+    """The zigzag's time at 10 mm/s from its geometry: every move starts and ends at rest (the lift
+    before is a lone Z move, and each corner is a near-reversal, where the junction speed is ~0), so
+    each takes its length over the speed plus v/a (accelerating to v and back); the lift's 0.3 mm
+    is too short to reach 10 mm/s: 2·sqrt(d/a)."""
+    v, a = 10.0, PROFILE.motion.acceleration
+    total, x, y = 2 * math.sqrt(0.3 / a), 0.0, 0.0
+    for move in moves:
+        words = {w[0]: float(w[1:]) for w in move.split()[1:]}
+        total += math.hypot(words["X"] - x, words["Y"] - y) / v + v / a
+        x, y = words["X"], words["Y"]
+    return total
+
+
 def test_swagger_ui_is_served_from_the_package(api: httpx.Client) -> None:
     page = api.get("/docs")
     assert page.status_code == 200
