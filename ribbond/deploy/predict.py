@@ -9,11 +9,13 @@ The reference mesh is the flat surface itself when it has at most ``1.25 × targ
 else a uniform triangulation of the flat domain with about ``target_faces`` faces
 (``ribbond.design.remesh.remesh_flat``); the target positions reach its vertices through barycentric
 coordinates of the flat mesh (the flat map is piecewise linear), so a 160k-face design costs what a
-6k-face one does.
+3k-face one does.
 
-Two starts are solved, and the lower-energy equilibrium is kept: the target itself (through the
-shared vertices) and the flat sheet, shrunk by the mean rest contraction, with a small bump toward
-+z (1 % of its diagonal) that breaks the flat sheet's symmetry.
+Two starts are solved on a coarse uniform copy of the flat domain (``coarse_faces``, 600), and the
+lower-energy equilibrium is kept: the target itself (through the shared vertices) and the flat sheet,
+shrunk by the mean rest contraction, with a small bump toward +z (1 % of its diagonal) that breaks the
+flat sheet's symmetry. The winner, interpolated onto the reference mesh, starts the final solve there
+(coarse to fine: the flat start needs many iterations, which cost little on 600 faces).
 
 Material (``Material``): fabric and plastic moduli and thicknesses give, per face, the membrane
 stiffness D_s = Y_f h_f + φ Y_p τ and the bending stiffness D_b = (Y_f h_f³ + φ Y_p τ³)/12, φ the
