@@ -89,8 +89,10 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         "preview.svg/.png)",
         f"surface     {d.source.file}: {r.faces} faces, {p.size.bbox_diagonal:.1f} mm bounding-box "
         f"diagonal; flat layout {w:.1f} × {h:.1f} mm",
-        f"k1 field    λ = {p.smoothing_lambda:g}; {100 * result.field.umbilic.mean():.1f} % of faces umbilic"
+        f"k1 field    {result.field.method}, λ = {p.smoothing_lambda:g}; {r.umbilic_pct or 0:.1f} % of faces "
+        f"umbilic (anisotropy ≤ 0.3); {len(result.field.singular_vertices)} singular vertices"
         + ("" if result.field.aligned else " (no curvature direction: arbitrary smooth field)"),
+        *_deviation_line("field vs k1", r.field_k1_deviation_deg),
         f"flattening  {r.iterations} iterations, "
         + ("converged" if r.converged else "NOT converged (iteration cap)")
         + f", {1000 * (r.time_per_iteration_s or 0):.1f} ms per iteration",
@@ -110,9 +112,15 @@ def summary(result: DesignResult, out_dir: Path) -> str:
             f"thickness   {tau.min():.2f}–{tau.max():.2f} mm from table {p.curvature_table!r}"
             + (f"; {rr.thickness_clamped} clamped to its range" if rr.thickness_clamped else ""),
             f"layout      direction deviation median {rr.direction_deviation_deg.median:.2f}°, "
-            f"p95 {rr.direction_deviation_deg.p95:.2f}°; spacing error median "
+            f"p95 {rr.direction_deviation_deg.p95:.2f}° (from the field); spacing error median "
             f"{rr.spacing_error_pct.median:.1f} %, p95 {rr.spacing_error_pct.p95:.1f} % (Eq. 10)",
+            *_deviation_line("ribbons vs k1", r.ribbon_k1_deviation_deg),
         ]
+        if rr.spacing_error_across_pct is not None and rr.spacing_error_along_pct is not None:
+            lines.append(f"spacing     across median {rr.spacing_error_across_pct.median:.1f} %, p95 "
+                         f"{rr.spacing_error_across_pct.p95:.1f} % (gap to the next centerline against the "
+                         f"harmonic mean of μ2); along median {rr.spacing_error_along_pct.median:.1f} %, p95 "
+                         f"{rr.spacing_error_along_pct.p95:.1f} %")
     pr = r.print_
     if pr is not None:
         for side, sp in (("front", pr.front), ("back", pr.back)):
@@ -127,6 +135,14 @@ def summary(result: DesignResult, out_dir: Path) -> str:
 
 #: Deviations from the bounds below this are the convergence tolerance, not a misfit of the surface.
 SLIGHT_DEVIATION = 0.005
+
+
+def _deviation_line(what: str, dev: Any) -> list[str]:
+    """The summary line of a deviation from the target's k1 (none in a format-1 report)."""
+    if dev is None:
+        return []
+    return [f"{what + ':':<12}median {dev.median:.2f}°, mean {dev.mean:.2f}°, p95 {dev.p95:.2f}° "
+            "(on faces where k1 is defined: anisotropy > 0.3)"]
 
 
 def verdict(bad1_pct: float, bad2_pct: float, max_dev: float) -> str:

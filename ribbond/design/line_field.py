@@ -189,7 +189,7 @@ def smoothing_length(smoothing_lambda: float) -> float:
 def face_clusters(V: np.ndarray, F: np.ndarray, frames: FaceFrames, clusters: int) -> sp.csr_matrix:
     """P (m, k): faces grouped into about ``clusters`` patches of equal area, a line field on a patch
     carried to its faces (z_f = e^{2iα_f} z_c, α_f the angle of the patch's reference tangent in
-    face f's frame). The coarse space of ``two_level_cg``.
+    face f's frame). The coarse space of ``linalg.TwoLevelSolver``.
     """
     C = V[F].mean(axis=1)
     cell = np.sqrt(frames.area.sum() / max(clusters, 1))
@@ -221,7 +221,7 @@ def _solve_aligned(A: sp.csc_matrix, anisotropy: np.ndarray, q: np.ndarray, area
     is solved on the faces, by CG preconditioned with the same patches, from the coarse solution.
     """
     data_weight = rho * anisotropy ** 2 * area + _SHIFT * area
-    unit_weight = UNIT_WEIGHT * rho * (1.0 - anisotropy) ** 2 * area
+    unit_weight = UNIT_WEIGHT * rho * np.clip(1.0 - anisotropy / ANISOTROPY_THRESHOLD, 0.0, 1.0) ** 2 * area
     b = data_weight * q
     M1 = (A + sp.diags(data_weight)).tocsc()
     M2 = (A + sp.diags(data_weight + unit_weight)).tocsc()
@@ -236,11 +236,18 @@ def _solve_aligned(A: sp.csc_matrix, anisotropy: np.ndarray, q: np.ndarray, area
     fine = TwoLevelSolver(M2, P, rtol=1e-5, max_iterations=500)
     bc = PH @ b
     z_c = spla.splu((PH @ M1 @ P).tocsc()).solve(bc)
-    patch_unit_weight = PH @ (unit_weight * np.ones(len(F)))     # P has one unit entry per row
+    patch_unit_weight = abs(P).T @ unit_weight        # Pᴴ diag(w) P: P has one unit entry per row
     for _ in range(UNIT_ITERATIONS - 1):
         z_c = fine.coarse_solve(bc + patch_unit_weight * _unit(z_c))
-    z, converged = fine.solve(b + unit_weight * (P @ _unit(z_c)), x0=P @ z_c)
-    return z if converged else spla.spsolve(M2, b + unit_weight * (P @ _unit(z_c)))
+    # the last step twice on the faces: from the coarse field (constant over each patch), then
+    # from its own smooth result, so that no patch's edge is left in the field
+    z = P @ z_c
+    for rtol in (1e-3, 1e-5):
+        rhs = b + unit_weight * _unit(z)
+        z, converged = fine.solve(rhs, x0=z, rtol=rtol)
+        if not converged:
+            z = spla.spsolve(M2, rhs)
+    return z
 
 
 def _unit(z: np.ndarray) -> np.ndarray:
