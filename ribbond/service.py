@@ -261,6 +261,7 @@ class RibbonService:
         self._stopping = True
         run = self._run
         if run is None:
+            await self._heaters_off_if_on()
             return
         run.stop_reason = reason
         self._interrupt(run)
@@ -271,6 +272,19 @@ class RibbonService:
             with contextlib.suppress(Exception):
                 if self.link is not None:
                     self.link.emergency_stop()
+
+    async def _heaters_off_if_on(self) -> None:
+        """No job on the printer, but heaters the operator turned on (``heat``): off before leaving."""
+        link = self.link
+        if link is None or link.state is not LinkState.READY:
+            return
+        with contextlib.suppress(LinkError, asyncio.TimeoutError):
+            temps = await asyncio.wait_for(link.query_temperatures(), 10)
+            if any((h.target or 0) > 0 for h in temps.heaters):
+                log.info("heaters off before stopping")
+                async with self._manual:
+                    for command in ("M104 S0", "M140 S0"):
+                        await link.send(command, timeout=10)
 
     async def close(self) -> None:
         for proc in self._compiling.values():

@@ -180,6 +180,13 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
         assert broken["error"].startswith("printer: ") and "reset" in broken["error"], broken["error"]
         assert f"ribbonctl start {job}" in broken["next"]["commands"]
         assert len(broken["runs"]) == 2
+
+        # no job, heaters the operator turned on: off before the daemon exits
+        daemon.wait_printer()
+        assert api.post("/printer/heat", json={"nozzle": 80}).status_code == 200
+        assert replay(executed(sim))["nozzle"] == 80.0
+        daemon.stop()
+        assert replay(executed(sim))["nozzle"] == 0.0 and replay(executed(sim))["bed"] == 0.0
     finally:
         daemon.stop()
         sim.stop()
