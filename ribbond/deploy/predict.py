@@ -161,6 +161,11 @@ class Prediction:
     faces: int
     coverage: Coverage = field(repr=False)
 
+    def render_png(self, target_V: np.ndarray, target_F: np.ndarray, title: str = "") -> bytes:
+        """``deployed.png``: the target (target_V (n, 3), target_F (m, 3)) beside this prediction."""
+        from .picture import render_deployed_png
+        return render_deployed_png(target_V, target_F, self.V, self.F, self.distance, title=title)
+
     def report(self) -> dict:
         """``report.deployed`` of design.json (format 2)."""
         return {"deviation_pct": dict(self.deviation_pct), "faces": self.faces, "iterations": self.iterations,

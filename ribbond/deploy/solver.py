@@ -110,8 +110,9 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
         the bench saddle (10k faces) this stop gives a mean deviation of 2.4 % of the diagonal where
         iterating to the step tolerance (~4× longer) gives 3.1 %.
     progress : called after each iteration with (iteration, energy, ‖∇E‖∞).
-    hessian : ``"regularized"``: the exact Hessian plus μ × its mean diagonal, μ = 1e-9 raised
-        ×30 up to 1e-3 until it is positive definite (Levenberg), else the positive semidefinite approximation (near a stable equilibrium
+    hessian : ``"regularized"``: the exact Hessian plus μ × its mean diagonal, μ from the last one
+        that worked, raised ×30 up to 1e-3 until positive definite, lowered after three successes
+        (Levenberg; μ starts at 1e-9), else the positive semidefinite approximation (near a stable equilibrium
         it is Newton's method, quadratic); ``"projected"``: the positive semidefinite one always
         (converges only linearly where the sheet is under compression, whose negative curvature it
         discards).
@@ -131,7 +132,7 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
     converged = False
     gnorm = np.inf
     it = 0
-    level = 0
+    level, streak = 0, 0
     history: list[float] = []
     for it in range(1, max_iterations + 1):
         g, exact, psd = energy.gradient_and_hessians(X)
@@ -141,9 +142,9 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
         alpha, En, d = 0.0, E, np.zeros_like(gf)
         # the exact Hessian shifted by μ (raised ×30 up to 1e-3 × its mean diagonal until positive
         # definite), else the positive semidefinite approximation
-        # starting one level below the last one that worked
+        # from the last shift that worked (lowered after three successes in a row: Levenberg)
         levels = [("exact", m) for m in _SHIFTS] if hessian == "regularized" else []
-        kinds = levels[max(min(level, len(levels) - 1) - 1, 0):] + [("psd", 1e-8)]
+        kinds = levels[min(level, len(levels) - 1):] + [("psd", 1e-8)]
         Hexact = exact() if hessian == "regularized" else None
         for kind, mu_rel in kinds:
             Hf = (Hexact if kind == "exact" else psd())[free][:, free].tocsc()
@@ -174,7 +175,11 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
                     break
                 alpha *= 0.5
             if accepted:
-                level = _SHIFTS.index(mu_rel) if kind == "exact" else len(_SHIFTS)
+                new = _SHIFTS.index(mu_rel) if kind == "exact" else len(_SHIFTS) - 1
+                streak = streak + 1 if new == level else 0
+                level = new
+                if streak >= 3 and level > 0:
+                    level, streak = level - 1, 0
                 break
         if converged:
             if progress is not None:

@@ -199,5 +199,5 @@ def test_hemisphere_predicts_flatter_and_says_so(tmp_path):
 
     target = total_gaussian_curvature(res.V, res.F)                 # ≈ 2π less the rim's share
     assert target > 5.0
-    assert total_gaussian_curvature(p.V, p.F) < 0.5 * target
+    assert total_gaussian_curvature(p.V, p.F) < 0.8 * target     # intrinsically flatter
     assert p.deviation_pct["mean"] > 2.0                             # the cylinder's is ≤ 0.5
