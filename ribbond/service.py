@@ -238,6 +238,7 @@ class RibbonService:
         self._head: tuple[float, float, float] | None = None   # commanded position (exact)
         self._head_sender: object = None # the link's sender the position was commanded through
         self._stopping = False
+        self._background_tasks: set[asyncio.Future[Any]] = set()
 
     # ------------------------------------------------------------------ life cycle
 
@@ -273,6 +274,27 @@ class RibbonService:
                 if self.link is not None:
                     self.link.emergency_stop()
 
+    async def _break_heater_waits(self, run: _Run, link: PrinterLink) -> None:
+        """M109/M190 hold the firmware's queue until hot, and the lines in flight may hold more
+        than one: M108 ends each wait (the emergency parser acts on it at arrival, ahead of the
+        queue), again until the stream has ended."""
+        while not run.done.is_set() and link.state in (LinkState.STREAMING, LinkState.PAUSED) \
+                and run.stream is not None:
+            await link.send("M108", timeout=30)
+            await asyncio.sleep(0.3)
+
+    def _background(self, coroutine: Any, what: str) -> None:
+        """Run ``coroutine`` without waiting for it; its failure is logged."""
+        task = asyncio.ensure_future(coroutine)
+
+        def done(t: asyncio.Future[Any]) -> None:
+            if not t.cancelled() and t.exception() is not None:
+                log.warning("%s: %s", what, t.exception())
+
+        task.add_done_callback(done)
+        self._background_tasks.add(task)
+        task.add_done_callback(self._background_tasks.discard)
+
     async def _heaters_off_if_on(self) -> None:
         """No job on the printer, but heaters the operator turned on (``heat``): off before leaving."""
         link = self.link
@@ -297,10 +319,14 @@ class RibbonService:
                 await task
 
     def _interrupt(self, run: _Run) -> None:
-        """Make the print task leave what it waits on (the stream, the flip, the marks)."""
-        if self.link is not None and self.link.state in (LinkState.STREAMING, LinkState.PAUSED):
+        """Make the print task leave what it waits on (the stream, a heater wait, the flip, the marks)."""
+        link = self.link
+        if link is not None and link.state in (LinkState.STREAMING, LinkState.PAUSED):
+            with contextlib.suppress(NotFound):
+                if self.job(run.job_id).state is JobState.HEATING and link.capabilities.emergency_parser:
+                    self._background(self._break_heater_waits(run, link), "M108")
             with contextlib.suppress(LinkError):
-                self.link.cancel()
+                link.cancel()
         run.flip.set()
         run.aligned.set()
         if run.heaters is not None:

@@ -192,6 +192,44 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
         sim.stop()
 
 
+def test_a_stop_while_heating_ends_the_heater_wait(tmp_path: Path) -> None:
+    """SIGTERM while the firmware waits for the bed (M190 holds its queue, M109 is in flight
+    behind it): M108 ends the waits, so the safe stop runs at once, without the emergency stop."""
+    sim = Sim()
+    daemon = Daemon(tmp_path / "state", sim.port)
+    try:
+        daemon.start()
+        daemon.wait_printer()
+        api = daemon.client
+        assert api is not None
+        x0, y0, _, _ = PROFILE.frame.bounds
+        program = tmp_path / "hot.gcode"
+        program.write_text(f"G28\nM140 S100\nM104 S200\nM190 S100\nM109 S200\nG90\nG0 Z5 F600\n"
+                           f"G0 X{x0 + 5} Y{y0 + 5} F3000\nG1 X{x0 + 25} Y{y0 + 5} E1 F900\nM104 S0\nM140 S0\n")
+        with program.open("rb") as f:
+            job = api.post("/jobs", files={"gcode": ("hot.gcode", f)}, data={"start": "true"}).json()["id"]
+        wait_for(api, job, "heating", timeout=30, poll=0.02)
+        wait_until("the bed wait running", lambda: "M190 S100" in executed(sim), poll=0.01)
+        assert daemon.proc is not None
+        daemon.proc.send_signal(signal.SIGTERM)
+        assert daemon.proc.wait(40) == 0
+        daemon.proc = None
+        commands = executed(sim)
+        after = commands[commands.index("M190 S100"):]
+        assert "M108" in after and "M112" not in commands
+        # M108 goes on while lines in flight still hold waits: one reaches M109's too
+        assert any(c == "M108" for c in after[after.index("M109 S200"):]), after
+        assert replay(commands)["nozzle"] == 0.0 and replay(commands)["bed"] == 0.0
+        assert f"G0 Z{PROFILE.park_lift:.3f} F{PROFILE.motion.z_speed * 60:.0f}" in commands
+        daemon.start()
+        assert daemon.client is not None
+        record = daemon.client.get(f"/jobs/{job}").json()
+        assert record["state"] == "interrupted" and "SIGTERM" in record["error"]
+    finally:
+        daemon.stop()
+        sim.stop()
+
+
 def test_a_job_started_while_the_printer_is_away_waits_for_it(tmp_path: Path, meshes: dict[str, Path]) -> None:
     """No printer: a started job stays ready, queued, saying it waits for the printer (it does not
     fail); deleting it removes its files; the state directory keeps nothing of it. A compile the
