@@ -48,7 +48,7 @@ def child(mesh: Path) -> int:
     from ribbond.design.pipeline import design_mesh
 
     t = time.perf_counter()
-    result = design_mesh(mesh, DesignParameters(), SolverSettings())
+    result = design_mesh(mesh, DesignParameters(), SolverSettings(), predict=False)
     wall = time.perf_counter() - t
     rep = result.design.report
     out = {

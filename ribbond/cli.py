@@ -52,7 +52,7 @@ class TerminalProgress:
     def stage_started(self, stage: str, description: str) -> None:
         if self.quiet:
             return
-        if stage == "flatten" and self.stream.isatty():
+        if stage in ("flatten", "deploy") and self.stream.isatty():
             from tqdm import tqdm
 
             self._bar = tqdm(desc=f"{stage:<9} iterations", unit="it", file=self.stream,
@@ -61,8 +61,9 @@ class TerminalProgress:
     def iteration(self, stage: str, iteration: int, change: float, energy: float) -> None:
         if self._bar is not None:
             self._bar.update(1)
-            if iteration % 10 == 0:
-                self._bar.set_postfix_str(f"mean Δσ {change:.1e}, energy {energy:.3g}", refresh=False)
+            if iteration % 10 == 0 or stage == "deploy":
+                what = "|∇E|" if stage == "deploy" else "mean Δσ"
+                self._bar.set_postfix_str(f"{what} {change:.1e}, energy {energy:.3g}", refresh=False)
 
     def close(self) -> None:
         """Take the live counter off the screen (also when a stage fails)."""
@@ -121,6 +122,12 @@ def summary(result: DesignResult, out_dir: Path) -> str:
                          f"{rr.spacing_error_across_pct.p95:.1f} % (gap to the next centerline against the "
                          f"harmonic mean of μ2); along median {rr.spacing_error_along_pct.median:.1f} %, p95 "
                          f"{rr.spacing_error_along_pct.p95:.1f} %")
+    if r.deployed is not None:
+        dv = r.deployed
+        lines.append(f"deployed    predicted deviation from the target: mean {dv.deviation_pct.mean:.2f} %, p99 "
+                     f"{dv.deviation_pct.p99:.2f} %, max {dv.deviation_pct.max:.2f} % of the bounding-box "
+                     f"diagonal ({dv.faces} faces, {dv.iterations} Newton iterations, {dv.start} start won, "
+                     f"{dv.time_s:.1f} s); {out_dir}/deployed.png")
     pr = r.print_
     if pr is not None:
         for side, sp in (("front", pr.front), ("back", pr.back)):
@@ -141,7 +148,7 @@ def _deviation_line(what: str, dev: Any) -> list[str]:
     """The summary line of a deviation from the target's k1 (none in a format-1 report)."""
     if dev is None:
         return []
-    return [f"{what + ':':<12}median {dev.median:.2f}°, mean {dev.mean:.2f}°, p95 {dev.p95:.2f}° "
+    return [f"{what + ':':<15}median {dev.median:.2f}°, mean {dev.mean:.2f}°, p95 {dev.p95:.2f}° "
             "(on faces where k1 is defined: anisotropy > 0.3)"]
 
 
@@ -176,7 +183,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
     frame = load_profile(params.printer_profile).frame
     progress = TerminalProgress(quiet=args.quiet)
     try:
-        result = design_mesh(args.mesh, params, settings.solver, frame=frame, progress=progress)
+        result = design_mesh(args.mesh, params, settings.solver, frame=frame, progress=progress,
+                             predict=not args.no_predict)
         out = write_design(result, args.output, progress)
     finally:
         progress.close()
@@ -225,6 +233,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--params", type=Path, metavar="FILE",
                    help="TOML or JSON file of design parameters (and an optional [solver] table)")
     d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
+    d.add_argument("--no-predict", action="store_true",
+                   help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.set_defaults(func=_cmd_design)
     add_commands(sub)

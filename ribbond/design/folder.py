@@ -28,7 +28,8 @@ from ribbond.design.mesh_io import write_obj
 
 #: The files a design folder may hold (the format document's table).
 CORE_FILES = ("target.obj", "flat.obj", "design.json")
-OPTIONAL_FILES = ("front.gcode", "back.gcode", "combined.gcode", "preview.svg", "preview.png")
+OPTIONAL_FILES = ("front.gcode", "back.gcode", "combined.gcode", "preview.svg", "preview.png",
+                  "deployed.obj", "deployed.png")
 DESIGN_FILES = frozenset(CORE_FILES + OPTIONAL_FILES)
 
 _TMP = ".tmp-"

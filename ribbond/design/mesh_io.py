@@ -84,6 +84,22 @@ def read_mesh(path: str | Path, *, max_faces: int | None = None) -> tuple[np.nda
     return V, F
 
 
+def _obj_text(V: np.ndarray, F: np.ndarray, header: str | None) -> str:
+    head = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
+    # One C-level formatting call per block: no Python loop over rows.
+    return (head + ("v %.9g %.9g %.9g\n" * len(V)) % tuple(V.ravel().tolist())
+            + ("f %d %d %d\n" * len(F)) % tuple((F + 1).ravel().tolist()))
+
+
+def obj_bytes(V: np.ndarray, F: np.ndarray, *, header: str | None = None) -> bytes:
+    """An (n, 3) mesh with (m, 3) 0-based faces as the bytes of an OBJ file (as ``write_obj`` writes)."""
+    V = np.asarray(V, dtype=float)
+    F = np.asarray(F, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
+        raise ValueError(f"obj_bytes: V must be (n, 3) and F (m, 3), got {V.shape} and {F.shape}")
+    return _obj_text(V, F, header).encode()
+
+
 def write_obj(path: str | Path, V: np.ndarray, F: np.ndarray, *, header: str | None = None) -> None:
     """Write a triangle mesh as OBJ, atomically (temporary file in the same folder, then rename).
 
@@ -121,11 +137,7 @@ def write_obj(path: str | Path, V: np.ndarray, F: np.ndarray, *, header: str | N
     fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as out:
-            if header:
-                out.write("".join(f"# {line}\n" for line in header.splitlines()))
-            # One C-level formatting call per block: no Python loop over rows.
-            out.write(("v %.9g %.9g %.9g\n" * len(V)) % tuple(V.ravel().tolist()))
-            out.write(("f %d %d %d\n" * len(F)) % tuple((F + 1).ravel().tolist()))
+            out.write(_obj_text(V, F, header))
             out.flush()
             os.fsync(out.fileno())
         try:

@@ -3,8 +3,8 @@
 Stages: ``load`` (read, clean, validate, scale), ``curvature`` (principal curvatures and the k1
 line field), ``flatten`` (the bounded directional flattening, placed in the printer frame),
 ``stripes`` (spacing by Eq. 10 and the two stripe patterns), ``ribbons`` (the staggered ribbons,
-their sides and thicknesses, the registration marks), ``gcode`` (the print programs), ``preview``
-and ``write`` (the design folder). The arrays stay in the functions of the stage modules; this module only wires them
+their sides and thicknesses, the registration marks), ``gcode`` (the print programs), ``deploy``
+(the predicted deployed shape, ``ribbond.deploy``), ``preview`` and ``write`` (the design folder). The arrays stay in the functions of the stage modules; this module only wires them
 together, times them and reports progress.
 """
 
@@ -18,16 +18,18 @@ from typing import Protocol
 import numpy as np
 import shapely
 
+from ..deploy.predict import Prediction, predict_deployed
 from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
 from ..gcode.program import GcodeError, Programs, make_programs
 from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
-from .format import (Deviation, Design, Faces, Parameters, PrintReport, Quantiles, Report, Ribbon,
+from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, Report, Ribbon,
                      RibbonsReport, SidePrintReport, Source)
 from .frames import face_frames
 from .intake import TargetMesh, load_target
+from .mesh_io import obj_bytes
 from .line_field import ANISOTROPY_THRESHOLD, LineField, curvature_line_field, field_k1_deviation
 from .params import DesignParameters, SolverSettings, check_smoothing
 from .placement import fit_scale, place_in_frame, registration_marks
@@ -84,6 +86,7 @@ class DesignResult:
     design : the ``design.json`` content.
     programs : the G-code programs (front, back, combined) and their plans.
     preview_svg, preview_png : the layout preview.
+    prediction : the predicted deployed shape (None when not asked for); deployed_png : its picture.
     """
 
     target: TargetMesh
@@ -102,6 +105,8 @@ class DesignResult:
     programs: Programs
     preview_svg: bytes
     preview_png: bytes
+    prediction: Prediction | None = None
+    deployed_png: bytes | None = None
 
 
 def _bbox_diagonal(V: np.ndarray) -> float:
@@ -110,7 +115,7 @@ def _bbox_diagonal(V: np.ndarray) -> float:
 
 def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = None,
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
-                progress: DesignProgress | None = None) -> DesignResult:
+                progress: DesignProgress | None = None, predict: bool = True) -> DesignResult:
     """Run the engine on a mesh file: load, curvature and line field, flattening, placement.
 
     Parameters
@@ -119,6 +124,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     parameters : the design parameters (``size`` None: the largest that fits the frame).
     solver : the solver settings.
     frame : the printable rectangle; default: that of ``parameters.printer_profile``.
+    predict : predict the deployed shape of the layout (stage ``deploy``, ``ribbond.deploy``).
 
     Raises
     ------
@@ -272,9 +278,25 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                             f"{fs.extrusion_mm + bs.extrusion_mm:.0f} mm printed")
     report["print"] = PrintReport(front=SidePrintReport(**fs.report()), back=SidePrintReport(**bs.report()))
 
+    # -- deploy: the predicted deployed shape --------------------------------------------------------
+    prediction = None
+    if predict:
+        progress.stage_started("deploy", "predicting the deployed shape (shell equilibrium, Newton)")
+        t = time.perf_counter()
+        prediction = _predict(uv, V, F, ribbons, params, table, progress)
+        timings["deploy"] = time.perf_counter() - t
+        dev = prediction.deviation_pct
+        progress.stage_finished("deploy", timings["deploy"],
+                                f"deviation from the target mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, "
+                                f"max {dev['max']:.2f} % of the diagonal; {prediction.faces} faces, "
+                                f"{prediction.iterations} Newton iterations, from the {prediction.start}")
+        report["deployed"] = DeployedReport(**prediction.report())
+
     # -- preview ----------------------------------------------------------------------------------
     progress.stage_started("preview", "rendering the layout preview")
     t = time.perf_counter()
+    deployed_png = (prediction.render_png(V, F, title=f"{target.name}: predicted deployed shape")
+                    if prediction is not None else None)
     svg, png = render_preview(
         uv, F, flat.sigma[:, 1], ribbons, params.ribbon_width, marks=marks, frame_bounds=frame.bounds,
         sigma2_bounds=parameters.bounds[1],
@@ -289,7 +311,17 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     return DesignResult(target=target, V=V, F=F, flat_uv=uv, curvature=curvature, field=field,
                         flattening=flat, kappa1=kappa1, ribbon_direction=direction, stripes=stripes,
                         layout=layout, frame=frame, design=design, programs=programs,
-                        preview_svg=svg, preview_png=png)
+                        preview_svg=svg, preview_png=png, prediction=prediction, deployed_png=deployed_png)
+
+
+def _predict(uv: np.ndarray, V: np.ndarray, F: np.ndarray, ribbons: list[Ribbon], params: DesignParameters,
+             table: CurvatureTable, progress: DesignProgress) -> Prediction:
+    try:
+        return predict_deployed(uv, V, F, ribbons, prestretch=params.prestretch,
+                                ribbon_width=params.ribbon_width, table=table,
+                                progress=lambda i, energy, grad: progress.iteration("deploy", i, grad, energy))
+    except ValueError as exc:
+        raise DesignError(f"the deployed shape cannot be predicted: {exc}") from None
 
 
 def _programs(design: Design, profile: PrinterProfile) -> Programs:
@@ -309,10 +341,21 @@ def _ribbons(layout: RibbonLayout, table: CurvatureTable) -> tuple[list[Ribbon],
     return ribbons, thick.clamped_count
 
 
+def _deployed_files(result: DesignResult) -> dict[str, bytes]:
+    """``deployed.obj`` and ``deployed.png`` when the design has a prediction."""
+    if result.prediction is None or result.deployed_png is None:
+        return {}
+    header = (f"ribbond design: predicted deployed surface, mm, registered to target.obj "
+              f"({result.prediction.faces} faces, its own mesh)")
+    return {"deployed.obj": obj_bytes(result.prediction.V, result.prediction.F, header=header),
+            "deployed.png": result.deployed_png}
+
+
 def write_design(result: DesignResult, out_dir: str | Path,
                  progress: DesignProgress | None = None) -> Path:
     """Write the design folder (``target.obj``, ``flat.obj``, ``design.json``, ``front.gcode``,
-    ``back.gcode``, ``combined.gcode``, ``preview.svg``, ``preview.png``) atomically."""
+    ``back.gcode``, ``combined.gcode``, ``preview.svg``, ``preview.png`` and, with a prediction,
+    ``deployed.obj`` and ``deployed.png``) atomically."""
     progress = progress or NoProgress()
     progress.stage_started("write", f"writing {out_dir}")
     t = time.perf_counter()
@@ -322,6 +365,7 @@ def write_design(result: DesignResult, out_dir: str | Path,
                                             "preview.png": result.preview_png,
                                             "front.gcode": result.programs.front.text.encode(),
                                             "back.gcode": result.programs.back.text.encode(),
-                                            "combined.gcode": result.programs.combined.text.encode()})
+                                            "combined.gcode": result.programs.combined.text.encode(),
+                                            **_deployed_files(result)})
     progress.stage_finished("write", time.perf_counter() - t, str(path))
     return path

@@ -20,7 +20,7 @@ import pytest
 
 from ribbond.design import surfaces
 from ribbond.design.folder import read_design_folder
-from ribbond.design.mesh_io import write_obj
+from ribbond.design.mesh_io import read_mesh, write_obj
 from ribbond.gcode.profiles import load_profile
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -37,11 +37,13 @@ CYL_RADIUS, CYL_ANGLE, CYL_HEIGHT = 40.0, 120.0, 60.0
 # helpers
 
 
-def run_design(mesh: Path, out: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    """``python -m ribbond.cli design MESH -o OUT ARGS`` with captured text output."""
+def run_design(mesh: Path, out: Path, *args: str, predict: bool = False) -> subprocess.CompletedProcess[str]:
+    """``python -m ribbond.cli design MESH -o OUT ARGS`` with captured text output (without the
+    prediction of the deployed shape unless ``predict``: the cylinder's shared run has it)."""
     return subprocess.run(
-        [sys.executable, "-m", "ribbond.cli", "design", str(mesh), "-o", str(out), *args],
-        cwd=ROOT, capture_output=True, text=True, timeout=120)
+        [sys.executable, "-m", "ribbond.cli", "design", str(mesh), "-o", str(out), *args,
+         *(() if predict else ("--no-predict",))],
+        cwd=ROOT, capture_output=True, text=True, timeout=180)
 
 
 def design_json(out: Path) -> dict[str, Any]:
@@ -123,15 +125,16 @@ def cylinder(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     mesh = tmp / "cylinder.obj"
     write_obj(mesh, V, F)
     out = tmp / "design"
-    proc = run_design(mesh, out)
+    proc = run_design(mesh, out, predict=True)
     return {"mesh": mesh, "V": V, "F": F, "out": out, "proc": proc}
 
 
 def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     proc, out, F = cylinder["proc"], cylinder["out"], cylinder["F"]
     assert proc.returncode == 0, proc.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["back.gcode", "combined.gcode", "design.json", "flat.obj",
-                                                     "front.gcode", "preview.png", "preview.svg", "target.obj"]
+    assert sorted(p.name for p in out.iterdir()) == ["back.gcode", "combined.gcode", "deployed.obj", "deployed.png",
+                                                     "design.json", "flat.obj", "front.gcode", "preview.png",
+                                                     "preview.svg", "target.obj"]
     folder = read_design_folder(out)
     assert len(folder.target_F) == len(F)
     assert np.array_equal(folder.target_F, F)          # a clean mesh keeps its faces and order
@@ -149,6 +152,24 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     for name in ("sigma1", "sigma2", "ribbon_direction", "kappa1"):
         assert len(d["faces"][name]) == len(F), name
     assert d["report"]["faces"] == len(F)
+    # format 2: the field's and the ribbons' deviation from k1, and the prediction
+    assert set(d["report"]["field_k1_deviation_deg"]) == {"median", "mean", "p95"}
+    assert d["report"]["umbilic_pct"] == 0.0                    # a cylinder: anisotropy 1 everywhere
+    deployed = d["report"]["deployed"]
+    assert set(deployed) == {"deviation_pct", "faces", "iterations", "time_s", "start"}
+    assert set(deployed["deviation_pct"]) == {"mean", "p99", "max"}
+    assert "deployed    predicted deviation from the target" in proc.stdout
+    Vd, Fd = read_mesh(out / "deployed.obj")
+    assert len(Fd) == deployed["faces"] and Vd.shape[1] == 3
+
+
+def test_no_predict_skips_the_prediction(cylinder: dict[str, Any], tmp_path: Path) -> None:
+    out = tmp_path / "design"
+    proc = run_design(cylinder["mesh"], out)             # --no-predict
+    assert proc.returncode == 0, proc.stderr
+    assert not (out / "deployed.obj").exists() and not (out / "deployed.png").exists()
+    assert "deployed" not in design_json(out)["report"]
+    assert "deploy " not in proc.stderr
 
 
 def test_cylinder_default_size_is_the_largest_that_fits(cylinder: dict[str, Any]) -> None:

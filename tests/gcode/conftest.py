@@ -46,7 +46,7 @@ def build_saddle_design(tmp: Path) -> SaddleDesign:
     V, F = saddle(80.0, 1 / 50, 1 / 50, rings=24)
     mesh = tmp / "saddle.obj"
     write_obj(mesh, V, F)
-    result = design_mesh(mesh)
+    result = design_mesh(mesh, predict=False)
     folder = write_design(result, tmp / "design")
     texts = {name: (folder / f"{name}.gcode").read_text(encoding="utf-8") for name in PROGRAMS}
     return SaddleDesign(result=result, folder=folder, profile=load_profile(PROFILE), texts=texts,

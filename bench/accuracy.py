@@ -1,0 +1,133 @@
+"""How closely the line field and the ribbons follow the exact curvature lines (issue 11's goals).
+
+Not a timing: the figures come from geometry. For each generator surface at several resolutions
+the k1 line field (aligned, and the previous engine's KCPS13 at λ = 0) is compared with the exact
+principal direction of largest |κ| at the face centroids, on faces whose exact anisotropy
+(|κ1| − |κ2|) / (|κ1| + |κ2|) exceeds 0.3: median, mean and p95 in degrees, and the singular
+vertices of each field. Then whole designs of the torus patch and the saddles: the ribbon
+centerlines carried back onto the target (length-weighted) against the exact k1, and the report's
+spacing errors (across: gap to the next centerline against the harmonic mean of μ2 over it).
+
+    python bench/accuracy.py [--quick]
+
+Goals: field median ≤ 1°, p95 ≤ 5° (≤ 3° median on the bump, with its large umbilic regions); no
+more singular vertices than the KCPS13 field plus a few; ribbons ≤ 2° median, ≤ 8° p95, across
+spacing ≤ 5 % median.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from ribbond.design import surfaces as S  # noqa: E402
+from ribbond.design.curvature import face_curvature  # noqa: E402
+from ribbond.design.frames import face_frames  # noqa: E402
+from ribbond.design.line_field import curvature_line_field  # noqa: E402
+from tests.design.geometry import line_deviation_deg, ribbon_segments_on_target, weighted_quantile  # noqa: E402
+
+Exact = Callable[[np.ndarray], S.ExactCurvature]
+
+
+def field_cases(quick: bool) -> list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]:
+    sym = lambda P: S.saddle_curvature(P[:, :2], 1 / 60, 1 / 60)      # noqa: E731
+    skew = lambda P: S.saddle_curvature(P[:, :2], 1 / 40, 1 / 100)    # noqa: E731
+    torus = lambda P: S.torus_curvature(P, 50.0, 20.0)                # noqa: E731
+    blend = lambda P: S.blend_curvature(P[:, :2])                     # noqa: E731
+    bump = lambda P: S.bump_curvature(P[:, :2])                       # noqa: E731
+    scales = (1, 2) if quick else (1, 2, 4)
+    out = []
+    for k in scales:
+        out += [
+            (f"saddle z=(x²−y²)/120, {16 * k} rings", S.saddle(150.0, 1 / 60, 1 / 60, rings=16 * k), sym),
+            (f"saddle κ 1/40, 1/100, {24 * k} rings", S.saddle(80.0, 1 / 40, 1 / 100, rings=24 * k), skew),
+            (f"torus patch 60°×60°, {60 * k}×{30 * k}", S.torus_patch(50, 20, (0, 60), (-30, 30), 60 * k, 30 * k), torus),
+            (f"torus patch 90°×90°, {60 * k}×{30 * k}", S.torus_patch(50, 20, (0, 90), (-45, 45), 60 * k, 30 * k), torus),
+            (f"cylinder r 40, {40 * k}×{20 * k}", S.cylinder_patch(40, 120, 60, 40 * k, 20 * k),
+             lambda P: S.cylinder_curvature(P, 40.0)),
+            (f"cap + cylinder, {40 * k}×{30 * k}", S.cap_cylinder_blend(n_x=40 * k, n_y=30 * k), blend),
+            (f"bump on a plane, {24 * k} rings", S.bump_on_plane(rings=24 * k), bump),
+        ]
+    return out
+
+
+def field_table(quick: bool) -> None:
+    print(f"{'surface':<34} {'faces':>6} {'aniso %':>7} | {'aligned: median':>15} {'mean':>5} {'p95':>5} "
+          f"{'sing':>4} | {'KCPS13 λ=0: median':>18} {'mean':>5} {'p95':>5} {'sing':>4}")
+    for name, (V, F), exact in field_cases(quick):
+        fr = face_frames(V, F)
+        c = face_curvature(V, F, fr)
+        E = exact(V[F].mean(axis=1))
+        mask = E.anisotropy > 0.3
+        row = f"{name:<34} {len(F):>6} {100 * mask.mean():>7.1f}"
+        for method in ("aligned", "kcps13"):
+            lf = curvature_line_field(V, F, fr, c, method=method)
+            n = fr.n
+            d1 = E.direction1 - np.einsum("ij,ij->i", E.direction1, n)[:, None] * n
+            d1 /= np.linalg.norm(d1, axis=1, keepdims=True)
+            dev = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", lf.direction, d1)), 0, 1)))[mask]
+            row += (f" | {np.median(dev):>15.2f} {dev.mean():>5.2f} {np.percentile(dev, 95):>5.2f} "
+                    f"{len(lf.singular_vertices):>4}")
+        print(row, flush=True)
+
+
+def ribbon_table() -> None:
+    from ribbond.design.folder import read_design_folder
+    from ribbond.design.mesh_io import write_obj
+    from ribbond.design.params import DesignParameters
+    from ribbond.design.pipeline import design_mesh, write_design
+
+    cases = [
+        ("torus patch 60°×60°", S.torus_patch(50, 20, (0, 60), (-30, 30), 60, 30), lambda P: S.torus_curvature(P, 50, 20)),
+        ("torus patch 90°×90°", S.torus_patch(50, 20, (0, 90), (-45, 45), 90, 45), lambda P: S.torus_curvature(P, 50, 20)),
+        ("saddle z=(x²−y²)/120", S.saddle(150.0, 1 / 60, 1 / 60, rings=30),
+         lambda P: S.saddle_curvature(P[:, :2], 1 / 60, 1 / 60)),
+        ("saddle κ 1/40, 1/100", S.saddle(80.0, 1 / 40, 1 / 100, rings=24),
+         lambda P: S.saddle_curvature(P[:, :2], 1 / 40, 1 / 100)),
+        ("saddle κ 1/30, 1/60", S.saddle(100.0, 1 / 30, 1 / 60, rings=24),
+         lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
+    ]
+    print(f"\n{'design (size: the frame)':<26} {'ribbons':>7} {'front':>5} | {'vs exact k1: median':>19} {'p95':>5} | "
+          f"{'report: median':>14} {'p95':>5} | {'across median':>13} {'p95':>5} | {'along median':>12} {'p95':>5}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, (V, F), exact in cases:
+            d = Path(tmp) / f"design{len(list(Path(tmp).iterdir()))}"
+            d.mkdir()
+            write_obj(d / "m.obj", V, F)
+            result = design_mesh(d / "m.obj", DesignParameters(), predict=False)
+            folder = read_design_folder(write_design(result, d / "design"))
+            Vt = folder.target_V
+            c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
+            P, D, L = ribbon_segments_on_target(folder)
+            E = exact((P - Vt.mean(axis=0)) / c + V.mean(axis=0))
+            m = E.anisotropy > 0.3
+            dev, w = line_deviation_deg(D, E)[m], L[m]
+            rep = folder.design.report
+            rr = rep.ribbons
+            front = sum(r.side == "front" for r in folder.design.ribbons)
+            print(f"{name:<26} {len(folder.design.ribbons):>7} {front:>5} | {weighted_quantile(dev, w, .5):>19.2f} "
+                  f"{weighted_quantile(dev, w, .95):>5.2f} | {rep.ribbon_k1_deviation_deg.median:>14.2f} "
+                  f"{rep.ribbon_k1_deviation_deg.p95:>5.2f} | {rr.spacing_error_across_pct.median:>12.1f}% "
+                  f"{rr.spacing_error_across_pct.p95:>4.1f}% | {rr.spacing_error_along_pct.median:>11.1f}% "
+                  f"{rr.spacing_error_along_pct.p95:>4.1f}%", flush=True)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="two resolutions instead of three")
+    args = ap.parse_args()
+    field_table(args.quick)
+    ribbon_table()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
