@@ -2,7 +2,8 @@
 map (as the paper's Fig. 9), with a colour bar in % of the target's bounding-box diagonal.
 
 Matplotlib's object API on the Agg canvas (no pyplot, no global figure state), as ``preview.py``.
-Both views share one camera and one scale; the prediction is drawn registered onto the target.
+Both views share one camera and one scale, in the target's principal frame (seen from above its
+smallest extent); the prediction is drawn registered onto the target.
 """
 
 from __future__ import annotations
@@ -73,6 +74,14 @@ def render_deployed_png(target_V: np.ndarray, target_F: np.ndarray, V: np.ndarra
     if distance.shape != (len(V),):
         raise ValueError(f"distance must have one value per predicted vertex ({len(V)}), got {distance.shape}")
     diag = float(diagonal if diagonal is not None else np.linalg.norm(target_V.max(0) - target_V.min(0)))
+    # both in the target's principal frame (largest extent along x, smallest along z), so the
+    # camera sees the surface from above whatever its placement
+    centre = target_V.mean(axis=0)
+    _, _, Vt = np.linalg.svd(target_V - centre, full_matrices=False)
+    if np.linalg.det(Vt) < 0:
+        Vt[2] *= -1
+    target_V = (target_V - centre) @ Vt.T
+    V = (V - centre) @ Vt.T
     pct = 100.0 * distance / diag
     vmax = max(float(np.percentile(pct, 99)), 0.5)
     norm = Normalize(vmin=0.0, vmax=vmax)

@@ -21,7 +21,9 @@ flattening's intended σ:
   ¼, ½, ¼ (a cell holds a row of each staggered grid); each line may stray sideways by a third of
   μ2 (a curved ribbon), never onto the next row;
 - f_p is the coverage across, over ± μ2 with triangular weights, of the union of the ribbons met
-  within half a cell (± μ1/2) along d: staggered rows each cover w_r of every μ2 (Eq. 10's model).
+  within half a cell (± μ1/2) along d: staggered rows each cover w_r of every μ2 (Eq. 10's model);
+- f_d and f_p are then smoothed over the nearest faces (Gaussian, σ = μ2/2): the measuring lines
+  jump from one row to the next between neighbouring faces.
 
 The windows' lengths come from the nearest ribbon's μ1, μ2 (``Ribbon.spacing``); only the window, not
 the measured fraction. The measured μ2 = w_r / f_p enters the table.
@@ -282,6 +284,9 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     ins = image.sample(image.inside, across)
     f_p = (cov * wc).sum(axis=1) / np.maximum((ins * wc).sum(axis=1), 1e-12)
     f_d, f_p = np.clip(f_d, 0.0, 1.0), np.clip(f_p, 0.0, 1.0)
+    # the measuring lines jump from row to row between faces: smooth over the nearest faces
+    # (Gaussian, σ = μ2 / 2), the scale below which the pattern is not a material
+    f_d, f_p = _smooth(centroid, 0.5 * float(np.median(mu[:, 1])), f_d, f_p)
 
     # thickness, side and the table's curvature at the measured μ2
     mu2 = np.where(f_p > 1e-9, ribbon_width / np.maximum(f_p, 1e-9), np.inf)
@@ -298,6 +303,15 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     mu2[bare] = np.inf
     return Coverage(direction=d, f_along=f_d, f_across=f_p, kappa=kappa, thickness=tau_mean, mu2=mu2,
                     bare=bare)
+
+
+def _smooth(points: np.ndarray, sigma: float, *fields: np.ndarray, k: int = 24) -> list[np.ndarray]:
+    """Gaussian averages (σ) of per-point ``fields`` over each point's k nearest points."""
+    k = min(k, len(points))
+    dist, idx = cKDTree(points).query(points, k=k, workers=-1)
+    w = np.exp(-0.5 * (dist / sigma) ** 2)
+    w /= w.sum(axis=1, keepdims=True)
+    return [(w * f[idx]).sum(axis=1) for f in fields]
 
 
 def _outline(uv: np.ndarray, F: np.ndarray) -> shapely.Geometry:

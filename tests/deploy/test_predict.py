@@ -107,20 +107,9 @@ def _design(tmp_path, name, V, F, size):
 
 
 def test_designed_cylinder_deploys_onto_its_target(tmp_path):
-    """The issue's figure is a mean deviation ≤ 0.5 %. Away from the two straight edges where the
-    ribbons end (one ribbon length l_r from them) it holds; over the whole surface the layout's
-    row ends (alternate rows stop a whole gap short of the outline, so the last centimetre of
-    fabric there is barer and curls) bring the mean to ~0.54 %: the layout, not the model (the
-    rolled rectangle above matches the table and Eq. 10)."""
     V, F = surfaces.cylinder_patch()
     res, p = _design(tmp_path, "cylinder", V, F, 100.0)
-    d = res.ribbon_direction[0]                                  # the ribbons run one way
-    along = p.uv @ d
-    lr = res.design.parameters.ribbon_length
-    core = (along > along.min() + lr) & (along < along.max() - lr)
-    pct = 100 * p.distance / np.linalg.norm(res.V.max(0) - res.V.min(0))
-    assert pct[core].mean() <= 0.5
-    assert p.deviation_pct["mean"] <= 1.0
+    assert p.deviation_pct["mean"] <= 0.5
     assert p.deviation_pct["p99"] <= p.deviation_pct["max"]
     assert p.converged
 
