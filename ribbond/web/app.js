@@ -1,0 +1,588 @@
+// The dashboard: the printer, the jobs, a job's page with the flip and the alignment steps.
+// Live over /events; the printer's temperatures are read every 2 s (GET /printer).
+import * as api from "./api.js";
+import { drawChart } from "./chart.js";
+import { layoutSVG, flipSVG } from "./draw.js";
+
+const $ = (id) => document.getElementById(id);
+const esc = (s) => String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
+const ENDED = new Set(["done", "cancelled", "failed", "interrupted"]);
+const STREAMS = new Set(["heating", "printing_front", "printing_back"]);
+const STAGES = ["load", "curvature", "flatten", "stripes", "ribbons", "gcode", "deploy", "preview", "write"];
+const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", heating: "heating",
+  printing_front: "printing front", awaiting_flip: "flip the frame", aligning: "aligning",
+  printing_back: "printing back", paused: "paused", done: "done", cancelled: "cancelled", failed: "failed",
+  interrupted: "interrupted" };
+
+const state = {
+  printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [],
+  designs: new Map(), files: new Map(), align: new Map(), alignMark: new Map(), compileInfo: new Map(),
+};
+
+// ------------------------------------------------------------------ small helpers
+
+let toastTimer = 0;
+function toast(message, kind = "info") {
+  const t = $("toast");
+  t.textContent = message;
+  t.className = `toast ${kind}`;
+  t.hidden = false;
+  clearTimeout(toastTimer);
+  toastTimer = setTimeout(() => { t.hidden = true; }, kind === "error" ? 9000 : 4000);
+}
+
+async function act(what, fn) {
+  try { return await fn(); } catch (e) { toast(`${what}: ${e.message}`, "error"); throw e; }
+}
+
+const quiet = (p) => p.catch(() => {});
+
+function duration(s) {
+  if (s === null || s === undefined || !isFinite(s)) return "–";
+  s = Math.max(0, Math.round(s));
+  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), sec = s % 60;
+  return h ? `${h} h ${m} min` : m ? `${m} min ${sec} s` : `${sec} s`;
+}
+const when = (t) => (t ? new Date(t * 1000).toLocaleString([], { month: "short", day: "numeric", hour: "2-digit", minute: "2-digit" }) : "–");
+const mm = (v, d = 1) => (v === null || v === undefined ? "–" : `${Number(v).toFixed(d)}`);
+const commandsOf = (job) => (job.next?.commands || []).map((c) => c.split(" ")[1]);
+
+// ------------------------------------------------------------------ access
+
+let loginResolve = null;
+api.whenUnauthorized(() => askToken());
+function askToken(message) {
+  const dlg = $("login");
+  $("login-error").hidden = !message;
+  $("login-error").textContent = message || "";
+  if (!dlg.open) dlg.showModal();
+  $("login-token").focus();
+  return new Promise((resolve) => { loginResolve = resolve; });
+}
+$("login-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  api.setToken($("login-token").value.trim());
+  try {
+    await api.get("/printer");
+  } catch (err) {
+    api.setToken(null);
+    $("login-error").hidden = false;
+    $("login-error").textContent = err.status === 401 ? "That token was refused." : err.message;
+    return;
+  }
+  $("login").close();
+  $("login-token").value = "";
+  if (loginResolve) { loginResolve(); loginResolve = null; }
+  restartEvents();
+  refreshAll();
+});
+
+// ------------------------------------------------------------------ the printer
+
+function heater(h) {
+  if (!h) return "–";
+  const tgt = h.target ? ` / ${h.target.toFixed(0)}` : "";
+  return `${h.current.toFixed(0)}${tgt} °C`;
+}
+
+function renderPrinter() {
+  const p = state.printer;
+  const s = p ? p.state : "unknown";
+  const conn = $("conn");
+  conn.textContent = s;
+  conn.className = `pill ${s}`;
+  $("p-state").textContent = s;
+  $("p-firmware").textContent = p?.firmware || "–";
+  const pos = p?.head || p?.position;
+  $("p-position").textContent = pos ? `x ${mm(pos[0], 2)}  y ${mm(pos[1], 2)}  z ${mm(pos[2], 2)} mm` : "–";
+  $("t-nozzle").textContent = heater(p?.heaters?.T);
+  $("t-bed").textContent = heater(p?.heaters?.B);
+  $("p-note").textContent = p?.note || p?.last_error || "";
+  const halted = s === "halted";
+  $("halted").hidden = !halted;
+  if (halted) $("halted-text").textContent = `The printer is halted${p.last_error ? ` (${p.last_error})` : ""}. Check the machine, then recover.`;
+  // manual control: not while a program streams
+  const streaming = [...state.jobs.values()].find((j) => STREAMS.has(j.state));
+  const live = s === "ready" || s === "paused";
+  const manual = live && !streaming;
+  for (const el of document.querySelectorAll("#manual button, #manual input, #heat, #cool")) el.disabled = !manual;
+  $("manual-note").textContent = manual ? "" : streaming ? `A program is streaming (${streaming.mesh_name}): pause it to move the head.`
+    : `The printer is ${s}.`;
+  for (const el of document.querySelectorAll(".jogpad .pos")) el.textContent = $("p-position").textContent;
+  drawChart($("chart"), state.temps);
+}
+
+async function pollPrinter() {
+  try {
+    state.printer = await api.get("/printer");
+    const h = state.printer.heaters || {};
+    if (h.T || h.B) {
+      state.temps.push({ t: Date.now() / 1000, T: h.T?.current, Tt: h.T?.target, B: h.B?.current, Bt: h.B?.target });
+      const cut = Date.now() / 1000 - 600;
+      while (state.temps.length && state.temps[0].t < cut) state.temps.shift();
+    }
+  } catch (e) {
+    if (e.status !== 401) state.printer = { state: "unreachable", note: e.message };
+  }
+  renderPrinter();
+}
+
+$("estop").addEventListener("click", async () => {
+  try {
+    state.printer = await api.post("/printer/emergency-stop");
+    toast("Emergency stop sent: the printer is halted.", "error");
+  } catch (e) { toast(`Emergency stop: ${e.message}`, "error"); }
+  renderPrinter();
+});
+$("recover").addEventListener("click", () => act("Recover", async () => {
+  state.printer = await api.post("/printer/recover");
+  toast("The printer restarted.");
+  renderPrinter();
+}));
+$("heat").addEventListener("click", () => act("Heat", async () => { state.printer = await api.post("/printer/heat", {}); renderPrinter(); }));
+$("cool").addEventListener("click", () => act("Cool", async () => { state.printer = await api.post("/printer/cool"); renderPrinter(); }));
+$("home-axes").addEventListener("click", () => act("Home", async () => { await api.post("/printer/home"); await pollPrinter(); }));
+
+// ------------------------------------------------------------------ the jog pad
+
+function jogPad(container) {
+  container.innerHTML = `
+    <div class="steps" role="radiogroup" aria-label="step">
+      ${[0.1, 1, 10].map((s, i) => `<label data-step="${s}"><input type="radio" name="${container.id}-step" value="${s}" ${i === 1 ? "checked" : ""}>${s} mm</label>`).join("")}
+    </div>
+    <div class="pad">
+      <button data-jog="y+" class="up" aria-label="y plus">Y+</button>
+      <button data-jog="x-" class="left" aria-label="x minus">X−</button>
+      <button data-jog="x+" class="right" aria-label="x plus">X+</button>
+      <button data-jog="y-" class="down" aria-label="y minus">Y−</button>
+      <button data-jog="z+" class="zup" aria-label="z up">Z↑</button>
+      <button data-jog="z-" class="zdown" aria-label="z down">Z↓</button>
+    </div>
+    <p class="pos muted"></p>`;
+  container.dataset.pending = "0";
+  let chain = Promise.resolve();
+  container.addEventListener("click", (e) => {
+    const b = e.target.closest("button[data-jog]");
+    if (!b) return;
+    const step = Number(container.querySelector("input[type=radio]:checked").value);
+    const [axis, sign] = [b.dataset.jog[0], b.dataset.jog[1] === "+" ? 1 : -1];
+    const body = { dx: 0, dy: 0, dz: 0 };
+    body[`d${axis}`] = sign * step;
+    container.dataset.pending = String(Number(container.dataset.pending) + 1);
+    chain = chain.then(async () => {
+      try {
+        const r = await api.post("/printer/jog", body);
+        if (state.printer && r.position) state.printer.head = r.position;
+        renderPrinter();
+      } catch (err) { toast(`Jog: ${err.message}`, "error"); }
+      finally { container.dataset.pending = String(Number(container.dataset.pending) - 1); }
+    });
+  });
+}
+jogPad($("manual-jog"));
+jogPad($("align-jog"));
+
+// ------------------------------------------------------------------ the console
+
+$("console-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const line = $("console-in").value.trim();
+  if (!line) return;
+  const out = $("console-out");
+  const add = (text, cls) => { const d = document.createElement("div"); d.className = cls; d.textContent = text; out.append(d); out.scrollTop = out.scrollHeight; };
+  add(`> ${line}`, "sent");
+  $("console-in").value = "";
+  try {
+    const r = await api.post("/printer/gcode", { commands: [line] });
+    for (const a of r.answers) for (const l of a.answer) add(l, "answer");
+  } catch (err) { add(err.message, "error"); }
+});
+
+// ------------------------------------------------------------------ the job list
+
+const FILTERS = {
+  all: () => true,
+  active: (j) => !ENDED.has(j.state),
+  done: (j) => j.state === "done",
+  failed: (j) => ["failed", "cancelled", "interrupted"].includes(j.state),
+};
+for (const b of document.querySelectorAll("[data-filter]")) {
+  b.addEventListener("click", () => {
+    state.filter = b.dataset.filter;
+    for (const o of document.querySelectorAll("[data-filter]")) o.classList.toggle("on", o === b);
+    renderJobs();
+  });
+}
+
+function sizeOf(j) {
+  if (j.kind === "gcode") return "G-code";
+  const d = j.parameters?.size?.bbox_diagonal;
+  return d ? `${Number(d).toFixed(0)} mm` : "fits frame";
+}
+
+function percent(j) { return `${Math.round((j.progress || 0) * 100)} %`; }
+
+function renderJobs() {
+  const jobs = [...state.jobs.values()].filter(FILTERS[state.filter]).sort((a, b) => b.created - a.created);
+  if (!jobs.length) { $("job-list").innerHTML = `<p class="muted">No jobs${state.filter === "all" ? " yet" : " here"}.</p>`; return; }
+  $("job-list").innerHTML = `<table class="jobs"><thead><tr><th>Name</th><th>State</th><th>Size</th><th>Created</th><th>Finished</th><th>Duration</th></tr></thead><tbody>${
+    jobs.map((j) => {
+      const ended = ENDED.has(j.state);
+      const dur = ended ? j.updated - j.created : (j.elapsed_s ?? null);
+      const st = STREAMS.has(j.state) || j.state === "compiling" ? `${LABEL[j.state]} ${percent(j)}` : LABEL[j.state];
+      return `<tr data-job="${esc(j.id)}" class="${j.waits_for_operator ? "waits" : ""}">
+        <td><a href="#/job/${esc(j.id)}">${esc(j.mesh_name)}</a></td>
+        <td><span class="state ${esc(j.state)}">${esc(st)}</span></td><td>${esc(sizeOf(j))}</td>
+        <td>${when(j.created)}</td><td>${ended ? when(j.updated) : "–"}</td><td>${duration(dur)}</td></tr>`;
+    }).join("")}</tbody></table>`;
+  const waiting = [...state.jobs.values()].find((j) => ["awaiting_flip", "aligning"].includes(j.state) && j.waits_for_operator);
+  const banner = $("needs-you");
+  const here = state.route.page === "job" && waiting && state.route.id === waiting.id;
+  banner.hidden = !waiting || here;
+  if (waiting && !here) {
+    banner.href = `#/job/${waiting.id}`;
+    banner.textContent = `${waiting.mesh_name}: ${waiting.state === "awaiting_flip" ? "turn the frame over" : "align the marks"} →`;
+  }
+}
+
+async function loadJobs() {
+  const list = await api.get("/jobs?limit=200");
+  state.jobs = new Map(list.map((j) => [j.id, j]));
+  renderJobs();
+  renderJobPage();
+}
+
+// ------------------------------------------------------------------ submitting
+
+let chosen = null;
+function choose(file) {
+  chosen = file;
+  $("drop-text").textContent = file ? `${file.name} (${(file.size / 1024).toFixed(0)} kB)` : "Choose a file";
+  const gcode = file && /\.(gcode|gco|g|nc)$/i.test(file.name);
+  $("design-params").hidden = !!gcode;
+  $("submit-btn").textContent = gcode ? "Upload G-code" : "Upload mesh";
+}
+$("file").addEventListener("change", () => choose($("file").files[0] || null));
+const drop = $("drop");
+drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
+drop.addEventListener("dragleave", () => drop.classList.remove("over"));
+drop.addEventListener("drop", (e) => { e.preventDefault(); drop.classList.remove("over"); if (e.dataTransfer.files[0]) choose(e.dataTransfer.files[0]); });
+
+$("submit-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const err = $("submit-error");
+  err.hidden = true;
+  if (!chosen) { err.textContent = "Choose a file first."; err.hidden = false; return; }
+  const gcode = /\.(gcode|gco|g|nc)$/i.test(chosen.name);
+  const form = new FormData();
+  form.append(gcode ? "gcode" : "mesh", chosen, chosen.name);
+  if (!gcode) {
+    const params = {};
+    const num = (id) => { const v = $(id).value.trim(); return v === "" ? null : Number(v); };
+    if (num("size") !== null) params.size = { bbox_diagonal: num("size") };
+    if ($("table").value.trim() && $("table").value.trim() !== "tpu95a-lycra-default") params.curvature_table = $("table").value.trim();
+    if (num("ribbon_width") !== null) params.ribbon_width = num("ribbon_width");
+    if (num("prestretch") !== null) params.prestretch = num("prestretch");
+    form.append("parameters", JSON.stringify(params));
+  }
+  form.append("start", $("start-now").checked ? "true" : "false");
+  const bar = $("upload-progress");
+  bar.hidden = false; bar.value = 0;
+  $("submit-btn").disabled = true;
+  try {
+    const job = await api.upload("/jobs", form, (f) => { bar.value = f; });
+    state.jobs.set(job.id, job);
+    renderJobs();
+    location.hash = `#/job/${job.id}`;
+    $("file").value = ""; choose(null);
+  } catch (x) {
+    err.textContent = x.status === 413 || x.status === 422 || x.status === 409 ? `Refused: ${x.message}` : x.message;
+    err.hidden = false;
+  } finally {
+    bar.hidden = true;
+    $("submit-btn").disabled = false;
+  }
+});
+
+// ------------------------------------------------------------------ a job's page
+
+function axisFrom(instruction) {
+  const m = /the line x = (-?[\d.]+)/.exec(instruction || "");
+  return m ? Number(m[1]) : null;
+}
+
+async function loadDesign(job) {
+  if (job.kind !== "design" || !job.design_dir || state.designs.has(job.id)) return;
+  state.designs.set(job.id, null);
+  const design = await api.fileJSON(job.id, "design.json");
+  if (!design) { state.designs.delete(job.id); return; }
+  state.designs.set(job.id, design);
+  const [preview, deployed] = await Promise.all([api.fileURL(job.id, "preview.png"), api.fileURL(job.id, "deployed.png")]);
+  state.files.set(job.id, { preview, deployed });
+  renderJobPage();
+}
+
+function summary(design) {
+  const r = design.report || {}, p = design.parameters || {}, pr = r.print || {};
+  const rows = [];
+  const add = (k, v) => rows.push(`<dt>${esc(k)}</dt><dd>${esc(v)}</dd>`);
+  add("Faces", r.faces ?? design.faces?.length ?? "–");
+  add("Size", p.size?.bbox_diagonal ? `${Number(p.size.bbox_diagonal).toFixed(1)} mm diagonal` : "–");
+  const b = (x) => (x ? `${Number(x[0]).toFixed(2)} – ${Number(x[1]).toFixed(2)}` : "–");
+  add("σ1 bounds", `${b(p.sigma1_bounds)} (${mm(r.sigma1_bad_pct, 1)} % of faces outside)`);
+  add("σ2 bounds", `${b(p.sigma2_bounds)} (${mm(r.sigma2_bad_pct, 1)} % of faces outside)`);
+  add("Ribbons", `${r.ribbons?.front ?? "–"} front, ${r.ribbons?.back ?? "–"} back`);
+  for (const side of ["front", "back"]) {
+    const s = pr[side];
+    if (s && s.lines) add(`Print ${side}`, `${duration(s.time_s)}, ${mm(s.filament_mm / 1000, 2)} m filament`);
+  }
+  const dev = r.deployed?.deviation_pct;
+  if (dev) add("Deployed shape", `deviation ${mm(dev.mean, 1)} % mean, ${mm(dev.p99, 1)} % p99, ${mm(dev.max, 1)} % max`);
+  add("Printer profile", p.printer_profile || "–");
+  add("Curvature table", p.curvature_table || "–");
+  return rows.join("");
+}
+
+function progressText(j) {
+  const parts = [];
+  if (j.state === "compiling") {
+    parts.push(`compiling: ${j.stage || "…"}`);
+    const it = state.compileInfo.get(j.id);
+    if (it && it.iteration !== undefined) parts.push(`iteration ${it.iteration}`);
+  } else {
+    if (j.print_side && j.kind === "design") parts.push(`${j.print_side} side`);
+    parts.push(percent(j));
+    if (j.ribbon && j.ribbons) parts.push(`ribbon ${j.ribbon} of ${j.ribbons}`);
+    if (j.eta_s !== null && j.eta_s !== undefined && !ENDED.has(j.state)) parts.push(`${duration(j.eta_s)} left`);
+    if (j.elapsed_s) parts.push(`${duration(j.elapsed_s)} elapsed`);
+  }
+  return parts.join(" · ");
+}
+
+const ACTIONS = {
+  start: (j) => (ENDED.has(j.state) ? "Print again" : ["submitted", "compiling"].includes(j.state) ? "Print when compiled" : "Print"),
+  pause: () => "Pause", resume: () => "Resume", cancel: () => "Cancel", delete: () => "Delete",
+};
+
+function renderActions(j) {
+  const box = $("j-actions");
+  const cmds = commandsOf(j).filter((c) => ACTIONS[c] && !(c === "start" && j.start_when_ready && !ENDED.has(j.state)));
+  const key = `${j.id}:${cmds.join(",")}:${j.state}`;
+  if (box.dataset.key === key) return;
+  box.dataset.key = key;
+  box.innerHTML = cmds.map((c) => `<button data-action="${c}" class="${c === "cancel" || c === "delete" ? "warn" : c === "start" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("");
+}
+$("j-actions").addEventListener("click", async (e) => {
+  const b = e.target.closest("button[data-action]");
+  if (!b) return;
+  const id = state.route.id, c = b.dataset.action;
+  if (c === "delete" && !confirm("Delete this job and its files?")) return;
+  if (c === "cancel" && !confirm("Cancel this job? The heaters go off and the head lifts.")) return;
+  b.disabled = true;
+  try {
+    if (c === "delete") {
+      await api.call("DELETE", `/jobs/${id}`);
+      state.jobs.delete(id);
+      location.hash = "#/";
+    } else {
+      const j = await api.post(`/jobs/${id}/${c}`);
+      state.jobs.set(j.id, { ...state.jobs.get(j.id), ...j });
+      renderJobPage();
+    }
+  } catch (err) { toast(`${b.textContent}: ${err.message}`, "error"); }
+  finally { b.disabled = false; }
+});
+
+function alignResultHTML(res) {
+  if (!res) return "";
+  if (res.refused) {
+    return `<div class="result refused"><h3>Alignment refused</h3><p>${esc(res.detail)}</p>
+      <p>The ${esc(res.refused)} is ${mm(res.value, 3)}; the limit is ${mm(res.limit, 3)}${res.refused === "rotation" ? "°" : " mm"}.
+      Re-seat the frame on its pins, then press “Frame is flipped” to measure the marks again.</p></div>`;
+  }
+  if (res.fit) {
+    const f = res.fit;
+    return `<div class="result accepted"><h3>Alignment accepted</h3><dl class="facts">
+      <dt>Rotation</dt><dd>${mm(f.rotation_deg, 3)}°</dd>
+      <dt>Offset</dt><dd>x ${mm(f.offset[0], 3)}, y ${mm(f.offset[1], 3)} mm</dd>
+      <dt>Residual</dt><dd>${mm(f.max_residual_mm, 3)} mm max, ${mm(f.rms_mm, 3)} mm rms</dd></dl>
+      <p>The back side is printed with this correction.</p></div>`;
+  }
+  return "";
+}
+
+function renderJobPage() {
+  const home = state.route.page !== "job";
+  $("home").hidden = !home;
+  $("jobpage").hidden = home;
+  renderJobs();
+  if (home) return;
+  const j = state.jobs.get(state.route.id);
+  if (!j) { $("j-title").textContent = "No such job"; return; }
+  loadDesign(j);
+  $("j-title").textContent = j.mesh_name;
+  $("j-state").textContent = LABEL[j.state];
+  $("j-state").className = `state ${j.state}`;
+  $("j-stage").textContent = j.stage && j.state !== "compiling" ? j.stage : "";
+  $("j-next").textContent = j.next?.instruction ? j.next.instruction.replace(/ribbonctl [\w-]+ \S+/g, (m) => m) : "";
+  $("j-error").hidden = !j.error;
+  $("j-error").textContent = j.error || "";
+  const showProgress = !["submitted", "ready"].includes(j.state) || j.progress > 0;
+  $("j-progress").hidden = !showProgress;
+  $("j-bar").value = j.progress || 0;
+  $("j-progress-text").textContent = progressText(j);
+  const stages = $("j-stages");
+  stages.hidden = j.state !== "compiling";
+  if (j.state === "compiling") {
+    const at = STAGES.indexOf(j.stage);
+    stages.innerHTML = STAGES.map((s, i) => `<li class="${i < at ? "done" : i === at ? "now" : ""}">${s}</li>`).join("");
+  }
+  renderActions(j);
+
+  const design = state.designs.get(j.id);
+  const axis = axisFrom(j.next?.instruction) ?? axisFrom(state.lastFlipText);
+  if (j.state === "awaiting_flip") state.lastFlipText = j.next.instruction;
+  // the flip step
+  $("flip").hidden = j.state !== "awaiting_flip";
+  if (j.state === "awaiting_flip") {
+    $("flip-text").textContent = j.next.instruction.replace(/, then run: ribbonctl flip-done \S+/, ", then press “Frame is flipped”.");
+    const key = `${j.id}:${design ? 1 : 0}:${axis}`;
+    if ($("flip-picture").dataset.key !== key) {
+      $("flip-picture").dataset.key = key;
+      $("flip-picture").innerHTML = design ? flipSVG(design, axis) : "";
+    }
+    const res = state.align.get(j.id);
+    $("flip-picture").insertAdjacentHTML("beforeend", "");
+    let r = $("flip").querySelector(".result");
+    if (r) r.remove();
+    if (res && res.refused) $("flip-text").insertAdjacentHTML("afterend", alignResultHTML(res));
+  }
+  // the alignment step
+  $("align").hidden = j.state !== "aligning" && !(state.align.get(j.id)?.fit && j.state === "printing_back");
+  if (!$("align").hidden) {
+    const m = /^mark (\d+) of (\d+)/.exec(j.next?.instruction || "");
+    const k = m ? Number(m[1]) : state.alignMark.get(j.id)?.mark;
+    const n = m ? Number(m[2]) : state.alignMark.get(j.id)?.marks;
+    const ready = j.state === "aligning" && j.waits_for_operator && k;
+    $("align-text").textContent = j.state !== "aligning" ? "" : ready
+      ? `The head is above mark ${k} of ${n}. Jog the nozzle onto the mark, then press “Nozzle is on the mark”.`
+      : `The head is on its way above mark ${k || 1}…`;
+    $("align-text").dataset.mark = ready ? String(k) : "";
+    $("align-here").disabled = !ready;
+    $("align-here").hidden = j.state !== "aligning";
+    $("align-jog").hidden = j.state !== "aligning";
+    $("align-result").innerHTML = alignResultHTML(state.align.get(j.id));
+  }
+  // pictures and the summary
+  const files = state.files.get(j.id);
+  $("j-pictures").hidden = j.kind !== "design";
+  const highlight = j.state === "aligning" ? (/^mark (\d+)/.exec(j.next?.instruction || "") || [])[1] : undefined;
+  const lkey = `${j.id}:${design ? 1 : 0}:${highlight}:${j.state === "aligning"}`;
+  if ($("j-layout").dataset.key !== lkey) {
+    $("j-layout").dataset.key = lkey;
+    $("j-layout").innerHTML = design ? (j.state === "aligning" ? flipSVG(design, axis, Number(highlight)) : layoutSVG(design)) : "";
+  }
+  $("fig-preview").hidden = !files?.preview;
+  if (files?.preview && $("img-preview").src !== files.preview) $("img-preview").src = files.preview;
+  $("fig-deployed").hidden = !files?.deployed;
+  if (files?.deployed && $("img-deployed").src !== files.deployed) $("img-deployed").src = files.deployed;
+  const dev = design?.report?.deployed?.deviation_pct;
+  $("cap-deployed").textContent = dev ? `Predicted deployed shape: ${mm(dev.mean, 1)} % mean deviation (max ${mm(dev.max, 1)} %)` : "Predicted deployed shape";
+  $("j-summary-card").hidden = !design;
+  if (design) $("j-summary").innerHTML = summary(design);
+}
+
+$("flip-done").addEventListener("click", async () => {
+  const id = state.route.id;
+  $("flip-done").disabled = true;
+  try {
+    state.align.delete(id);
+    const j = await api.post(`/jobs/${id}/flip-done`);
+    state.jobs.set(j.id, j);
+    renderJobPage();
+  } catch (e) { toast(`Frame is flipped: ${e.message}`, "error"); }
+  finally { $("flip-done").disabled = false; }
+});
+
+$("align-here").addEventListener("click", async () => {
+  const id = state.route.id;
+  const pad = $("align-jog");
+  // the jogs queued on the pad reach the printer first
+  while (pad.dataset.pending !== "0") await new Promise((r) => setTimeout(r, 50));
+  $("align-here").disabled = true;
+  try {
+    const res = await api.post(`/jobs/${id}/align`, { here: true });
+    if (res.fit) state.align.set(id, res);
+    else toast(`Mark ${res.mark} measured (off by ${mm(res.offset[0], 2)}, ${mm(res.offset[1], 2)} mm).`);
+  } catch (e) {
+    if (e.data && e.data.refused) state.align.set(id, { ...e.data });
+    else toast(`Nozzle is on the mark: ${e.message}`, "error");
+  }
+  renderJobPage();
+});
+
+// ------------------------------------------------------------------ live events
+
+function onEvent(type, ev) {
+  if (type === "job" && ev.job) {
+    state.jobs.set(ev.job.id, ev.job);
+    if (ev.progress_event) state.compileInfo.set(ev.job.id, ev.progress_event);
+  } else if (type === "progress" && state.jobs.has(ev.job_id)) {
+    const j = state.jobs.get(ev.job_id);
+    const { type: _t, job_id: _id, side, line, lines, ...info } = ev;
+    state.jobs.set(ev.job_id, { ...j, ...info, last_acked_line: line, lines_total: lines, print_side: info.print_side ?? side });
+  } else if (type === "deleted") {
+    state.jobs.delete(ev.job_id);
+  } else if (type === "alignment") {
+    state.alignMark.set(ev.job_id, ev);
+  } else if (type === "notice") {
+    toast(ev.message);
+  }
+  renderJobPage();
+}
+
+let events = null;
+function restartEvents() {
+  if (events) events.abort();
+  events = new AbortController();
+  const signal = events.signal;
+  (async () => {
+    while (!signal.aborted) {
+      try {
+        await api.events(onEvent, () => { $("live").textContent = "live"; $("live").className = "pill ready"; quiet(loadJobs()); }, signal);
+      } catch (e) {
+        if (signal.aborted) return;
+      }
+      $("live").textContent = "offline";
+      $("live").className = "pill quiet";
+      await new Promise((r) => setTimeout(r, 2000));
+    }
+  })();
+}
+
+// ------------------------------------------------------------------ routing and start
+
+function route() {
+  const m = /^#\/job\/(.+)$/.exec(location.hash);
+  state.route = m ? { page: "job", id: decodeURIComponent(m[1]) } : { page: "home" };
+  if (m && !state.jobs.has(state.route.id)) quiet(api.get(`/jobs/${state.route.id}`).then((j) => { state.jobs.set(j.id, j); renderJobPage(); }));
+  renderJobPage();
+  window.scrollTo(0, 0);
+}
+window.addEventListener("hashchange", route);
+
+function refreshAll() { quiet(loadJobs()); pollPrinter(); }
+
+async function main() {
+  try {
+    await api.get("/printer");
+  } catch (e) {
+    if (e.status === 401) await askToken(api.token() ? "The stored token was refused." : "");
+  }
+  route();
+  restartEvents();
+  refreshAll();
+  setInterval(pollPrinter, 2000);
+  setInterval(() => { for (const j of state.jobs.values()) if (!ENDED.has(j.state)) { renderJobs(); break; } }, 5000);
+}
+main();

@@ -1,0 +1,68 @@
+"""Fixtures of the dashboard's browser tests: headless Debian chromium driven by Playwright, against
+a real ribbond process and the simulator (the daemon tests' helpers, imported, not copied)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.daemon.conftest import ROOT, api, meshes, shared_daemon, shared_sim  # noqa: F401 (fixtures)
+
+CHROMIUM = os.environ.get("RIBBOND_CHROMIUM", "/usr/bin/chromium")
+#: Without these chromium tries to reach the network (updates, field trials) from an empty profile.
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--no-first-run"]
+SHOTS = ROOT / "out" / "dashboard"
+DESKTOP = {"width": 1280, "height": 900}
+PHONE = {"width": 390, "height": 844}
+
+
+@pytest.fixture(scope="session")
+def playwright() -> Iterator[Any]:
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"{CHROMIUM} is missing: `make test` installs Debian's chromium (apt-get install chromium)")
+    from playwright.sync_api import sync_playwright
+
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    with sync_playwright() as p:
+        yield p
+
+
+@pytest.fixture
+def browser_page(playwright: Any, tmp_path: Path) -> Iterator[Any]:
+    """``open(viewport)`` gives a page in a fresh chromium with an empty profile directory."""
+    contexts: list[Any] = []
+
+    def open_page(viewport: dict[str, int] = DESKTOP) -> Any:
+        profile = tmp_path / f"profile-{len(contexts)}"
+        profile.mkdir()
+        context = playwright.chromium.launch_persistent_context(
+            str(profile), executable_path=CHROMIUM, headless=True, args=ARGS, viewport=viewport,
+            device_scale_factor=1, accept_downloads=False)
+        context.set_default_timeout(30_000)
+        contexts.append(context)
+        page = context.pages[0] if context.pages else context.new_page()
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        return page
+
+    errors: list[str] = []
+    open_page.errors = errors  # type: ignore[attr-defined]
+    try:
+        yield open_page
+    finally:
+        for context in contexts:
+            context.close()
+        for profile in tmp_path.glob("profile-*"):
+            shutil.rmtree(profile, ignore_errors=True)
+
+
+def shot(page: Any, name: str, full_page: bool = True) -> Path:
+    """A screenshot of the page in out/dashboard/ (looked at by people: keep the page clear)."""
+    path = SHOTS / f"{name}.png"
+    page.screenshot(path=str(path), full_page=full_page)
+    return path
