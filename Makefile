@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: demo test bench install clean verify-unit
+.PHONY: demo test bench install clean verify-unit browser
 
 # (Re)install when the dependency list changes; the project itself is installed editable.
 $(STAMP): pyproject.toml
@@ -18,7 +18,7 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(PY) examples/demo.py
 
-test: $(STAMP) verify-unit
+test: $(STAMP) verify-unit browser
 	$(PY) -m pytest -q
 
 # systemd-analyze verify on a copy of the unit whose ExecStart points into the venv (verify checks
@@ -58,6 +58,21 @@ verify-unit: $(STAMP)
 	  else echo "verify-unit: FAILED, systemd-analyze verify exit status $$rc" >&2; exit 1; fi; \
 	fi; \
 	echo "verify-unit: $(UNIT) OK (systemd-analyze verify, ExecStart=$$exe)"
+
+# The dashboard's browser tests (tests/web) run Debian's chromium through Playwright (pip, the test
+# extra); `playwright install` is never run: browsers are not downloaded. Installed as root when missing.
+CHROMIUM ?= /usr/bin/chromium
+browser:
+	@if [ ! -x $(CHROMIUM) ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "browser: $(CHROMIUM) missing, installing chromium"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null || exit 1; \
+	  else \
+	    echo "browser: $(CHROMIUM) not found; install chromium (Debian/Ubuntu: sudo apt-get install chromium) or run as root" >&2; \
+	    exit 1; \
+	  fi; \
+	  test -x $(CHROMIUM) || { echo "browser: $(CHROMIUM) still missing after installing chromium" >&2; exit 1; }; \
+	fi
 
 bench: $(STAMP)
 	$(PY) bench/stream.py

@@ -349,6 +349,15 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         return StreamingResponse(stream(), media_type="text/event-stream",
                                  headers={"Cache-Control": "no-cache"})
 
+    # The dashboard (issue 14): the page at / and its files under /ui. Static files hold no data,
+    # so they need no token; the page asks for one when the API answers 401.
+    web = Path(__file__).parent / "web"
+    app.mount("/ui", StaticFiles(directory=web), name="ui")
+
+    @app.get("/", include_in_schema=False)
+    async def dashboard() -> FileResponse:
+        return FileResponse(web / "index.html", headers={"Cache-Control": "no-cache"})
+
     # the file may take the whole limit; its multipart framing and form fields get 64 kB more
     app.add_middleware(BodyLimit, limit=limit + 65536)
     return app
