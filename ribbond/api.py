@@ -33,7 +33,8 @@ from .store import JobRecord, Transition
 #: Files of a job that can be fetched.
 JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "design",
              "front.gcode": "design", "back.gcode": "design", "combined.gcode": "design",
-             "target.obj": "design", "flat.obj": "design", "back-corrected.gcode": "job",
+             "target.obj": "design", "flat.obj": "design", "deployed.obj": "design", "deployed.png": "design",
+             "back-corrected.gcode": "job",
              "program.gcode": "job"}
 _CHUNK = 1 << 20
 

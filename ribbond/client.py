@@ -321,11 +321,22 @@ def cmd_submit(args: argparse.Namespace) -> int:
         f"print       front ~{pr.get('front', {}).get('time_s', 0) / 60:.1f} min, back "
         f"~{pr.get('back', {}).get('time_s', 0) / 60:.1f} min",
         f"bounds      σ1 {r['sigma1_bad_pct']:.2f} %, σ2 {r['sigma2_bad_pct']:.2f} % of faces outside",
+        *_deployed_lines(r, c.url, job),
         f"preview     {job['design_dir']}/preview.png  ({c.url}/jobs/{job['id']}/files/preview.png)",
         f"next        {(job.get('next') or {}).get('instruction', '')}",
     ])
     _out(args, {"job": job, "report": r}, text)
     return 0
+
+
+def _deployed_lines(report: dict[str, Any], url: str, job: dict[str, Any]) -> list[str]:
+    """The predicted deployed shape's lines of the submit summary (none when it was not predicted)."""
+    d = report.get("deployed")
+    if not d:
+        return []
+    dev = d["deviation_pct"]
+    return [f"deployed    predicted deviation mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max "
+            f"{dev['max']:.2f} % of the diagonal ({d['start']} start); {url}/jobs/{job['id']}/files/deployed.png"]
 
 
 def cmd_print(args: argparse.Namespace) -> int:

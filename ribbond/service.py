@@ -58,7 +58,7 @@ MESH_SUFFIXES = (".obj", ".off", ".stl", ".ply")
 #: Extensions of plain G-code programs.
 GCODE_SUFFIXES = (".gcode", ".gco", ".g", ".nc")
 #: The compile's stages in order (``ribbond.design.pipeline``): a compile's progress.
-COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "preview", "write")
+COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "deploy", "preview", "write")
 #: How long a stop of the daemon waits for the safe stop before the emergency stop, seconds
 #: (systemd's TimeoutStopSec is 30).
 STOP_TIMEOUT_S = 20.0
