@@ -299,7 +299,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                     if prediction is not None else None)
     svg, png = render_preview(
         uv, F, flat.sigma[:, 1], ribbons, params.ribbon_width, marks=marks, frame_bounds=frame.bounds,
-        sigma2_bounds=parameters.bounds[1],
+        sigma2_bounds=parameters.bounds[1], flip_axis=frame.flip_axis,
         title=f"{target.name}: {len(ribbons)} ribbons ({front} front, {len(ribbons) - front} back), "
               f"size {size:.0f} mm")
     timings["preview"] = time.perf_counter() - t
