@@ -2,7 +2,7 @@
 // Live over /events; the printer's temperatures are read every 2 s (GET /printer).
 import * as api from "./api.js";
 import { drawChart } from "./chart.js";
-import { layoutSVG, flipSVG } from "./draw.js";
+import { layoutSVG, flipSVG, backSVG } from "./draw.js";
 
 const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
@@ -411,6 +411,25 @@ function alignResultHTML(res) {
   return "";
 }
 
+/** What to do next, in the page's words (the daemon's instruction names ribbonctl commands). */
+function nextText(j) {
+  const text = j.next?.instruction || "";
+  switch (j.state) {
+    case "submitted": case "compiling":
+      return j.start_when_ready ? "Compiling; it prints when compiled." : "Compiling; then press Print.";
+    case "ready":
+      return j.start_when_ready ? text.replace(/^queued/, "Queued") : "Ready to print: press Print.";
+    case "paused":
+      return "Paused, the head parked. Move it with Manual control if needed, then press Resume (it reheats first).";
+    case "awaiting_flip": return "The front is printed: turn the frame over (below).";
+    case "aligning": return "Align the back side on the registration marks (below).";
+    case "done": return "Done. Print it again, or delete it.";
+    case "cancelled": case "failed": case "interrupted":
+      return commandsOf(j).includes("start") ? "Print it again, or delete it." : "Nothing to print: submit the mesh again.";
+    default: return text;
+  }
+}
+
 function renderJobPage() {
   const home = state.route.page !== "job";
   $("home").hidden = !home;
@@ -424,7 +443,7 @@ function renderJobPage() {
   $("j-state").textContent = LABEL[j.state];
   $("j-state").className = `state ${j.state}`;
   $("j-stage").textContent = j.stage && j.state !== "compiling" ? j.stage : "";
-  $("j-next").textContent = j.next?.instruction ? j.next.instruction.replace(/ribbonctl [\w-]+ \S+/g, (m) => m) : "";
+  $("j-next").textContent = nextText(j);
   $("j-error").hidden = !j.error;
   $("j-error").textContent = j.error || "";
   const showProgress = !["submitted", "ready"].includes(j.state) || j.progress > 0;
@@ -445,7 +464,8 @@ function renderJobPage() {
   // the flip step
   $("flip").hidden = j.state !== "awaiting_flip";
   if (j.state === "awaiting_flip") {
-    $("flip-text").textContent = j.next.instruction.replace(/, then run: ribbonctl flip-done \S+/, ", then press “Frame is flipped”.");
+    const words = j.next.instruction.replace(/, then run: ribbonctl flip-done \S+/, ", then press “Frame is flipped”.");
+    $("flip-text").textContent = words.charAt(0).toUpperCase() + words.slice(1);
     const key = `${j.id}:${design ? 1 : 0}:${axis}`;
     if ($("flip-picture").dataset.key !== key) {
       $("flip-picture").dataset.key = key;
@@ -472,15 +492,20 @@ function renderJobPage() {
     $("align-here").hidden = j.state !== "aligning";
     $("align-jog").hidden = j.state !== "aligning";
     $("align-result").innerHTML = alignResultHTML(state.align.get(j.id));
+    const akey = `${j.id}:${design ? 1 : 0}:${ready ? k : 0}:${j.state}`;
+    if ($("align-picture").dataset.key !== akey) {
+      $("align-picture").dataset.key = akey;
+      $("align-picture").innerHTML = design && j.state === "aligning" ? backSVG(design, axis, ready ? k : undefined) : "";
+    }
   }
   // pictures and the summary
   const files = state.files.get(j.id);
-  $("j-pictures").hidden = j.kind !== "design";
+  $("j-pictures").hidden = j.kind !== "design" || !design;
   const highlight = j.state === "aligning" ? (/^mark (\d+)/.exec(j.next?.instruction || "") || [])[1] : undefined;
   const lkey = `${j.id}:${design ? 1 : 0}:${highlight}:${j.state === "aligning"}`;
   if ($("j-layout").dataset.key !== lkey) {
     $("j-layout").dataset.key = lkey;
-    $("j-layout").innerHTML = design ? (j.state === "aligning" ? flipSVG(design, axis, Number(highlight)) : layoutSVG(design)) : "";
+    $("j-layout").innerHTML = design ? layoutSVG(design) : "";
   }
   $("fig-preview").hidden = !files?.preview;
   if (files?.preview && $("img-preview").src !== files.preview) $("img-preview").src = files.preview;

@@ -15,7 +15,7 @@ const path = (pts, mirror) => pts.map(([x, y], i) => `${i ? "L" : "M"}${(mirror(
 
 /** One panel: ribbons of ``sides`` (others faint), marks numbered; ``mirror`` maps x (the flip). */
 function panel(design, { x0, y0, w, h, mirror, strong, faint, highlight, axis, title }) {
-  const g = [];
+  const g = [], fs = Math.max(w, h) / 16;
   g.push(`<rect class="fabric" x="${x0}" y="${-(y0 + h)}" width="${w}" height="${h}" rx="3"/>`);
   for (const r of design.ribbons || []) {
     const cls = strong.includes(r.side) ? `rib ${r.side}` : (faint.includes(r.side) ? `rib faint` : null);
@@ -23,13 +23,13 @@ function panel(design, { x0, y0, w, h, mirror, strong, faint, highlight, axis, t
   }
   (design.registration_marks || []).forEach(([x, y], i) => {
     const k = i + 1, cx = mirror(x), cy = -y, on = highlight === k;
-    g.push(`<g class="mark${on ? " current" : ""}" data-mark="${k}"><circle cx="${cx}" cy="${cy}" r="${on ? 5 : 3.5}"/>` +
-           `<text x="${cx + 6}" y="${cy - 5}">${k}</text></g>`);
+    g.push(`<g class="mark${on ? " current" : ""}" data-mark="${k}"><circle cx="${cx}" cy="${cy}" r="${(on ? 0.45 : 0.3) * fs}"/>` +
+           `<text x="${cx + fs * 0.45}" y="${cy - fs * 0.35}" font-size="${fs}">${k}</text></g>`);
   });
   if (axis !== undefined) {
     g.push(`<line class="axis" x1="${axis}" x2="${axis}" y1="${-(y0 + h) - 6}" y2="${-y0 + 6}"/>`);
   }
-  if (title) g.push(`<text class="title" x="${x0}" y="${-(y0 + h) - 10}">${title}</text>`);
+  if (title) g.push(`<text class="title" x="${x0 + w / 2}" y="${-y0 + fs * 1.6}" font-size="${fs * 0.9}" text-anchor="middle">${title}</text>`);
   return g.join("");
 }
 
@@ -59,8 +59,19 @@ export function flipSVG(design, axisX, highlight) {
   // the turn: an arrow over the axis, from one side to the other
   const arrow = `<path class="turn" d="M${ax - half * 0.5} ${top - 2} Q ${ax} ${top - 26} ${ax + half * 0.5} ${top - 2}" marker-end="url(#head)"/>` +
                 `<path class="turn" d="M${x0 + w + 6} ${mid} L ${x0 + w + gap - 6} ${mid}" marker-end="url(#head)"/>`;
-  return `<svg xmlns="${NS}" class="drawing flip" viewBox="${x0 - 4} ${top - 34} ${2 * w + gap + 12} ${h + 40}" role="img"
+  return `<svg xmlns="${NS}" class="drawing flip" viewBox="${x0 - 4} ${top - 30} ${2 * w + gap + 12} ${h + 30 + (Math.max(w, h) / 16) * 2.2}" role="img"
     aria-label="turn the frame over about the dashed line; after the flip the back ribbons are mirrored">
     <defs><marker id="head" viewBox="0 0 10 10" refX="8" refY="5" markerWidth="5" markerHeight="5" orient="auto-start-reverse">
     <path d="M0 0 L10 5 L0 10 z" class="arrowhead"/></marker></defs>${left}${right}${arrow}</svg>`;
+}
+
+/** After the flip, seen from above: the back ribbons (mirrored) and the marks, mark ``highlight`` filled. */
+export function backSVG(design, axisX, highlight) {
+  const [a, b, c, d] = bounds(design, axisX === null ? [] : [axisX]);
+  const ax = axisX === null ? (a + c) / 2 : axisX;
+  const half = Math.max(ax - a, c - ax) + 12;
+  const x0 = ax - half, w = 2 * half, y0 = b - 12, h = d - b + 24;
+  const body = panel(design, { x0, y0, w, h, mirror: (x) => 2 * ax - x, strong: ["back"], faint: [], highlight, axis: ax });
+  return `<svg xmlns="${NS}" class="drawing marks" viewBox="${x0 - 4} ${-(y0 + h) - 8} ${w + 8} ${h + 16}" role="img"
+    aria-label="the frame back up: registration marks numbered, the current one filled">${body}</svg>`;
 }

@@ -172,3 +172,117 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
     landed = np.array([[s["fx0"], s["fy0"], s["fx1"], s["fy1"]] for s in back])
     off = np.hypot(*(landed - planned_fabric).reshape(-1, 2, 2).transpose(2, 0, 1))
     assert off.max() <= TOLERANCE, f"back deposits up to {off.max():.3f} mm from where the design puts them"
+
+
+def test_a_refused_mesh_shows_its_message(browser_page: Any, shared_daemon: Daemon, api: httpx.Client,
+                                          tmp_path: Path) -> None:
+    """A file that is no mesh is refused by the daemon (422) and the page says why, in its words;
+    bad design parameters likewise; no job is made."""
+    before = len(api.get("/jobs").json())
+    page = browser_page()
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#live:text('live')", timeout=20 * SECOND)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a mesh\n")
+    page.set_input_files("#file", str(notes))
+    page.click("#submit-btn")
+    page.wait_for_selector("#submit-error:not([hidden])")
+    message = page.inner_text("#submit-error")
+    assert message.startswith("Refused: 'notes.txt': not a mesh file the engine reads"), message
+    shot(page, "10-refused-mesh", full_page=False)
+
+    mesh = tmp_path / "flat.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    page.set_input_files("#file", str(mesh))
+    page.click("summary")
+    page.fill("#prestretch", "0.5")                           # the fabric must be stretched: s > 1
+    page.click("#submit-btn")
+    page.wait_for_function("document.querySelector('#submit-error').textContent.includes('prestretch')")
+    assert page.inner_text("#submit-error").startswith("Refused:")
+    assert len(api.get("/jobs").json()) == before
+    assert not browser_page.errors, browser_page.errors
+
+
+def test_the_emergency_stop_halts_the_printer(browser_page: Any, shared_daemon: Daemon, shared_sim: Sim,
+                                              api: httpx.Client) -> None:
+    """STOP in the bar (on every page) sends the emergency stop: the printer halts (the simulated
+    firmware counts the halt), the page says so and offers Recover, which brings the printer back."""
+    page = browser_page()
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#conn.ready", timeout=20 * SECOND)
+    halts = shared_sim.request({"cmd": "stats"})["stats"]["halts"]
+    page.click("#estop")
+    page.wait_for_selector("#conn.halted", timeout=10 * SECOND)
+    page.wait_for_selector("#halted:not([hidden]) #recover")
+    assert api.get("/printer").json()["state"] == "halted"
+    assert shared_sim.request({"cmd": "stats"})["stats"]["halts"] == halts + 1    # the firmware halted (M112)
+    shot(page, "11-halted", full_page=False)
+    page.click("#recover")
+    page.wait_for_selector("#conn.ready", timeout=30 * SECOND)
+    assert page.locator("#halted").is_hidden()
+    assert api.get("/printer").json()["state"] == "ready"
+    assert not browser_page.errors, browser_page.errors
+
+
+def test_the_page_on_a_phone(browser_page: Any, shared_daemon: Daemon, api: httpx.Client) -> None:
+    """On a 390 × 844 screen nothing is wider than the screen, the emergency stop stays in view when
+    the page is scrolled, the jog pad's buttons are big enough for a finger, a job page reads."""
+    page = browser_page(PHONE)
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#conn.ready", timeout=20 * SECOND)
+    width = page.evaluate("document.documentElement.scrollWidth")
+    assert width <= PHONE["width"], f"the page is {width} px wide on a {PHONE['width']} px screen"
+    shot(page, "12-phone-home")
+    page.evaluate("window.scrollTo(0, document.body.scrollHeight)")
+    box = page.locator("#estop").bounding_box()
+    assert box is not None and 0 <= box["y"] and box["y"] + box["height"] <= PHONE["height"]
+    assert box["width"] >= 44 and box["height"] >= 44
+    for button in page.locator("#manual-jog button").all():
+        b = button.bounding_box()
+        assert b is not None and b["width"] >= 44 and b["height"] >= 44, b
+    jobs = api.get("/jobs").json()
+    if jobs:                                       # the whole job's page, if that test ran first
+        page.goto(f"{shared_daemon.url}/#/job/{jobs[0]['id']}")
+        page.wait_for_selector("#j-state")
+        page.wait_for_timeout(500)
+        width = page.evaluate("document.documentElement.scrollWidth")
+        assert width <= PHONE["width"], f"the job page is {width} px wide"
+        shot(page, "13-phone-job")
+    assert not browser_page.errors, browser_page.errors
+
+
+def test_the_token_prompt_off_loopback(browser_page: Any, tmp_path: Path) -> None:
+    """A daemon listening beyond loopback requires its token: the page asks for it once (a wrong one
+    is refused), keeps it in the browser's storage (a reload does not ask again) and sends it in the
+    Authorization header only: no URL the page requests holds it."""
+    daemon = Daemon(tmp_path / "state", str(tmp_path / "no-printer"))
+    daemon.config.write_text(daemon.config.read_text().replace('host = "127.0.0.1"', 'host = "0.0.0.0"'))
+    urls: list[str] = []
+    try:
+        daemon.start()
+        token = (tmp_path / "state" / "api-token").read_text().strip()
+        port = daemon.url.rsplit(":", 1)[1]
+        url = f"http://127.0.0.1:{port}"
+        assert httpx.get(f"{url}/jobs").status_code == 401
+        page = browser_page()
+        page.on("request", lambda r: urls.append(r.url))
+        page.goto(url + "/")
+        page.wait_for_selector("#login[open]", timeout=20 * SECOND)
+        shot(page, "14-token-prompt", full_page=False)
+        page.fill("#login-token", "wrong-token")
+        page.click("#login-form button[type=submit]")
+        page.wait_for_selector("#login-error:text('That token was refused.')")
+        page.fill("#login-token", token)
+        page.click("#login-form button[type=submit]")
+        page.wait_for_function("!document.querySelector('#login').open")
+        page.wait_for_selector("#live:text('live')", timeout=20 * SECOND)
+        page.wait_for_selector("#job-list p:text('No jobs yet.')")
+        assert page.evaluate("localStorage.getItem('ribbond.token')") == token
+        page.reload()
+        page.wait_for_selector("#live:text('live')", timeout=20 * SECOND)
+        assert not page.locator("#login").evaluate("d => d.open")
+        shot(page, "15-token-accepted", full_page=False)
+        assert urls and not [u for u in urls if token in u or "wrong-token" in u]
+        assert not browser_page.errors, browser_page.errors
+    finally:
+        daemon.stop()
