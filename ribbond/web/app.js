@@ -97,7 +97,7 @@ function renderPrinter() {
   $("p-position").textContent = pos ? `x ${mm(pos[0], 2)}  y ${mm(pos[1], 2)}  z ${mm(pos[2], 2)} mm` : "–";
   $("t-nozzle").textContent = heater(p?.heaters?.T);
   $("t-bed").textContent = heater(p?.heaters?.B);
-  $("p-note").textContent = p?.note || p?.last_error || "";
+  $("p-note").textContent = p?.note || "";
   const halted = s === "halted";
   $("halted").hidden = !halted;
   if (halted) $("halted-text").textContent = `The printer is halted${p.last_error ? ` (${p.last_error})` : ""}. Check the machine, then recover.`;

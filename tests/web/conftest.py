@@ -64,5 +64,7 @@ def browser_page(playwright: Any, tmp_path: Path) -> Iterator[Any]:
 def shot(page: Any, name: str, full_page: bool = True) -> Path:
     """A screenshot of the page in out/dashboard/ (looked at by people: keep the page clear)."""
     path = SHOTS / f"{name}.png"
+    if full_page:
+        page.evaluate("window.scrollTo(0, 0)")           # else the sticky bar is drawn mid-page
     page.screenshot(path=str(path), full_page=full_page)
     return path

@@ -286,3 +286,62 @@ def test_the_token_prompt_off_loopback(browser_page: Any, tmp_path: Path) -> Non
         assert not browser_page.errors, browser_page.errors
     finally:
         daemon.stop()
+
+
+def test_manual_control_and_a_plain_gcode_job(browser_page: Any, shared_daemon: Daemon, shared_sim: Sim,
+                                              api: httpx.Client, tmp_path: Path) -> None:
+    """No job streaming: Home, the jog pad and the G-code console (the printer's answer shown), Heat
+    and Cool; then a plain G-code file printed from the page, printed again, and deleted."""
+    page = browser_page()
+    page.on("dialog", lambda d: d.accept())
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#conn.ready", timeout=20 * SECOND)
+    page.click("#home-axes")
+    page.wait_for_function("document.querySelector('#p-position').textContent.startsWith('x ')")
+    # homed, the head is outside the frame: a jog is refused, the page says why
+    page.click("#manual-jog label[data-step='10']")
+    page.click("#manual-jog button[data-jog='x+']")
+    page.wait_for_selector("#toast.error:text('outside the frame')")
+    page.fill("#console-in", "G0 X110 Y110 Z10 F3000")
+    page.press("#console-in", "Enter")
+    page.wait_for_selector("#console-out .sent:text('G0 X110')")
+    page.wait_for_selector("#console-out .answer, #console-out .error", state="attached")
+    x0 = 110.0                                                # where the typed G0 put the head
+    page.click("#manual-jog button[data-jog='x+']")
+    page.click("#manual-jog label[data-step='1']")
+    page.click("#manual-jog button[data-jog='z+']")
+    page.wait_for_selector("#manual-jog[data-pending='0']", state="attached")
+    head = api.get("/printer").json()["head"]
+    assert head[0] == pytest.approx(x0 + 10, abs=1e-3)
+    page.fill("#console-in", "M105")
+    page.press("#console-in", "Enter")
+    page.wait_for_selector("#console-out .answer:text('T:')")
+    page.click("#heat")
+    nozzle = PROFILE.temperatures.nozzle
+    page.wait_for_function(f"document.querySelector('#t-nozzle').textContent.includes('/ {nozzle:.0f}')")
+    shot(page, "16-manual-control")
+    page.click("#cool")
+    page.wait_for_function("!document.querySelector('#t-nozzle').textContent.includes('/')")
+    assert api.get("/printer").json()["heaters"]["T"]["target"] == 0
+
+    x, y, _, _ = PROFILE.frame.bounds
+    program = tmp_path / "square.gcode"
+    program.write_text(f"G28\nG90\nM83\nG0 Z{PROFILE.layers.fabric_z + 2:.2f} F600\nG0 X{x + 10} Y{y + 10} F3000\n"
+                       f"G1 X{x + 30} Y{y + 10} E1 F900\nG1 X{x + 30} Y{y + 30} E1\nG0 Z20 F600\n")
+    page.set_input_files("#file", str(program))
+    assert page.locator("#design-params").is_hidden()      # no design parameters for G-code
+    page.click("#submit-btn")
+    page.wait_for_selector("#j-state.ready", timeout=30 * SECOND)
+    job = page.url.rsplit("/", 1)[1]
+    page.click("#j-actions button[data-action='start']")
+    page.wait_for_selector("#j-state.done", timeout=60 * SECOND)
+    page.click("#j-actions button[data-action='start']:text('Print again')")
+    page.wait_for_function("document.querySelector('#j-state').className !== 'state done'", timeout=30 * SECOND)
+    page.wait_for_selector("#j-state.done", timeout=60 * SECOND)
+    assert len(api.get(f"/jobs/{job}").json()["runs"]) == 1
+    shot(page, "17-gcode-done")
+    page.click("#j-actions button[data-action='delete']")
+    page.wait_for_url(re.compile(r"#/$"))
+    assert api.get(f"/jobs/{job}").status_code == 404
+    page.wait_for_function(f"!document.querySelector('#job-list').innerHTML.includes('{job}')")
+    assert not browser_page.errors, browser_page.errors
