@@ -117,6 +117,9 @@ def main() -> int:
                     results[name, target] = run_child(mesh)
                 except RuntimeError as exc:
                     failures.append(f"{name} ~{target}: {exc}")
+    import os
+    print(f"load average (1, 5, 15 min) at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())} "
+          f"on {os.cpu_count()} cores (the machine is shared: read the times with it)")
     print(f"{'surface':<12} {'faces':>7} {'pred.faces':>10} {'predict s':>9} {'engine s':>8} {'ratio':>6} "
           f"{'iter':>5} {'start':>6} {'dev mean/p99/max %':>20} {'peak MB':>8}")
     for name in args.surfaces:
