@@ -2,8 +2,8 @@
 
 For each surface (the torus patch of the paper's Fig. 2 and the saddle disk of ``examples/meshes``,
 as ``bench/design.py`` makes them) and each size, one fresh subprocess runs ``design_mesh`` as
-``ribbonctl design`` does (default parameters, size left to the printer's frame), then
-``predict_deployed`` on its result, and reports the prediction's time, its Newton iterations, the
+``ribbonctl design`` does (default parameters, size left to the printer's frame, with its ``deploy``
+stage), and reports the prediction's time, its Newton iterations, the
 mesh it ran on, the deviation, the rest of the engine's time (the sum of ``report.timings_s``) and
 the process's peak resident memory (the whole design with the prediction).
 
@@ -39,23 +39,18 @@ RESULT_TAG = "BENCH-RESULT "
 
 def child(mesh: Path) -> int:
     """Design ``mesh``, predict its deployed shape, print one tagged JSON line."""
-    from ribbond.deploy import predict_deployed
     from ribbond.design.params import DesignParameters, SolverSettings
     from ribbond.design.pipeline import design_mesh
-    from ribbond.design.thickness import load_curvature_table
 
-    result = design_mesh(mesh, DesignParameters(), SolverSettings())
-    par = result.design.parameters
+    result = design_mesh(mesh, DesignParameters(), SolverSettings())     # with its deploy stage
     rep = result.design.report
-    t = time.perf_counter()
-    p = predict_deployed(result.flat_uv, result.V, result.F, result.design.ribbons,
-                         prestretch=par.prestretch, ribbon_width=par.ribbon_width,
-                         table=load_curvature_table(par.curvature_table))
-    wall = time.perf_counter() - t
+    p = result.prediction
+    timings = dict(rep.timings_s)
+    wall = timings.pop("deploy")
     out = {
         "faces": rep.faces,
-        "engine_s": float(sum(rep.timings_s.values())),
-        "timings": dict(rep.timings_s),
+        "engine_s": float(sum(timings.values())),
+        "timings": timings,
         "predict_s": wall,
         "iterations": p.iterations,
         "start": p.start,

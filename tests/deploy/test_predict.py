@@ -99,10 +99,10 @@ def test_parallel_ribbons_roll_into_the_tables_cylinder_with_eq10_lengths():
 def _design(tmp_path, name, V, F, size):
     path = tmp_path / f"{name}.obj"
     write_obj(path, V, F)
-    res = design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=size)))
-    par = res.design.parameters
-    p = predict_deployed(res.flat_uv, res.V, res.F, res.design.ribbons, prestretch=par.prestretch,
-                         ribbon_width=par.ribbon_width, table=load_curvature_table(par.curvature_table))
+    res = design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=size)))    # its deploy stage
+    p = res.prediction
+    assert p is not None and res.deployed_png is not None
+    assert res.design.report.deployed.model_dump() == p.report()
     return res, p
 
 
