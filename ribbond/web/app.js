@@ -306,9 +306,11 @@ $("submit-form").addEventListener("submit", async (e) => {
 
 // ------------------------------------------------------------------ a job's page
 
+/** The flip line from the daemon's instruction ("... about its y axis (the line x = 110) ..."):
+ * the API names the profile's frame nowhere else. */
 function axisFrom(instruction) {
-  const m = /the line x = (-?[\d.]+)/.exec(instruction || "");
-  return m ? Number(m[1]) : null;
+  const m = /the line ([xy]) = (-?[\d.]+)/.exec(instruction || "");
+  return m ? { line: m[1], c: Number(m[2]) } : null;
 }
 
 async function loadDesign(job) {
@@ -466,7 +468,7 @@ function renderJobPage() {
   if (j.state === "awaiting_flip") {
     const words = j.next.instruction.replace(/, then run: ribbonctl flip-done \S+/, ", then press “Frame is flipped”.");
     $("flip-text").textContent = words.charAt(0).toUpperCase() + words.slice(1);
-    const key = `${j.id}:${design ? 1 : 0}:${axis}`;
+    const key = `${j.id}:${design ? 1 : 0}:${JSON.stringify(axis)}`;
     if ($("flip-picture").dataset.key !== key) {
       $("flip-picture").dataset.key = key;
       $("flip-picture").innerHTML = design ? flipSVG(design, axis) : "";
