@@ -78,6 +78,8 @@ bench: $(STAMP)
 	$(PY) bench/stream.py
 	$(PY) bench/flatten.py
 	$(PY) bench/design.py
+	$(PY) bench/accuracy.py
+	$(PY) bench/deploy.py
 	$(PY) bench/gcode.py
 	$(PY) bench/daemon.py
 
