@@ -82,6 +82,28 @@ class HeatRequest(BaseModel):
     bed: float | None = Field(None, description="°C")
 
 
+class CalibrationRequest(BaseModel):
+    """``POST /calibrations``: the plan's grid and ribbons (``ribbond.calibration.spec``), all optional."""
+
+    thicknesses: list[float] | None = None
+    spacings: list[float] | None = None
+    sides: list[str] | None = None
+    ribbon_length: float | None = None
+    ribbon_width: float | None = None
+    mu1: float | None = None
+    prestretch: float | None = None
+    base_table: str | None = None
+    fabric: str | None = None
+    material: str | None = None
+    min_coupon_width: float | None = None
+    printer_profile: str | None = None
+    start: bool = False
+
+
+class TableRequest(BaseModel):
+    toml: str = Field(description="the text of a curvature table's TOML file")
+
+
 class BodyLimit:
     """ASGI middleware: a request body larger than ``limit`` bytes is answered 413 as soon as it
     passes the limit, whether or not it announced its length (the multipart parser would otherwise
@@ -232,6 +254,35 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
             return status(await service.submit_gcode(tmp, upload.filename or "program.gcode", start))
         finally:
             tmp.unlink(missing_ok=True)
+
+    @app.post("/calibrations", status_code=201, dependencies=auth)
+    async def calibrate(body: CalibrationRequest) -> dict[str, Any]:
+        """A calibration plan for this printer: one ready two-sided job per sheet (issue 15)."""
+        spec = body.model_dump(exclude_none=True, exclude={"start"})
+        return await service.submit_calibration(spec, body.start)
+
+    @app.get("/calibrations/{cal_id}/files/{name}", dependencies=auth)
+    async def calibration_file(cal_id: str, name: str) -> FileResponse:
+        return FileResponse(service.calibration_file(cal_id, name))
+
+    @app.get("/tables", dependencies=auth)
+    async def tables() -> list[dict[str, Any]]:
+        """The curvature tables a design may name: shipped ones and the daemon's own."""
+        return service.tables()
+
+    @app.get("/tables/{name}", dependencies=auth)
+    async def table(name: str) -> dict[str, Any]:
+        return service.table(name)
+
+    @app.post("/tables", status_code=201, dependencies=auth)
+    async def add_table(body: TableRequest) -> dict[str, Any]:
+        """Add or replace a daemon table from the text of its TOML file (named by its ``name``)."""
+        return service.add_table(body.toml)
+
+    @app.delete("/tables/{name}", status_code=204, dependencies=auth)
+    async def remove_table(name: str) -> Response:
+        service.remove_table(name)
+        return Response(status_code=204)
 
     @app.get("/jobs", response_model=list[JobStatus], dependencies=auth)
     async def jobs(response: Response,

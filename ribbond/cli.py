@@ -192,6 +192,95 @@ def _cmd_design(args: argparse.Namespace) -> int:
     return 0
 
 
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: a comma-separated list of numbers (mm)") from None
+
+
+def _spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
+    spec: dict[str, Any] = {}
+    for key in ("thicknesses", "spacings", "mu1", "prestretch", "fabric", "material", "base_table"):
+        value = getattr(args, key, None)
+        if value is not None:
+            spec[key] = value
+    if args.sides is not None:
+        spec["sides"] = [s.strip() for s in args.sides.split(",") if s.strip()]
+    if args.profile is not None:
+        spec["printer_profile"] = args.profile
+    return spec
+
+
+def _cmd_calibrate_plan(args: argparse.Namespace) -> int:
+    from .client import calibrate_remote
+
+    spec = _spec_from_args(args)
+    if args.output is None:
+        return calibrate_remote(args, spec)
+    from pydantic import ValidationError
+
+    from .calibration.plan import make_plan, write_plan
+    from .calibration.spec import CalibrationSpec
+
+    try:
+        cal = CalibrationSpec.model_validate(spec)
+    except ValidationError as exc:
+        raise ValueError("; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())) from None
+    plan = make_plan(cal)
+    out = write_plan(plan, args.output)
+    print(f"{len(plan.coupons)} coupons ({', '.join(cal.sides)}) on {len(plan.sheets)} sheet(s) of "
+          f"{plan.profile.name}'s frame, in {out}:\n  coupons.csv, sheet-K.svg/.png (which coupon is which), "
+          f"sheet-K/ (a two-sided design folder per sheet: front.gcode, back.gcode, combined.gcode)\n"
+          f"  after release and cutting, measure each coupon (chord_mm and sagitta_mm, or radius_mm) and run\n"
+          f"  ribbonctl calibrate record {out} measurements.csv -o my-table.toml")
+    return 0
+
+
+def _cmd_calibrate_record(args: argparse.Namespace) -> int:
+    import json
+    import time
+
+    from .calibration.fit import design_mu2_range, fit_table, parse_measurements, plot_fit
+    from .calibration.plan import read_plan
+    from .design.thickness import TABLE_NAME
+
+    plan_path = Path(args.plan)
+    if plan_path.is_dir():
+        plan = read_plan(plan_path)
+    else:
+        from .client import fetch_plan
+
+        plan = json.loads(fetch_plan(args, args.plan))
+    try:
+        text = Path(args.measurements).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValueError(f"{args.measurements}: {exc.strerror or exc}") from None
+    measured = parse_measurements(text, {c["coupon"] for c in plan["coupons"]}, where=str(args.measurements))
+    name = args.name or (args.output.stem if args.output else None)
+    if not name or not TABLE_NAME.match(name):
+        raise ValueError(f"table name {name!r}: give --name (letters, digits, '-', '_')")
+    spec = plan["spec"]
+    fit = fit_table(plan, measured, name=name, fabric=args.fabric or "", material=args.material or "",
+                    date=time.strftime("%Y-%m-%d"),
+                    design_mu2=design_mu2_range(spec["ribbon_length"], spec["ribbon_width"], spec["prestretch"]))
+    out = args.output or Path(f"{name}.toml")
+    out.write_text(fit.text, encoding="utf-8")
+    png = out.with_suffix(".png")
+    plot_fit(fit, png)
+    lines = [f"table {name!r} from {fit.measured} coupons ({len(fit.failed)} failed"
+             + (f": {', '.join(map(str, fit.failed))}" if fit.failed else "") + f"): {out}, plot {png}"]
+    lines += [f"  {s}: residuals RMS {f.rms:.3g} 1/mm, largest {f.max_abs:.3g} 1/mm" for s, f in fit.sides.items()]
+    lines += [f"  warning: {w}" for w in fit.warnings]
+    if args.add:
+        from .client import add_table_text
+
+        add_table_text(args, fit.text)
+        lines.append(f"  added to the daemon: designs use it with curvature_table = \"{name}\"")
+    print("\n".join(lines))
+    return 0
+
+
 EPILOG = """exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the
 alignment is refused, the job failed); 2 bad input; 3 the daemon cannot be reached; 4 no such job;
 130 interrupted; 141 the output was closed. 'ribbonctl COMMAND --help' describes each command."""
@@ -238,6 +327,33 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.set_defaults(func=_cmd_design)
     add_commands(sub)
+    common = argparse.ArgumentParser(add_help=False)
+    add_global_options(common, in_subcommand=True)
+    cal = sub.add_parser("calibrate", help="coupons to measure your own curvature table (plan, record)",
+                         description="Calibration (issue 15): plan coupons, print them, measure them, fit a table.")
+    csub = cal.add_subparsers(dest="calibrate_command", required=True, metavar="STEP")
+    cp = csub.add_parser("plan", parents=[common], help="coupons laid out on sheets (-o DIR: locally; else the daemon)")
+    cp.add_argument("-o", "--output", type=Path, help="write the plan folder here (no daemon)")
+    cp.add_argument("--profile", metavar="NAME", help="printer profile (locally; the daemon uses its own)")
+    cp.add_argument("--thicknesses", type=_floats, metavar="T,T,...", help="τ values, mm (default the paper's 8)")
+    cp.add_argument("--spacings", type=_floats, metavar="M,M,...", help="μ2 values, mm (default the paper's 6)")
+    cp.add_argument("--sides", metavar="front,back", help="sides to calibrate (default both)")
+    cp.add_argument("--mu1", type=float, metavar="MM", help="spacing along the ribbons (default 22.5 mm)")
+    cp.add_argument("--prestretch", type=float, metavar="S", help="the fabric's pre-stretch (default 1.6)")
+    cp.add_argument("--base-table", dest="base_table", metavar="NAME", help="expected κ1 from this table")
+    cp.add_argument("--fabric", help="the fabric (provenance)")
+    cp.add_argument("--material", help="the filament (provenance)")
+    cp.add_argument("--start", action="store_true", help="(daemon) print the first sheet at once")
+    cp.set_defaults(func=_cmd_calibrate_plan)
+    cr = csub.add_parser("record", parents=[common], help="measurements in, a fitted curvature table out")
+    cr.add_argument("plan", help="a local plan folder, or a daemon calibration id (cal-…) or one of its jobs")
+    cr.add_argument("measurements", type=Path, help="CSV: coupon, chord_mm, sagitta_mm or radius_mm")
+    cr.add_argument("-o", "--output", type=Path, help="the table file to write (default NAME.toml)")
+    cr.add_argument("--name", help="the table's name (default: the output file's stem)")
+    cr.add_argument("--fabric", help="the fabric (provenance)")
+    cr.add_argument("--material", help="the filament (provenance)")
+    cr.add_argument("--add", action="store_true", help="also add the table to the daemon (ribbonctl tables add)")
+    cr.set_defaults(func=_cmd_calibrate_record)
     return parser
 
 

@@ -34,11 +34,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
 from .alignment import AlignmentRefused, check_fit, expected_marks, fit_rigid
 from .config import DaemonConfig
 from .design.folder import read_design_folder
 from .design.params import DesignParameters
+from .design.thickness import TABLE_NAME, CurvatureTable, available_tables, load_curvature_table
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, SidePlan, render_side
 from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
@@ -70,10 +72,11 @@ JOG_SPEED = 50.0
 _MOVES_HEAD = frozenset({"G0", "G1", "G2", "G3", "G28", "G29", "G92", "G30", "M206", "M428"})
 
 
-def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path) -> list[str]:
+def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path,
+                   tables: Path | None = None) -> list[str]:
     """The command line of one compile (``python -m ribbond.worker``)."""
     return [python, "-m", "ribbond.worker", mesh, str(out), "--params", json.dumps(parameters),
-            "--plans", str(plans)]
+            "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else [])
 
 
 def worker_environment() -> dict[str, str]:
@@ -385,6 +388,7 @@ class RibbonService:
         if Path(safe).suffix.lower() not in MESH_SUFFIXES:
             raise ValueError(f"{name!r}: not a mesh file the engine reads ({', '.join(MESH_SUFFIXES)})")
         DesignParameters.model_validate(parameters)              # refuse bad parameters now
+        self.check_table_name(parameters.get("curvature_table", DesignParameters().curvature_table))
         asked = parameters.get("printer_profile")
         if asked is not None and asked != self.config.printer_profile:
             raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
@@ -509,6 +513,154 @@ class RibbonService:
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
         log.info("job %s deleted", job_id)
         self.bus.publish({"type": "deleted", "job_id": job_id})
+
+    # ------------------------------------------------------------------ curvature tables (issue 15)
+
+    @property
+    def tables_dir(self) -> Path:
+        """The daemon's own curvature tables, ``<state_dir>/tables/NAME.toml``."""
+        return Path(self.config.state_dir) / "tables"
+
+    def table_names(self) -> dict[str, str]:
+        """Every table a design may name: ``name -> "shipped" | "daemon"``."""
+        names = {n: "shipped" for n in available_tables()}
+        if self.tables_dir.is_dir():
+            names.update({p.stem: "daemon" for p in self.tables_dir.glob("*.toml") if TABLE_NAME.match(p.stem)})
+        return dict(sorted(names.items()))
+
+    def check_table_name(self, name: Any) -> None:
+        """A design's ``curvature_table`` must name a known table: a path is refused (the daemon reads no
+        file a client points at)."""
+        known = self.table_names()
+        if not isinstance(name, str) or name not in known:
+            what = "is a path, not a table name" if isinstance(name, str) and ("/" in name or "\\" in name
+                                                                              or name.endswith(".toml")) else "is unknown"
+            raise ValueError(f"curvature_table {name!r} {what}; the daemon's tables: {', '.join(known)} "
+                             "(add one with 'ribbonctl tables add FILE')")
+
+    def _table(self, name: str) -> tuple[CurvatureTable, str]:
+        source = self.table_names().get(name)
+        if source is None:
+            raise NotFound(f"no curvature table {name!r}; tables: {', '.join(self.table_names())}")
+        return load_curvature_table(name, tables_dir=self.tables_dir), source
+
+    def tables(self) -> list[dict[str, Any]]:
+        out = []
+        for name, source in self.table_names().items():
+            try:
+                t, _ = self._table(name)
+                out.append({"name": name, "source": source, "material": t.material, "fabric": t.fabric,
+                            "prestretch": t.prestretch, "description": t.description})
+            except ValueError as exc:
+                out.append({"name": name, "source": source, "error": str(exc)})
+        return out
+
+    def table(self, name: str) -> dict[str, Any]:
+        t, source = self._table(name)
+        return {"source": source, **t.model_dump(mode="json")}
+
+    def add_table(self, text: str) -> dict[str, Any]:
+        """Add (or replace) a daemon table from the text of its TOML file; its ``name`` names it.
+
+        Raises ValueError for an invalid table (the field named), a name that is not a plain name, or
+        the name of a shipped table."""
+        import tomllib
+
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"the curvature table is not valid TOML: {exc}") from None
+        try:
+            table = CurvatureTable(**data)
+        except ValidationError as exc:
+            problems = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or '(file)'}: {e['msg']}" for e in exc.errors())
+            raise ValueError(f"invalid curvature table: {problems}") from None
+        if not TABLE_NAME.match(table.name):
+            raise ValueError(f"table name {table.name!r}: letters, digits, '-' and '_' only (at most 64)")
+        if table.name in available_tables():
+            raise ValueError(f"{table.name!r} is a shipped table: give yours another name")
+        self.tables_dir.mkdir(parents=True, exist_ok=True)
+        path = self.tables_dir / f"{table.name}.toml"
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+        log.info("curvature table %s added", table.name)
+        return {"source": "daemon", **table.model_dump(mode="json")}
+
+    def remove_table(self, name: str) -> None:
+        source = self.table_names().get(name)
+        if source is None:
+            raise NotFound(f"no curvature table {name!r}")
+        if source == "shipped":
+            raise ServiceError(f"{name!r} is a shipped table: it cannot be removed")
+        users = [j.id for j in self.store.active() if j.state in (JobState.SUBMITTED, JobState.COMPILING)
+                 and j.parameters.get("curvature_table") == name]
+        if users:
+            raise ServiceError(f"table {name!r} is used by job(s) {', '.join(users)} being compiled")
+        (self.tables_dir / f"{name}.toml").unlink()
+
+    # ------------------------------------------------------------------ calibration plans (issue 15)
+
+    @property
+    def calibrations_dir(self) -> Path:
+        return Path(self.config.state_dir) / "calibrations"
+
+    async def submit_calibration(self, spec: dict[str, Any], start: bool) -> dict[str, Any]:
+        """Make a calibration plan (``python -m ribbond.calibration plan``, its own process) for this
+        daemon's printer and one ``ready`` two-sided job per sheet (the first queued if ``start``)."""
+        from .calibration.spec import CalibrationSpec
+
+        asked = spec.get("printer_profile")
+        if asked is not None and asked != self.config.printer_profile:
+            raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
+                             "printer; leave printer_profile out")
+        base = spec.get("base_table", CalibrationSpec().base_table)
+        if base not in available_tables():
+            raise ValueError(f"base_table {base!r}: give a shipped table ({', '.join(available_tables())})")
+        cal = CalibrationSpec.model_validate({**spec, "printer_profile": self.config.printer_profile})
+        if start:
+            self._check_queue()
+        cal_id = "cal-" + os.urandom(4).hex()
+        folder = self.calibrations_dir / cal_id
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        proc = await asyncio.create_subprocess_exec(
+            self.python, "-m", "ribbond.calibration", "plan", "--spec", cal.model_dump_json(), "-o", str(folder),
+            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, env=worker_environment())
+        out, err = await proc.communicate()
+        if proc.returncode != 0:
+            tail = (err.decode(errors="replace").strip().splitlines() or ["no output"])[-1]
+            shutil.rmtree(folder, ignore_errors=True)
+            raise ValueError(f"the calibration plan cannot be made: {tail}")
+        plan = json.loads((folder / "plan.json").read_text(encoding="utf-8"))
+        jobs = []
+        for sheet in plan["sheets"]:
+            k = sheet["sheet"]
+            job = self.store.create(mesh_name=f"{cal_id}-sheet-{k}", mesh_path=str(folder),
+                                    parameters={"calibration": cal_id, "sheet": k}, start_when_ready=start and k == 1)
+            (self.job_dir(job.id) / "plans").mkdir(parents=True, exist_ok=True)
+            for side in ("front", "back"):
+                shutil.copyfile(folder / "plans" / f"sheet-{k}-{side}-plan.npz",
+                                self.job_dir(job.id) / "plans" / f"{side}-plan.npz")
+            job = self._transition(job.id, JobState.READY,
+                                   reason=f"calibration {cal_id}: sheet {k} of {len(plan['sheets'])}, coupons "
+                                          f"{sheet['coupons'][0]}-{sheet['coupons'][-1]}",
+                                   design_dir=str(folder / f"sheet-{k}"), estimate_s=sheet["time_s"])
+            if job.start_when_ready:
+                self._print_queue.put_nowait(job.id)
+            jobs.append(job.id)
+        return {"calibration": cal_id, "sheets": len(plan["sheets"]), "coupons": len(plan["coupons"]),
+                "jobs": jobs, "folder": str(folder)}
+
+    def calibration_file(self, cal_id: str, name: str) -> Path:
+        """A file of a calibration plan: plan.json, coupons.csv, sheet-K.png or sheet-K.svg."""
+        if not re.fullmatch(r"cal-[0-9a-f]{8}", cal_id) or not (self.calibrations_dir / cal_id).is_dir():
+            raise NotFound(f"no calibration {cal_id!r}")
+        if not re.fullmatch(r"plan\.json|coupons\.csv|sheet-[0-9]{1,3}\.(png|svg)", name):
+            raise NotFound(f"{name!r} is not a calibration file; files: plan.json, coupons.csv, sheet-K.png, sheet-K.svg")
+        path = self.calibrations_dir / cal_id / name
+        if not path.is_file():
+            raise NotFound(f"calibration {cal_id} has no {name}")
+        return path
 
     # ------------------------------------------------------------------ what a person sees
 
@@ -673,7 +825,8 @@ class RibbonService:
         log_path = folder / "compile.log"
         with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
             proc = await asyncio.create_subprocess_exec(
-                *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans"),
+                *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans",
+                                self.tables_dir),
                 stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
         self._compiling[job_id] = proc
         last: dict[str, Any] = {}

@@ -60,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("out", type=Path)
     parser.add_argument("--params", default="{}", help="design parameters as a JSON object")
     parser.add_argument("--plans", type=Path, help="also write the front and back plans into this folder")
+    parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     args = parser.parse_args(argv)
     if args.nice > 0 and hasattr(os, "nice"):
@@ -74,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         params = DesignParameters.model_validate(json.loads(args.params))
-        result = design_mesh(args.mesh, params, progress=JsonProgress())
+        result = design_mesh(args.mesh, params, progress=JsonProgress(), tables_dir=args.tables)
         path = write_design(result, args.out, JsonProgress())
         if args.plans is not None:
             args.plans.mkdir(parents=True, exist_ok=True)

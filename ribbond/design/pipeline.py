@@ -115,7 +115,8 @@ def _bbox_diagonal(V: np.ndarray) -> float:
 
 def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = None,
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
-                progress: DesignProgress | None = None, predict: bool = True) -> DesignResult:
+                progress: DesignProgress | None = None, predict: bool = True,
+                tables_dir: Path | None = None) -> DesignResult:
     """Run the engine on a mesh file: load, curvature and line field, flattening, placement.
 
     Parameters
@@ -125,6 +126,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     solver : the solver settings.
     frame : the printable rectangle; default: that of ``parameters.printer_profile``.
     predict : predict the deployed shape of the layout (stage ``deploy``, ``ribbond.deploy``).
+    tables_dir : where named curvature tables are looked up before the shipped ones (the daemon's).
 
     Raises
     ------
@@ -142,7 +144,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
         check_smoothing(params, solver)
     except ValueError as exc:
         raise DesignError(str(exc)) from None
-    table = load_curvature_table(params.curvature_table)
+    table = load_curvature_table(params.curvature_table, tables_dir=tables_dir)
     if abs(table.prestretch - params.prestretch) > 1e-9:
         raise DesignError(f"the curvature table {table.name!r} was measured at pre-stretch s = "
                           f"{table.prestretch:g}, but the design asks for s = {params.prestretch:g}: "

@@ -14,6 +14,8 @@ file of the same shape, given by path.
 
 from __future__ import annotations
 
+import re
+
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal
@@ -99,14 +101,23 @@ def available_tables() -> list[str]:
     return shipped_names(TABLE_DIR)
 
 
-def load_curvature_table(name_or_path: str | Path) -> CurvatureTable:
-    """A shipped curvature table by name, or a table file by path (a ``.toml`` file).
+#: A table's name: what ``ribbonctl tables add`` accepts and a daemon's design may name (no path).
+TABLE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
+
+
+def load_curvature_table(name_or_path: str | Path, tables_dir: Path | None = None) -> CurvatureTable:
+    """A curvature table by name (``tables_dir/NAME.toml`` first, when given: the daemon's own
+    tables; else a shipped one), or a table file by path (a ``.toml`` file).
 
     Raises
     ------
     ValueError
         naming the table file and what is wrong with it (the field path for invalid values).
     """
+    if tables_dir is not None and TABLE_NAME.match(str(name_or_path)):
+        own = Path(tables_dir) / f"{name_or_path}.toml"
+        if own.is_file():
+            return load_toml_model(own, TABLE_DIR, CurvatureTable, "curvature table")
     return load_toml_model(name_or_path, TABLE_DIR, CurvatureTable, "curvature table")
 
 

@@ -334,6 +334,9 @@ def _body(w: _Writer, plan: SidePlan) -> None:
         if kind == "mark":
             w.raw(f";TYPE:REGISTRATION {int(index)}")
             what = f"registration mark {int(index)}"
+        elif kind != "ribbon":                      # calibration labels and cut marks
+            w.raw(f";TYPE:{kind.upper()} {int(index)}")
+            what = f"{kind} {int(index)}"
         else:
             done += 1
             w.raw(f";TYPE:RIBBON {int(index)} ({done} of {count})")
