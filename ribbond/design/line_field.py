@@ -51,8 +51,9 @@ ANISOTROPY_THRESHOLD = 0.3
 #: Meshes with more faces solve the aligned field iteratively (two-level CG) instead of directly.
 DIRECT_SOLVE_FACES = 30_000
 
-#: Faces per patch of the iterative solve's coarse space.
+#: Faces per patch of the iterative solve's coarse space, and the smoothing sweeps of its result.
 PATCH_FACES = 16
+JACOBI_SWEEPS = 6
 
 #: The steps toward a unit-length field after the linear solve, and their weight (× ρ).
 UNIT_ITERATIONS = 5
@@ -239,15 +240,16 @@ def _solve_aligned(A: sp.csc_matrix, anisotropy: np.ndarray, q: np.ndarray, area
     patch_unit_weight = abs(P).T @ unit_weight        # Pᴴ diag(w) P: P has one unit entry per row
     for _ in range(UNIT_ITERATIONS - 1):
         z_c = fine.coarse_solve(bc + patch_unit_weight * _unit(z_c))
-    # the last step twice on the faces: from the coarse field (constant over each patch), then
-    # from its own smooth result, so that no patch's edge is left in the field
+    # the last step on the faces, from the coarse field smoothed by a few Jacobi sweeps (constant
+    # over each patch, its unit-length pull would leave the patches' edges in the field)
     z = P @ z_c
-    for rtol in (1e-3, 1e-5):
-        rhs = b + unit_weight * _unit(z)
-        z, converged = fine.solve(rhs, x0=z, rtol=rtol)
-        if not converged:
-            z = spla.spsolve(M2, rhs)
-    return z
+    inv_diag = 1.0 / M2.diagonal().real
+    rhs = b + unit_weight * _unit(z)
+    for _ in range(JACOBI_SWEEPS):
+        z = z + 0.8 * inv_diag * (rhs - M2 @ z)
+    rhs = b + unit_weight * _unit(z)
+    z, converged = fine.solve(rhs, x0=z)
+    return z if converged else spla.spsolve(M2, rhs)
 
 
 def _unit(z: np.ndarray) -> np.ndarray:
