@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import resource
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,13 +26,17 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "examples" / "meshes"))
+sys.path.insert(0, str(ROOT / "bench"))
+
+import design as design_bench  # noqa: E402  (bench/design.py: the meshes and the child runs)
+from design import write_meshes  # noqa: E402
 
 SIZES = (10_000, 40_000, 160_000)
 SURFACES = ("torus_patch", "saddle")
 GOAL_S = 10.0
 GOAL_RATIO = 1.0
 GOAL_MB = 2048.0
-RESULT_TAG = "BENCH-RESULT "
+RESULT_TAG = design_bench.RESULT_TAG
 
 
 def child(mesh: Path) -> int:
@@ -64,31 +66,8 @@ def child(mesh: Path) -> int:
     return 0
 
 
-def write_meshes(surface: str, targets: list[int], workdir: Path) -> list[Path]:
-    from make_meshes import examples
-
-    from ribbond.design.mesh_io import write_obj
-
-    file = f"{surface}.obj"
-    _, F1 = examples(1.0)[file][1]()
-    paths = []
-    for target in targets:
-        scale = math.sqrt(target / len(F1))
-        V, F = examples(scale)[file][1]()
-        path = workdir / f"{surface}_{target}.obj"
-        write_obj(path, V, F, header=f"bench/deploy.py: {surface}, scale {scale:.4f}")
-        paths.append(path)
-    return paths
-
-
 def run_child(mesh: Path) -> dict:
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", str(mesh)],
-                          capture_output=True, text=True, cwd=ROOT)
-    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(RESULT_TAG)]
-    if proc.returncode != 0 or not lines:
-        tail = "\n".join((proc.stderr or proc.stdout).strip().splitlines()[-25:])
-        raise RuntimeError(f"the run on {mesh.name} failed (exit code {proc.returncode}):\n{tail}")
-    return json.loads(lines[-1][len(RESULT_TAG):])
+    return design_bench.run_child(mesh, Path(__file__))
 
 
 def main() -> int:

@@ -81,16 +81,18 @@ def write_meshes(surface: str, targets: list[int], workdir: Path) -> list[Path]:
         scale = math.sqrt(target / len(F1))
         V, F = examples(scale)[file][1]()
         path = workdir / f"{surface}_{target}.obj"
-        write_obj(path, V, F, header=f"bench/design.py: {surface}, scale {scale:.4f}")
+        write_obj(path, V, F, header=f"bench: {surface}, scale {scale:.4f}")
         print(f"mesh {surface:<12} target {target:>7} faces: scale {scale:6.3f} -> {len(F):>7} faces, "
               f"{len(V):>7} vertices", flush=True)
         paths.append(path)
     return paths
 
 
-def run_child(mesh: Path) -> dict:
-    """Run the engine on ``mesh`` in a fresh subprocess; raise RuntimeError if it fails."""
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", str(mesh)],
+def run_child(mesh: Path, script: Path | None = None) -> dict:
+    """Run ``script`` (default this one) with ``--child MESH`` in a fresh subprocess and return its
+    tagged JSON line; raise RuntimeError if it fails."""
+    script = script or Path(__file__)
+    proc = subprocess.run([sys.executable, str(script.resolve()), "--child", str(mesh)],
                           capture_output=True, text=True, cwd=ROOT)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(RESULT_TAG)]
     if proc.returncode != 0 or not lines:
