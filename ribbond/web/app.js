@@ -16,7 +16,7 @@ const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", 
 
 const state = {
   printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [],
-  designs: new Map(), files: new Map(), align: new Map(), alignMark: new Map(), compileInfo: new Map(),
+  designs: new Map(), files: new Map(), busy: new Set(), align: new Map(), alignMark: new Map(), compileInfo: new Map(),
 };
 
 // ------------------------------------------------------------------ small helpers
@@ -369,10 +369,15 @@ const ACTIONS = {
 function renderActions(j) {
   const box = $("j-actions");
   const cmds = commandsOf(j).filter((c) => ACTIONS[c] && !(c === "start" && j.start_when_ready && !ENDED.has(j.state)));
-  const key = `${j.id}:${cmds.join(",")}:${j.state}`;
+  // while a request of this page is in flight, and while a pause is still parking the head (the
+  // daemon refuses a resume until then), the buttons wait
+  const busy = state.busy.has(j.id);
+  const parking = j.state === "paused" && j.stage === "paused";
+  const key = `${j.id}:${cmds.join(",")}:${j.state}:${busy}:${parking}`;
   if (box.dataset.key === key) return;
   box.dataset.key = key;
-  box.innerHTML = cmds.map((c) => `<button data-action="${c}" class="${c === "cancel" || c === "delete" ? "warn" : c === "start" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("");
+  box.innerHTML = cmds.map((c) => `<button data-action="${c}" ${busy || (parking && c === "resume") ? "disabled" : ""}
+    class="${c === "cancel" || c === "delete" ? "warn" : c === "start" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("");
 }
 $("j-actions").addEventListener("click", async (e) => {
   const b = e.target.closest("button[data-action]");
@@ -380,7 +385,8 @@ $("j-actions").addEventListener("click", async (e) => {
   const id = state.route.id, c = b.dataset.action;
   if (c === "delete" && !confirm("Delete this job and its files?")) return;
   if (c === "cancel" && !confirm("Cancel this job? The heaters go off and the head lifts.")) return;
-  b.disabled = true;
+  state.busy.add(id);
+  renderActions(state.jobs.get(id));
   try {
     if (c === "delete") {
       await api.call("DELETE", `/jobs/${id}`);
@@ -392,7 +398,10 @@ $("j-actions").addEventListener("click", async (e) => {
       renderJobPage();
     }
   } catch (err) { toast(`${b.textContent}: ${err.message}`, "error"); }
-  finally { b.disabled = false; }
+  finally {
+    state.busy.delete(id);
+    if (state.jobs.has(id)) renderJobPage();
+  }
 });
 
 function alignResultHTML(res) {
@@ -422,6 +431,7 @@ function nextText(j) {
     case "ready":
       return j.start_when_ready ? text.replace(/^queued/, "Queued") : "Ready to print: press Print.";
     case "paused":
+      if (j.stage === "paused") return "Pausing: the head is parking…";
       return "Paused, the head parked. Move it with Manual control if needed, then press Resume (it reheats first).";
     case "awaiting_flip": return "The front is printed: turn the frame over (below).";
     case "aligning": return "Align the back side on the registration marks (below).";

@@ -345,3 +345,82 @@ def test_manual_control_and_a_plain_gcode_job(browser_page: Any, shared_daemon: 
     assert api.get(f"/jobs/{job}").status_code == 404
     page.wait_for_function(f"!document.querySelector('#job-list').innerHTML.includes('{job}')")
     assert not browser_page.errors, browser_page.errors
+
+
+def test_a_refused_alignment_is_explained(browser_page: Any, shared_daemon: Daemon, shared_sim: Sim,
+                                          api: httpx.Client, meshes: dict[str, Path]) -> None:
+    """Marks that no rigid motion fits (mark 1 measured 10 mm off, the others where the head was
+    sent): the page says the alignment was refused, which limit was exceeded and by how much (the
+    daemon's own numbers), and shows the flip step again to re-seat the frame."""
+    page = browser_page()
+    page.on("dialog", lambda d: d.accept())
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#live:text('live')", timeout=20 * SECOND)
+    page.set_input_files("#file", str(meshes["two_sided"]))
+    page.fill("#size", "70")
+    page.check("#start-now")
+    page.click("#submit-btn")
+    page.wait_for_url(re.compile(r"#/job/"))
+    job = page.url.rsplit("/", 1)[1]
+    page.wait_for_selector("#flip:not([hidden])", timeout=150 * SECOND)
+    shared_sim.flip()
+    page.click("#flip-done")
+    marks = len(api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"])
+    for k in range(1, marks + 1):
+        page.wait_for_selector(f"#align-text[data-mark='{k}']", timeout=60 * SECOND)
+        if k == 1:
+            page.click("#align-jog label[data-step='10']")
+            page.click("#align-jog button[data-jog='x+']")
+        page.click("#align-here")
+    page.wait_for_selector("#flip:not([hidden]) .result.refused", timeout=30 * SECOND)
+    text = page.inner_text("#flip .result.refused")
+    record = api.get(f"/jobs/{job}").json()
+    assert record["state"] == "awaiting_flip" and record["error"]
+    limit = PROFILE.alignment.max_residual
+    assert "Alignment refused" in text and f"the limit is {limit:.3f} mm" in text, text
+    assert "The residual is" in text and "Re-seat the frame" in text, text
+    assert page.locator("#flip-done").is_visible()
+    shot(page, "18-alignment-refused")
+    page.click("#j-actions button[data-action='cancel']")
+    page.wait_for_selector("#j-state.cancelled", timeout=60 * SECOND)
+    assert not browser_page.errors, browser_page.errors
+
+
+def test_pause_resume_and_cancel_from_the_page(browser_page: Any, shared_daemon: Daemon, api: httpx.Client,
+                                               tmp_path: Path) -> None:
+    """A long G-code program: Pause (the job says paused, the head parked), Resume (printing again),
+    Cancel (asked to confirm; cancelled); the progress bar moves meanwhile."""
+    x0, y0, x1, y1 = PROFILE.frame.bounds
+    lines = ["G28", "G90", "M83", f"G0 Z{PROFILE.layers.fabric_z + 1:.2f} F600", f"G0 X{x0 + 10} Y{y0 + 10} F3000"]
+    for i in range(1500):                                   # a zigzag: ~1 min of printing at this speed
+        y = y0 + 10 + (i % 100) * 1.0
+        lines.append(f"G1 X{x1 - 10 if i % 2 else x0 + 10} Y{y:.1f} E0.5 F1800")
+    program = tmp_path / "zigzag.gcode"
+    program.write_text("\n".join(lines) + "\n")
+    page = browser_page()
+    page.on("dialog", lambda d: d.accept())
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#live:text('live')", timeout=20 * SECOND)
+    page.set_input_files("#file", str(program))
+    page.check("#start-now")
+    page.click("#submit-btn")
+    page.wait_for_url(re.compile(r"#/job/"))
+    job = page.url.rsplit("/", 1)[1]
+    wait_for(api, job, "printing_front", timeout=60)
+    page.wait_for_selector("#j-state.printing_front", timeout=10 * SECOND)
+    page.wait_for_function("document.querySelector('#j-bar').value > 0.02", timeout=60 * SECOND)
+    page.click("#j-actions button[data-action='pause']")
+    page.wait_for_selector("#j-state.paused", timeout=30 * SECOND)
+    # Resume waits until the head is parked (the daemon refuses it before)
+    page.wait_for_selector("#j-actions button[data-action='resume']:not([disabled])", timeout=30 * SECOND)
+    assert api.get(f"/jobs/{job}").json()["state"] == "paused"
+    assert "Paused, the head parked" in page.inner_text("#j-next")
+    shot(page, "19-paused", full_page=False)
+    at = float(page.locator("#j-bar").evaluate("b => b.value"))
+    page.click("#j-actions button[data-action='resume']")
+    page.wait_for_selector("#j-state.printing_front", timeout=60 * SECOND)
+    page.wait_for_function(f"document.querySelector('#j-bar').value > {at}", timeout=60 * SECOND)
+    page.click("#j-actions button[data-action='cancel']")
+    page.wait_for_selector("#j-state.cancelled", timeout=60 * SECOND)
+    assert api.get(f"/jobs/{job}").json()["state"] == "cancelled"
+    assert not browser_page.errors, browser_page.errors
