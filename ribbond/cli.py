@@ -251,7 +251,8 @@ def _cmd_calibrate_record(args: argparse.Namespace) -> int:
     else:
         from .client import fetch_plan
 
-        plan = json.loads(fetch_plan(args, args.plan))
+        got = fetch_plan(args, args.plan)
+        plan = got if isinstance(got, dict) else json.loads(got)
     try:
         text = Path(args.measurements).read_text(encoding="utf-8")
     except OSError as exc:
@@ -270,7 +271,8 @@ def _cmd_calibrate_record(args: argparse.Namespace) -> int:
     plot_fit(fit, png)
     lines = [f"table {name!r} from {fit.measured} coupons ({len(fit.failed)} failed"
              + (f": {', '.join(map(str, fit.failed))}" if fit.failed else "") + f"): {out}, plot {png}"]
-    lines += [f"  {s}: residuals RMS {f.rms:.3g} 1/mm, largest {f.max_abs:.3g} 1/mm" for s, f in fit.sides.items()]
+    lines += [f"  {s}: residuals RMS {f.rms:.3g} 1/mm, largest {f.max_abs:.3g} 1/mm (what the monotone fit pooled); "
+              f"leave-one-out RMS {f.loo_rms:.3g} 1/mm" for s, f in fit.sides.items()]
     lines += [f"  warning: {w}" for w in fit.warnings]
     if args.add:
         from .client import add_table_text

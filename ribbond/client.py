@@ -615,7 +615,7 @@ def calibrate_remote(args: argparse.Namespace, spec: dict[str, Any]) -> int:
     return 0
 
 
-def fetch_plan(args: argparse.Namespace, ident: str) -> bytes:
+def fetch_plan(args: argparse.Namespace, ident: str) -> Any:
     """``plan.json`` of a daemon calibration, by its id or the id of one of its jobs."""
     c = _client(args)
     if not ident.startswith("cal-"):

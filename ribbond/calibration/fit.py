@@ -90,8 +90,8 @@ def parse_measurements(text: str, known: set[int], where: str = "measurements.cs
         try:
             m = Measurement(**{k: v for k, v in raw.items() if v != ""})
         except ValidationError as exc:
-            msg = "; ".join(f"{'.'.join(map(str, e['loc'])) or 'row'}: {e['msg'].removeprefix('Value error, ')}"
-                            for e in exc.errors())
+            msg = "; ".join((f"{'.'.join(map(str, e['loc']))}: " if e["loc"] else "")
+                            + e["msg"].removeprefix("Value error, ") for e in exc.errors())
             raise ValueError(f"{where}, line {line}, coupon {name}: {msg}") from None
         if m.coupon not in known:
             raise ValueError(f"{where}, line {line}: coupon {m.coupon} is not in the plan "
@@ -105,6 +105,13 @@ def parse_measurements(text: str, known: set[int], where: str = "measurements.cs
 def pav(y: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
     """Isotonic (non-decreasing) least-squares fit of ``y`` (n,) with weights ``w`` (n,), by
     pool-adjacent-violators."""
+    vals, sizes = pav_blocks(y, w)
+    return np.repeat(vals, sizes)
+
+
+def pav_blocks(y: np.ndarray, w: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The blocks of the isotonic fit of ``y`` (n,): their values (B,), strictly increasing, and their
+    sizes (B,), summing to n (pool-adjacent-violators)."""
     y = np.asarray(y, dtype=float)
     w = np.ones_like(y) if w is None else np.asarray(w, dtype=float)
     vals, wts, sizes = [], [], []
@@ -117,35 +124,41 @@ def pav(y: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
             vals[-1] = (vals[-1] * wts[-1] + v1 * w1) / (wts[-1] + w1)
             wts[-1] += w1
             sizes[-1] += s1
-    return np.repeat(vals, sizes)
+    return np.asarray(vals, dtype=float), np.asarray(sizes, dtype=np.int64)
 
 
 @dataclass(frozen=True)
 class SideFit:
     """One side's fit: ``grid`` (T, S) κ on the table's τ × μ2 grid, per measured point its τ, μ2,
-    κ measured and fitted (``points``: (n, 4)), the residuals' RMS and largest, 1/mm."""
+    κ measured and fitted (``points``: (n, 4)), the residuals' RMS and largest, 1/mm (with one coupon
+    per (τ, μ2) the fit goes through every point the isotonic step kept, so these show only what it
+    pooled), and ``loo_rms``: the RMS of each interior point against the fit of its column without it
+    (leave-one-out: the measurement noise plus the interpolation error), 1/mm, NaN when no column has
+    an interior point."""
 
     grid: np.ndarray
     points: np.ndarray
     rms: float
     max_abs: float
+    loo_rms: float = float("nan")
 
 
 def fit_side(side: str, tau: np.ndarray, mu: np.ndarray, kappa: np.ndarray,
              thickness: np.ndarray, spacing: np.ndarray) -> SideFit:
     """Fit κ(τ, μ2) of one side from points (τ (n,), μ2 (n,), κ (n,)) onto ``thickness`` (T,) × ``spacing`` (S,).
 
-    Per spacing column: the points' mean κ per τ, isotonic regression over τ (weighted by the count),
-    then PCHIP through the isotonic values onto ``thickness`` (PCHIP keeps monotone data monotone;
-    τ beyond the measured ones is extrapolated linearly from the last two isotonic values, then must
+    Per spacing column: the points' mean κ per τ, isotonic regression over τ (weighted by the count);
+    each block of the isotonic fit (thicknesses pooled to one value) becomes one point at its mean τ
+    (weighted), so the points rise strictly; PCHIP through them onto ``thickness`` (PCHIP keeps
+    monotone data monotone; τ beyond them is extrapolated linearly from the last two, then must
     still rise).
 
     Raises
     ------
     ValueError
         naming the side and μ2: fewer than ``MIN_POINTS`` measured thicknesses in a column (too
-        sparse), or a fit that does not increase strictly in τ (flat after pooling: the measurements
-        fall with τ or do not change).
+        sparse), or a column that is not monotone even after the fit: one block pools more than half
+        of its thicknesses (at least 3; the measurements fall with τ or do not change there).
     """
     from scipy.interpolate import PchipInterpolator
 
@@ -153,6 +166,7 @@ def fit_side(side: str, tau: np.ndarray, mu: np.ndarray, kappa: np.ndarray,
     T, S = len(thickness), len(spacing)
     grid = np.zeros((T, S))
     fitted = np.zeros(len(kappa))
+    loo: list[float] = []
     for j, m in enumerate(spacing):
         sel = np.isclose(mu, m)
         ts = np.unique(tau[sel])
@@ -161,29 +175,43 @@ def fit_side(side: str, tau: np.ndarray, mu: np.ndarray, kappa: np.ndarray,
                              "needed (too sparse: measure more coupons of this column)")
         means = np.array([kappa[sel][tau[sel] == t].mean() for t in ts])
         counts = np.array([np.count_nonzero(tau[sel] == t) for t in ts], dtype=float)
-        iso = pav(means, counts)
-        rise = iso[-1] - iso[0]
-        if not rise > MIN_RISE * max(abs(iso.mean()), 1e-12) or np.any(np.diff(iso) <= 0):
-            flat = int(np.flatnonzero(np.diff(iso) <= 0)[0]) if np.any(np.diff(iso) <= 0) else 0
+        vals, sizes = pav_blocks(means, counts)
+        ends = np.cumsum(sizes)
+        starts = ends - sizes
+        widest = int(np.argmax(sizes))
+        if len(vals) < 2 or sizes[widest] > max(2, len(ts) // 2) \
+                or not vals[-1] - vals[0] > MIN_RISE * max(abs(vals.mean()), 1e-12):
+            a, b = ts[starts[widest]], ts[ends[widest] - 1]
             raise ValueError(
-                f"{side}, μ2 = {m:g} mm: κ1 does not increase with τ even after the monotone fit (between "
-                f"τ = {ts[flat]:g} and {ts[flat + 1]:g} mm the measurements fall or stay level: "
-                f"{means[flat]:.5g} and {means[flat + 1]:.5g} 1/mm); re-measure those coupons or leave them out")
-        f = PchipInterpolator(ts, iso, extrapolate=False)
-        col = f(np.clip(thickness, ts[0], ts[-1]))
-        lo, hi = thickness < ts[0], thickness > ts[-1]
-        col[lo] = iso[0] + (thickness[lo] - ts[0]) * (iso[1] - iso[0]) / (ts[1] - ts[0])
-        col[hi] = iso[-1] + (thickness[hi] - ts[-1]) * (iso[-1] - iso[-2]) / (ts[-1] - ts[-2])
+                f"{side}, μ2 = {m:g} mm: κ1 does not increase with τ even after the monotone fit (from "
+                f"τ = {a:g} to {b:g} mm the measurements fall or stay level: "
+                f"{', '.join(f'{v:.4g}' for v in means[starts[widest]:ends[widest]])} 1/mm); re-measure those "
+                "coupons or leave them out")
+        ct = np.array([np.average(ts[a:b], weights=counts[a:b]) for a, b in zip(starts, ends)])  # block centres
+
+        def f(x: np.ndarray, _f=PchipInterpolator(ct, vals), _c=ct, _v=vals) -> np.ndarray:  # noqa: ANN001
+            """The column's curve: PCHIP through the blocks, linear beyond them."""
+            x = np.asarray(x, dtype=float)
+            y = _f(np.clip(x, _c[0], _c[-1]))
+            y = np.where(x < _c[0], _v[0] + (x - _c[0]) * (_v[1] - _v[0]) / (_c[1] - _c[0]), y)
+            return np.where(x > _c[-1], _v[-1] + (x - _c[-1]) * (_v[-1] - _v[-2]) / (_c[-1] - _c[-2]), y)
+
+        col = f(thickness)
         if np.any(col <= 0) or np.any(np.diff(col) <= 0):
             raise ValueError(f"{side}, μ2 = {m:g} mm: the fitted κ1 is not positive and strictly increasing on the "
                              f"table's τ grid {thickness.min():g}–{thickness.max():g} mm (measured "
                              f"{ts[0]:g}–{ts[-1]:g} mm): measure the whole range")
         grid[:, j] = col
         fitted[sel] = f(tau[sel])
+        full = np.repeat(vals, sizes)
+        for i in range(1, len(ts) - 1):               # leave one out: the interior points
+            keep = np.arange(len(ts)) != i
+            loo.append(float(means[i] - PchipInterpolator(ts[keep], full[keep])(ts[i])))
     res = kappa - fitted
     pts = np.column_stack([tau, mu, kappa, fitted])
     return SideFit(grid=grid, points=pts, rms=float(np.sqrt(np.mean(res ** 2))) if len(res) else 0.0,
-                   max_abs=float(np.abs(res).max(initial=0.0)))
+                   max_abs=float(np.abs(res).max(initial=0.0)),
+                   loo_rms=float(np.sqrt(np.mean(np.square(loo)))) if loo else float("nan"))
 
 
 @dataclass(frozen=True)
@@ -263,7 +291,8 @@ def fit_table(plan: dict, measurements: dict[int, float | None], *, name: str, f
         warnings.append(f"the table covers μ2 = {mu[0]:g}–{mu[-1]:g} mm but designs need "
                         f"{design_mu2[0]:.2f}–{design_mu2[1]:.2f} mm: ribbons outside are clamped")
     count = sum(1 for k in measurements.values() if k is not None)
-    resid = "; ".join(f"{s}: RMS {f.rms:.3g}, max {f.max_abs:.3g} 1/mm" for s, f in sides.items())
+    resid = "; ".join(f"{s}: RMS {f.rms:.3g}, max {f.max_abs:.3g}, leave-one-out RMS {f.loo_rms:.3g} 1/mm"
+                      for s, f in sides.items())
     desc = (f"Measured: {count} coupons ({len(failed)} failed) of calibration plan printed with profile "
             f"{plan.get('profile', spec.get('printer_profile'))!r}, l_r {spec['ribbon_length']:g} mm, w_r "
             f"{spec['ribbon_width']:g} mm, μ1 {spec['mu1']:g} mm, s = {spec['prestretch']:g}, on {date or 'an unknown date'}"

@@ -135,8 +135,32 @@ def test_fit_refuses_non_monotone_and_sparse_columns():
     k = law("front", T, M)
     falling = k.copy()
     falling[:, 1] = falling[::-1, 1]                       # falls with τ at μ2 = 10: flat after pooling
-    with pytest.raises(ValueError, match="front, μ2 = 10 mm: κ1 does not increase"):
+    with pytest.raises(ValueError, match="front, μ2 = 10 mm: κ1 does not increase with τ even after the "
+                       "monotone fit \\(from τ = 0.2 to 0.8 mm"):
         fit_side("front", T.ravel(), M.ravel(), falling.ravel(), tau, mu)
     keep = ~((M == 5.0) & (T > 0.3))                       # one thickness left at μ2 = 5
     with pytest.raises(ValueError, match="front, μ2 = 5 mm: 1 measured thickness.*too sparse"):
         fit_side("front", T[keep], M[keep], k[keep], tau, mu)
+
+
+def test_residuals_show_the_pooled_points_and_the_noise():
+    tau = np.array([0.2, 0.4, 0.6, 0.8, 1.0, 1.2])
+    mu = np.array([5.0, 10.0])
+    T, M = np.meshgrid(tau, mu, indexing="ij")
+    k = law("front", T, M)
+    exact = fit_side("front", T.ravel(), M.ravel(), k.ravel(), tau, mu)
+    assert exact.rms < 1e-15                                   # nothing pooled: through every point
+    noisy = k.copy()
+    noisy[2, 0], noisy[3, 0] = k[3, 0], k[2, 0]                 # a swapped pair: pooled to their mean
+    fit = fit_side("front", T.ravel(), M.ravel(), noisy.ravel(), tau, mu)
+    # the pair is one point at τ = 0.7, κ their mean: the curve passes there and stays near the law,
+    # so each swapped measurement is off by about the law's difference between 0.6 and 0.8 mm; every
+    # other point lies exactly on the curve
+    d = k[3, 0] - k[2, 0]
+    p = fit.points
+    pair = np.isclose(p[:, 1], 5.0) & (np.isclose(p[:, 0], 0.6) | np.isclose(p[:, 0], 0.8))
+    np.testing.assert_allclose(np.abs(p[pair, 2] - p[pair, 3]), d, rtol=0.35)
+    np.testing.assert_allclose(p[~pair, 2], p[~pair, 3], atol=1e-15)
+    assert fit.max_abs == pytest.approx(np.abs(p[pair, 2] - p[pair, 3]).max())
+    assert np.all(np.diff(fit.grid, axis=0) > 0)
+    assert fit.loo_rms > exact.loo_rms
