@@ -94,7 +94,7 @@ def sheet_png(plan: "CalibrationPlan", sheet: "Sheet") -> bytes:
             ax.plot(line[:, 0], line[:, 1], color=_COLOR[c.side], lw=1.2, alpha=0.6, solid_capstyle="butt")
         ax.text(c.x + c.width / 2, c.y + c.height / 2, f"{c.number}\n{c.side[0]} τ{c.thickness:g} μ{c.spacing:g}",
                 ha="center", va="center", fontsize=6, weight="bold")
-    for s in sheet.cuts:
+    for s in sheet.cuts + [q for strokes in sheet.labels.values() for q in strokes]:
         ax.plot(s[:, 0], s[:, 1], color="black", lw=0.6)
     for k, (mx, my) in enumerate(sheet.design.registration_marks or [], start=1):
         ax.plot([mx], [my], marker="+", color="green", ms=8)

@@ -164,3 +164,35 @@ def test_residuals_show_the_pooled_points_and_the_noise():
     assert fit.max_abs == pytest.approx(np.abs(p[pair, 2] - p[pair, 3]).max())
     assert np.all(np.diff(fit.grid, axis=0) > 0)
     assert fit.loo_rms > exact.loo_rms
+
+
+def test_ribbonctl_calibrate_locally(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    from ribbond.cli import main
+
+    out = tmp_path / "cal"
+    assert main(["calibrate", "plan", "-o", str(out), "--thicknesses", "0.3,0.6,0.9", "--spacings", "5,10",
+                 "--sides", "front"]) == 0
+    rows = (out / "coupons.csv").read_text().splitlines()[1:]
+    assert len(rows) == 6 and all(",front," in r for r in rows)
+    assert (out / "sheet-1.png").read_bytes()[:4] == b"\x89PNG" and b"<svg" in (out / "sheet-1.svg").read_bytes()
+    coupons = [dict(zip(("coupon", "side", "thickness_mm", "spacing_mm", "sheet", "x", "y", "width_mm"),
+                        r.split(",")[:8])) for r in rows]
+    coupons = [{**c, "coupon": int(c["coupon"]), "thickness_mm": float(c["thickness_mm"]),
+                "spacing_mm": float(c["spacing_mm"]), "width_mm": float(c["width_mm"])} for c in coupons]
+    text, _ = measurement_rows(coupons, 0.0, seed=1)
+    (tmp_path / "m.csv").write_text(text)
+    capsys.readouterr()
+    assert main(["calibrate", "record", str(out), str(tmp_path / "m.csv"), "-o", str(tmp_path / "mine.toml")]) == 0
+    said = capsys.readouterr().out
+    assert "table 'mine' from 6 coupons" in said and "designs need" in said       # μ2 5-10 mm: a warning
+    from ribbond.design.thickness import load_curvature_table
+
+    t = load_curvature_table(tmp_path / "mine.toml")
+    tau, mu = np.meshgrid(t.thickness, t.spacing, indexing="ij")
+    np.testing.assert_allclose(t.grid("front"), law("front", tau, mu), rtol=1e-4)   # 5 digits, no noise
+    # the back was not measured: the front times the shipped table's back/front ratio, said so
+    assert "The back side was not measured" in t.description
+    (tmp_path / "bad.csv").write_text("coupon,radius_mm\n1,20\n4,-2\n")
+    assert main(["calibrate", "record", str(out), str(tmp_path / "bad.csv"), "-o", str(tmp_path / "x.toml")]) == 2
+    assert "bad.csv, line 3, coupon 4" in capsys.readouterr().err
+    assert not (tmp_path / "x.toml").exists()
