@@ -408,7 +408,7 @@ function alignResultHTML(res) {
   if (!res) return "";
   if (res.refused) {
     return `<div class="result refused"><h3>Alignment refused</h3><p>${esc(res.detail)}</p>
-      <p>The ${esc(res.refused)} is ${mm(res.value, 3)}; the limit is ${mm(res.limit, 3)}${res.refused === "rotation" ? "°" : " mm"}.
+      <p>The ${esc(res.refused)} is ${mm(res.value, 3)}${res.refused === "rotation" ? "°" : " mm"}; the limit is ${mm(res.limit, 3)}${res.refused === "rotation" ? "°" : " mm"}.
       Re-seat the frame on its pins, then press “Frame is flipped” to measure the marks again.</p></div>`;
   }
   if (res.fit) {
@@ -454,9 +454,9 @@ function renderJobPage() {
   $("j-title").textContent = j.mesh_name;
   $("j-state").textContent = LABEL[j.state];
   $("j-state").className = `state ${j.state}`;
-  $("j-stage").textContent = j.stage && j.state !== "compiling" ? j.stage : "";
+  $("j-stage").textContent = j.stage && !["compiling", "awaiting_flip", "aligning"].includes(j.state) ? j.stage : "";
   $("j-next").textContent = nextText(j);
-  $("j-error").hidden = !j.error;
+  $("j-error").hidden = !j.error || j.state === "awaiting_flip";     // the flip step says it
   $("j-error").textContent = j.error || "";
   const showProgress = !["submitted", "ready"].includes(j.state) || j.progress > 0;
   $("j-progress").hidden = !showProgress;
@@ -476,18 +476,24 @@ function renderJobPage() {
   // the flip step
   $("flip").hidden = j.state !== "awaiting_flip";
   if (j.state === "awaiting_flip") {
-    const words = j.next.instruction.replace(/, then run: ribbonctl flip-done \S+/, ", then press “Frame is flipped”.");
+    const res = state.align.get(j.id);
+    let words = j.next.instruction.replace(/, then run: ribbonctl flip-done \S+/, ", then press “Frame is flipped”.");
+    if (res && res.refused) words = words.replace(/^the alignment was refused \(.*\); (?=the front is printed)/, "");
     $("flip-text").textContent = words.charAt(0).toUpperCase() + words.slice(1);
     const key = `${j.id}:${design ? 1 : 0}:${JSON.stringify(axis)}`;
     if ($("flip-picture").dataset.key !== key) {
       $("flip-picture").dataset.key = key;
       $("flip-picture").innerHTML = design ? flipSVG(design, axis) : "";
     }
-    const res = state.align.get(j.id);
-    $("flip-picture").insertAdjacentHTML("beforeend", "");
     let r = $("flip").querySelector(".result");
     if (r) r.remove();
     if (res && res.refused) $("flip-text").insertAdjacentHTML("afterend", alignResultHTML(res));
+  }
+  // a step that waits for the operator comes into view when it begins (on a phone it is below the fold)
+  if (state.shownState !== `${j.id}:${j.state}`) {
+    const step = j.state === "awaiting_flip" ? $("flip") : j.state === "aligning" ? $("align") : null;
+    state.shownState = `${j.id}:${j.state}`;
+    if (step) requestAnimationFrame(() => step.scrollIntoView({ block: "start", behavior: "instant" }));
   }
   // the alignment step
   $("align").hidden = j.state !== "aligning" && !(state.align.get(j.id)?.fit && j.state === "printing_back");

@@ -81,6 +81,14 @@ def jog_with_pad(page: Any, pad: str, dx: float, dy: float) -> None:
     page.wait_for_selector(f"{pad}[data-pending='0']", state="attached")
 
 
+def in_view(page: Any, selector: str) -> bool:
+    """The element is inside the viewport, below the sticky bar."""
+    box = page.locator(selector).bounding_box()
+    bar = page.locator("#bar").bounding_box()
+    size = page.viewport_size
+    return box is not None and box["y"] >= bar["height"] - 1 and box["y"] + box["height"] <= size["height"]
+
+
 # ---------------------------------------------------------------------------------- tests
 
 
@@ -351,8 +359,9 @@ def test_a_refused_alignment_is_explained(browser_page: Any, shared_daemon: Daem
                                           api: httpx.Client, meshes: dict[str, Path]) -> None:
     """Marks that no rigid motion fits (mark 1 measured 10 mm off, the others where the head was
     sent): the page says the alignment was refused, which limit was exceeded and by how much (the
-    daemon's own numbers), and shows the flip step again to re-seat the frame."""
-    page = browser_page()
+    daemon's own numbers), and shows the flip step again to re-seat the frame. On a phone: each
+    step comes into view with its button when it begins."""
+    page = browser_page(PHONE)
     page.on("dialog", lambda d: d.accept())
     page.goto(shared_daemon.url + "/")
     page.wait_for_selector("#live:text('live')", timeout=20 * SECOND)
@@ -363,12 +372,18 @@ def test_a_refused_alignment_is_explained(browser_page: Any, shared_daemon: Daem
     page.wait_for_url(re.compile(r"#/job/"))
     job = page.url.rsplit("/", 1)[1]
     page.wait_for_selector("#flip:not([hidden])", timeout=150 * SECOND)
+    page.wait_for_timeout(300)
+    shot(page, "20-phone-flip", full_page=False)
+    assert in_view(page, "#flip h2")
     shared_sim.flip()
     page.click("#flip-done")
     marks = len(api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"])
     for k in range(1, marks + 1):
         page.wait_for_selector(f"#align-text[data-mark='{k}']", timeout=60 * SECOND)
         if k == 1:
+            page.wait_for_timeout(300)
+            shot(page, "21-phone-align", full_page=False)
+            assert in_view(page, "#align h2") and in_view(page, "#align-jog button[data-jog='y-']")
             page.click("#align-jog label[data-step='10']")
             page.click("#align-jog button[data-jog='x+']")
         page.click("#align-here")
@@ -379,6 +394,7 @@ def test_a_refused_alignment_is_explained(browser_page: Any, shared_daemon: Daem
     limit = PROFILE.alignment.max_residual
     assert "Alignment refused" in text and f"the limit is {limit:.3f} mm" in text, text
     assert "The residual is" in text and "Re-seat the frame" in text, text
+    assert "refused" not in page.inner_text("#flip-text")      # said once, in the box
     assert page.locator("#flip-done").is_visible()
     shot(page, "18-alignment-refused")
     page.click("#j-actions button[data-action='cancel']")
