@@ -196,3 +196,26 @@ def test_ribbonctl_calibrate_locally(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert main(["calibrate", "record", str(out), str(tmp_path / "bad.csv"), "-o", str(tmp_path / "x.toml")]) == 2
     assert "bad.csv, line 3, coupon 4" in capsys.readouterr().err
     assert not (tmp_path / "x.toml").exists()
+
+
+def _shape(strokes: list[np.ndarray]) -> set[tuple[float, ...]]:
+    """Strokes as a set of unordered segments, translated so that their lower left corner is at 0."""
+    lo = np.vstack(strokes).min(axis=0)
+    return {tuple(sorted([tuple(np.round(p - lo, 6)) for p in s])) for s in strokes}  # type: ignore[misc]
+
+
+def test_back_labels_read_right_on_the_back():
+    from ribbond.calibration.plan import Coupon, coupon_label, digit_strokes
+    from ribbond.gcode.program import mirror
+
+    frame = load_profile("ultimaker2-tpu").frame
+    up, right = np.array([-1.0, 0.0]), np.array([0.0, 1.0])
+    for number in (2, 47):
+        glyph = _shape(digit_strokes(str(number), np.zeros(2), up, right))
+        common = dict(number=number, thickness=0.4, spacing=6.0, sheet=1, x=40.0, y=50.0, width=49.5,
+                      height=24.0, rows=4, expected_kappa=0.02)
+        front = coupon_label(Coupon(side="front", **common), frame.flip_axis)
+        back = coupon_label(Coupon(side="back", **common), frame.flip_axis)
+        assert _shape(front) == glyph                              # as printed on the front
+        assert _shape([mirror(s, frame) for s in back]) == glyph   # as printed on the back (mirrored program)
+        assert _shape(back) != glyph                               # (the check can tell a mirrored label)
