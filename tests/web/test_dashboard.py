@@ -184,15 +184,19 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
 
 def test_a_refused_mesh_shows_its_message(browser_page: Any, shared_daemon: Daemon, api: httpx.Client,
                                           tmp_path: Path) -> None:
-    """A file that is no mesh is refused by the daemon (422) and the page says why, in its words;
-    bad design parameters likewise; no job is made."""
+    """A file that is no mesh (dropped on the page) is refused by the daemon (422) and the page says
+    why, in the daemon's words; bad design parameters likewise; no job is made."""
     before = len(api.get("/jobs").json())
     page = browser_page()
     page.goto(shared_daemon.url + "/")
     page.wait_for_selector("#live:text('live')", timeout=20 * SECOND)
-    notes = tmp_path / "notes.txt"
-    notes.write_text("not a mesh\n")
-    page.set_input_files("#file", str(notes))
+    # dropped on the drop zone, as from a file manager
+    page.evaluate("""() => {
+        const dt = new DataTransfer();
+        dt.items.add(new File(["not a mesh\\n"], "notes.txt", { type: "text/plain" }));
+        document.querySelector("#drop").dispatchEvent(new DragEvent("drop", { dataTransfer: dt, bubbles: true }));
+    }""")
+    page.wait_for_selector("#drop-text:text('notes.txt')")
     page.click("#submit-btn")
     page.wait_for_selector("#submit-error:not([hidden])")
     message = page.inner_text("#submit-error")
@@ -348,6 +352,14 @@ def test_manual_control_and_a_plain_gcode_job(browser_page: Any, shared_daemon: 
     page.wait_for_selector("#j-state.done", timeout=60 * SECOND)
     assert len(api.get(f"/jobs/{job}").json()["runs"]) == 1
     shot(page, "17-gcode-done")
+    page.click("a[href='#/']")
+    page.click("[data-filter='done']")
+    page.wait_for_selector(f"#job-list tr[data-job='{job}']")
+    page.click("[data-filter='active']")
+    page.wait_for_selector(f"#job-list tr[data-job='{job}']", state="detached")
+    page.click("[data-filter='all']")
+    page.goto(f"{shared_daemon.url}/#/job/{job}")
+    page.wait_for_selector("#j-state.done")
     page.click("#j-actions button[data-action='delete']")
     page.wait_for_url(re.compile(r"#/$"))
     assert api.get(f"/jobs/{job}").status_code == 404
