@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+if TYPE_CHECKING:
+    from ..design.thickness import CurvatureTable
 
 #: A fitted column must rise by at least this factor of its mean over its τ range (else: flat).
 MIN_RISE = 1e-3
@@ -219,7 +222,7 @@ class TableFit:
     """The fitted table (its TOML text and model), the per-side fits, what was left out."""
 
     text: str
-    table: object          # CurvatureTable
+    table: CurvatureTable
     sides: dict[str, SideFit]
     failed: list[int]
     measured: int
@@ -242,7 +245,7 @@ def _quote(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"').replace("\n", " ") + '"'
 
 
-def fit_table(plan: dict, measurements: dict[int, float | None], *, name: str, fabric: str = "",
+def fit_table(plan: dict[str, Any], measurements: dict[int, float | None], *, name: str, fabric: str = "",
               material: str = "", date: str = "", design_mu2: tuple[float, float] | None = None) -> TableFit:
     """Fit a curvature table from a plan (``plan.json``'s content) and the measured κ per coupon.
 
@@ -367,4 +370,4 @@ def design_mu2_range(ribbon_length: float, ribbon_width: float, prestretch: floa
 
 
 __all__ = ["Measurement", "arc_curvature", "parse_measurements", "pav", "fit_side", "fit_table", "plot_fit",
-           "TableFit", "SideFit", "design_mu2_range", "math"]
+           "TableFit", "SideFit", "design_mu2_range"]

@@ -28,6 +28,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,7 @@ from ..design.placement import registration_marks
 from ..design.thickness import load_curvature_table, table_curvature
 from ..gcode.ordering import order_ribbons
 from ..gcode.profiles import PrinterProfile, load_profile
-from ..gcode.program import (MARK_SIZE, Programs, SidePlan, _empty_side, mirror, render_combined,
+from ..gcode.program import (MARK_SIZE, Program, Programs, SidePlan, _empty_side, mirror, render_combined,
                              render_side)
 from ..gcode.toolpath import RibbonPasses, mark_passes, ribbon_passes
 from .spec import CalibrationSpec
@@ -252,7 +253,7 @@ def plan_sheet_side(design: Design, profile: PrinterProfile, side: str, labels: 
                     source=design.source.file)
 
 
-def _side_report(prog) -> SidePrintReport:  # noqa: ANN001
+def _side_report(prog: Program) -> SidePrintReport:
     s = prog.stats
     return SidePrintReport(lines=s.lines, extrusion_mm=s.extrusion_mm, travel_mm=s.travel_mm, time_s=s.time_s,
                            filament_mm=s.filament_mm)
@@ -310,9 +311,8 @@ def make_plan(spec: CalibrationSpec, *, time_budget: float = 0.3) -> Calibration
         corners = np.concatenate([np.vstack(v) for v in cuts.values()])
         marks = registration_marks(corners, profile.frame, offset=5.0)
         design = _sheet_design(spec, profile, number, mine, marks, digest, None)
-        front = plan_sheet_side(design, profile, "front", {n: labels[c.number] for c in mine
-                                                            if c.side == "front" for n in [c.number]},
-                                cuts, time_budget=time_budget)
+        front_labels = {c.number: labels[c.number] for c in mine if c.side == "front"}
+        front = plan_sheet_side(design, profile, "front", front_labels, cuts, time_budget=time_budget)
         back_labels = {c.number: labels[c.number] for c in mine if c.side == "back"}
         back = plan_sheet_side(design, profile, "back", back_labels, {}, time_budget=time_budget)
         fp = render_side(front, profile)
@@ -361,7 +361,7 @@ def plan_json(plan: CalibrationPlan) -> str:
                                    for c in plan.coupons]}, indent=1) + "\n"
 
 
-def read_plan(folder: Path) -> dict:
+def read_plan(folder: Path) -> dict[str, Any]:
     """``plan.json`` of a plan folder, checked for its format; ValueError naming the file."""
     path = Path(folder) / PLAN_FILE
     try:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 #: The paper's grid (Fig. 6), and the shipped table's: τ rows, mm.
 DEFAULT_THICKNESSES = (0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6)
@@ -49,7 +49,7 @@ class CalibrationSpec(BaseModel):
 
     @field_validator("thicknesses", "spacings")
     @classmethod
-    def _increasing(cls, values: tuple[float, ...], info) -> tuple[float, ...]:  # noqa: ANN001
+    def _increasing(cls, values: tuple[float, ...], info: ValidationInfo) -> tuple[float, ...]:
         for v in values:
             if not v > 0:
                 raise ValueError(f"{info.field_name}: {v} must be > 0")
