@@ -145,9 +145,9 @@ SLIGHT_DEVIATION = 0.005
 
 
 def _deviation_line(what: str, dev: Any) -> list[str]:
-    """The summary line of a deviation from the target's k1 (none in a format-1 report)."""
+    """The summary line of a deviation from the target's k1 (None: no face where k1 is defined)."""
     if dev is None:
-        return []
+        return [f"{what + ':':<15}not measured: k1 is nowhere well defined (anisotropy ≤ 0.3 on every face)"]
     return [f"{what + ':':<15}median {dev.median:.2f}°, mean {dev.mean:.2f}°, p95 {dev.p95:.2f}° "
             "(on faces where k1 is defined: anisotropy > 0.3)"]
 

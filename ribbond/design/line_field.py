@@ -344,11 +344,12 @@ def _smoothest(A: sp.csc_matrix, area: np.ndarray) -> np.ndarray:
     return z
 
 
-def field_k1_deviation(field: LineField, curvature: Curvature) -> dict[str, float]:
+def field_k1_deviation(field: LineField, curvature: Curvature) -> dict[str, float] | None:
     """The angle between the field and the target's own k1 on faces where k1 is defined
-    (anisotropy above ``ANISOTROPY_THRESHOLD``): median, mean and p95 in degrees (0 when none is)."""
+    (anisotropy above ``ANISOTROPY_THRESHOLD``): median, mean and p95 in degrees; None where no
+    face has a defined k1 (there is nothing to deviate from)."""
     d = np.mod(field.angle - curvature.angle, np.pi)
     deg = np.degrees(np.minimum(d, np.pi - d))[field.anisotropy > ANISOTROPY_THRESHOLD]
     if len(deg) == 0:
-        return {"median": 0.0, "mean": 0.0, "p95": 0.0}
+        return None
     return {"median": float(np.median(deg)), "mean": float(deg.mean()), "p95": float(np.percentile(deg, 95))}

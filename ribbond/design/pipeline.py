@@ -175,9 +175,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     timings["curvature"] = time.perf_counter() - t
     field_dev = field_k1_deviation(field, curvature)
     progress.stage_finished("curvature", timings["curvature"],
-                            f"{100 * field.umbilic.mean():.1f} % of the surface umbilic, field "
-                            f"{field_dev['median']:.2f}° median off k1, {len(field.singular_vertices)} "
-                            "singular vertices"
+                            f"{100 * field.umbilic.mean():.1f} % of the surface umbilic, "
+                            + (f"field {field_dev['median']:.2f}° median off k1, " if field_dev else "")
+                            + f"{len(field.singular_vertices)} singular vertices"
                             + ("" if field.aligned else "; no curvature direction anywhere: "
                                "smoothest field in an arbitrary direction"))
 
@@ -252,8 +252,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                             f"{clamped} thicknesses clamped to the table")
 
     q = ribbon_quantiles(layout)
-    report["field_k1_deviation_deg"] = Deviation(**field_dev)
-    report["ribbon_k1_deviation_deg"] = Deviation(**q.pop("ribbon_k1_deviation_deg"))
+    ribbon_dev = q.pop("ribbon_k1_deviation_deg", None)
+    report["field_k1_deviation_deg"] = Deviation(**field_dev) if field_dev else None
+    report["ribbon_k1_deviation_deg"] = Deviation(**ribbon_dev) if ribbon_dev else None
     report["umbilic_pct"] = float(100.0 * np.mean(field.anisotropy <= ANISOTROPY_THRESHOLD))
     report["ribbons"] = RibbonsReport(
         front=front, back=layout.count - front, dropped_short=layout.dropped_short,

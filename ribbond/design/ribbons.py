@@ -321,9 +321,9 @@ def ribbon_quantiles(layout: RibbonLayout) -> dict[str, dict[str, float]]:
     out: dict[str, dict[str, float]] = {"direction_deviation_deg": {"median": dev[0], "p95": dev[1]}}
     k1 = _weighted_quantiles(layout.k1_deviation, layout.k1_weight, (0.5, 0.95))
     total = float(np.sum(layout.k1_weight))
-    out["ribbon_k1_deviation_deg"] = {
-        "median": k1[0], "p95": k1[1],
-        "mean": float(np.sum(layout.k1_deviation * layout.k1_weight) / total) if total > 0 else 0.0}
+    if total > 0:       # else no ribbon lies where k1 is defined: nothing to deviate from
+        out["ribbon_k1_deviation_deg"] = {
+            "median": k1[0], "p95": k1[1], "mean": float(np.sum(layout.k1_deviation * layout.k1_weight) / total)}
     for key, errs in (("spacing_error_pct", np.concatenate([layout.spacing_error_across,
                                                             layout.spacing_error_along])),
                       ("spacing_error_across_pct", layout.spacing_error_across),
