@@ -31,6 +31,8 @@ function toast(message, kind = "info") {
   toastTimer = setTimeout(() => { t.hidden = true; }, kind === "error" ? 9000 : 4000);
 }
 
+$("toast").addEventListener("click", () => { $("toast").hidden = true; });
+
 async function act(what, fn) {
   try { return await fn(); } catch (e) { toast(`${what}: ${e.message}`, "error"); throw e; }
 }
@@ -257,7 +259,8 @@ async function loadJobs() {
 let chosen = null;
 function choose(file) {
   chosen = file;
-  $("drop-text").textContent = file ? `${file.name} (${(file.size / 1024).toFixed(0)} kB)` : "Choose a file";
+  $("drop-text").textContent = file ? `${file.name} (${Math.max(1, Math.round(file.size / 1024))} kB): tap to choose another`
+    : "Choose a mesh (OBJ, PLY, STL, OFF) or a G-code file: tap here, or drop it here";
   const gcode = file && /\.(gcode|gco|g|nc)$/i.test(file.name);
   $("design-params").hidden = !!gcode;
   $("submit-btn").textContent = gcode ? "Upload G-code" : "Upload mesh";
@@ -531,8 +534,14 @@ function renderJobPage() {
   if (files?.deployed && $("img-deployed").src !== files.deployed) $("img-deployed").src = files.deployed;
   const dev = design?.report?.deployed?.deviation_pct;
   $("cap-deployed").textContent = dev ? `Predicted deployed shape: ${mm(dev.mean, 1)} % mean deviation (max ${mm(dev.max, 1)} %)` : "Predicted deployed shape";
-  $("j-summary-card").hidden = !design;
+  const gcode = j.kind === "gcode";
+  $("j-summary-card").hidden = !design && !gcode;
+  $("j-summary-card").querySelector("h2").textContent = gcode ? "Program" : "Design";
   if (design) $("j-summary").innerHTML = summary(design);
+  else if (gcode) {
+    $("j-summary").innerHTML = `<dt>Commands</dt><dd>${esc(j.lines_total ?? "–")}</dd>` +
+      `<dt>Estimated time</dt><dd>${duration(j.estimate_s?.front)}</dd><dt>Runs before this one</dt><dd>${j.runs?.length ?? 0}</dd>`;
+  }
 }
 
 $("flip-done").addEventListener("click", async () => {
@@ -612,7 +621,7 @@ function route() {
   renderJobPage();
   window.scrollTo(0, 0);
 }
-window.addEventListener("hashchange", route);
+window.addEventListener("hashchange", () => { $("toast").hidden = true; route(); });
 
 function refreshAll() { quiet(loadJobs()); pollPrinter(); }
 
