@@ -312,7 +312,6 @@ def curvature_line_field(V: np.ndarray, F: np.ndarray, frames: FaceFrames, curva
     transport = edge_transport(V, F, frames)
     A = connection_laplacian(V, F, frames, transport)
     anisotropy = curvature_anisotropy(curvature, _bbox_diagonal(V))
-    q = curvature.alignment
     # below 1 % anisotropy anywhere the directions are estimation noise (a plane, a sphere)
     aligned = bool(anisotropy.max() > _UMBILIC_ONLY)
     if not aligned:
@@ -323,6 +322,7 @@ def curvature_line_field(V: np.ndarray, F: np.ndarray, frames: FaceFrames, curva
         z = _solve_aligned(A, np.clip(anisotropy, 0.0, 1.0), q_hat, area, rho, V, F, frames)
     else:
         B = sp.diags((area * (_SHIFT - smoothing_lambda)).astype(complex))
+        q = curvature.alignment
         q_norm = np.sqrt(np.sum(area * np.abs(q) ** 2))
         z = spla.spsolve((A + B).tocsc(), area * q / q_norm)
     angle = np.mod(0.5 * np.angle(z), np.pi)
