@@ -436,6 +436,7 @@ function nextText(j) {
     case "paused":
       if (j.stage === "paused") return "Pausing: the head is parking…";
       return "Paused, the head parked. Move it with Manual control if needed, then press Resume (it reheats first).";
+    case "printing_front": case "printing_back": return "";       // the progress line says it
     case "awaiting_flip": return "The front is printed: turn the frame over (below).";
     case "aligning": return "Align the back side on the registration marks (below).";
     case "done": return "Done. Print it again, or delete it.";
@@ -457,8 +458,10 @@ function renderJobPage() {
   $("j-title").textContent = j.mesh_name;
   $("j-state").textContent = LABEL[j.state];
   $("j-state").className = `state ${j.state}`;
-  $("j-stage").textContent = j.stage && !["compiling", "awaiting_flip", "aligning"].includes(j.state) ? j.stage : "";
+  const stage = j.stage && !["compiling", "awaiting_flip", "aligning"].includes(j.state) ? j.stage : "";
+  $("j-stage").textContent = stage.replace(/_/g, " ") === LABEL[j.state] ? "" : stage;
   $("j-next").textContent = nextText(j);
+  $("j-next").hidden = !$("j-next").textContent;
   $("j-error").hidden = !j.error || j.state === "awaiting_flip";     // the flip step says it
   $("j-error").textContent = j.error || "";
   const showProgress = !["submitted", "ready"].includes(j.state) || j.progress > 0;
