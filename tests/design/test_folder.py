@@ -169,7 +169,8 @@ def test_foreign_directory_is_not_replaced(tmp_path: Path) -> None:
 
 def test_known_files_are_the_documented_ones() -> None:
     assert DESIGN_FILES == {"target.obj", "flat.obj", "design.json", "front.gcode", "back.gcode",
-                            "combined.gcode", "preview.svg", "preview.png"}
+                            "combined.gcode", "preview.svg", "preview.png",
+                            "deployed.obj", "deployed.png"}           # format 2
 
 
 def _replace_line(path: Path, old: str, new: str) -> None:
