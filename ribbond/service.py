@@ -697,7 +697,9 @@ class RibbonService:
             rate = self._stream_rate(stream) or rate
             out["ribbon"] = stream.timeline.ribbon_at(acked) or None
             out["ribbons"] = stream.timeline.ribbons or None
-        elif job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT, JobState.PRINTING_BACK,
+        elif s is JobState.PRINTING_BACK:
+            done_side = 0.0     # the back's stream is not set up yet: the lines stored are the front's
+        elif job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,
                                        JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
             # not streaming now: where it stood, by the lines acknowledged
             done_side = totals.get(side, 0.0) * min(1.0, max(job.last_acked_line, 0) / job.lines_total)
@@ -1248,6 +1250,9 @@ class RibbonService:
     async def resume(self, job_id: str) -> JobRecord:
         job = self.job(job_id)
         run = self._run
+        if job.state is JobState.PAUSED and run is not None and run.job_id == job_id and run.pause_snapshot is None:
+            raise IllegalTransition(job.state, "resume", hint="the head is still being parked: resume in a "
+                                    "moment, when the job's stage says 'paused (head parked)'")
         if job.state is not JobState.PAUSED or run is None or run.job_id != job_id or run.pause_snapshot is None:
             raise IllegalTransition(job.state, "resume")
         link = self._require_link()
