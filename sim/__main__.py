@@ -56,6 +56,12 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--keepalive", type=float, default=d.keepalive_s,
                    help="seconds between 'echo:busy:' lines while a command blocks; 0 = off "
                         "(default %(default)s)")
+    g.add_argument("--cut-tail", choices=("reject", "marlin2"), default=d.cut_tail,
+                   help="the tail of a line cut by a receive-buffer flush: rejected (Marlin 1.x, "
+                        "default) or queued as an unnumbered command (Marlin 2.x: Unknown command + ok)")
+    g.add_argument("--read-latency", type=float, default=d.read_latency_s, metavar="S",
+                   help="main-loop latency: bytes arriving this long after a bad line are flushed "
+                        "with it, cutting the line being received (default 0)")
     g.add_argument("--seed", type=int, default=d.seed,
                    help="seed of every fault's random stream (default %(default)s)")
     g.add_argument("--boot-time", type=float, default=d.boot_s,
@@ -73,6 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="per output line: probability it is held back --slow-delay seconds")
     g.add_argument("--slow-delay", type=float, default=f.slow_delay_s,
                    help="seconds a slow line is held back (default %(default)s)")
+    g.add_argument("--skip-refused", action="store_true",
+                   help="buggy firmware: a line refused for its checksum is marked received "
+                        "(never run) and the next one is asked for")
     g.add_argument("--reset-after-lines", type=int, default=None, metavar="N",
                    help="reboot after N accepted numbered lines")
     g.add_argument("--disconnect-after-lines", type=int, default=None, metavar="N",
@@ -106,6 +115,8 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         bufsize=args.bufsize,
         planner_blocks=args.planner_blocks,
         keepalive_s=args.keepalive,
+        cut_tail=args.cut_tail,
+        read_latency_s=args.read_latency,
         seed=args.seed,
         boot_s=args.boot_time,
         faults=FaultConfig(
@@ -115,6 +126,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
             unsolicited_rate=args.unsolicited_rate,
             slow_rate=args.slow_rate,
             slow_delay_s=args.slow_delay,
+            skip_refused=args.skip_refused,
             reset_after_lines=args.reset_after_lines,
             disconnect_after_lines=args.disconnect_after_lines,
             runaway_after_lines=args.runaway_after_lines,

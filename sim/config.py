@@ -44,6 +44,9 @@ class FaultConfig:
     reset_after_lines: int | None = None
     disconnect_after_lines: int | None = None
     runaway_after_lines: int | None = None
+    skip_refused: bool = False
+    """A buggy firmware: a line refused for its checksum is marked received without running, so
+    the resend request asks for the line after it (that line is then missing)."""
     reconnect_after_s: float | None = None
     """After a disconnect, plug a new pty back in after this many seconds
     (``SimulatedPrinter.port`` then names the new device). None: stay unplugged."""
@@ -99,6 +102,15 @@ class SimConfig:
     """Planner ring size (BLOCK_BUFFER_SIZE); it holds planner_blocks - 1 moves."""
     keepalive_s: float = 2.0
     """``echo:busy:`` interval while a command blocks (0 disables)."""
+    cut_tail: str = "reject"
+    """What becomes of the tail of a line cut by a receive-buffer flush (it has ``*`` but no
+    ``N``): "reject" (Marlin 1.x: ``Error:No Line Number with checksum``, flush, ``Resend:``) or
+    "marlin2" (Marlin 2.x: no such check; queued as an unnumbered command, so an unparsable tail
+    is answered ``echo:Unknown command`` + ``ok``)."""
+    read_latency_s: float = 0.0
+    """Wall time Marlin's main loop may take to come back to the receive buffer: bytes arriving
+    that long after a bad line are already in the buffer when the error flushes it, so the line
+    being received is cut in two (0: the line after a bad one is never cut)."""
     seed: int = 0
     boot_s: float = 0.05
     """Wall time a (re)boot takes: bytes arriving meanwhile are lost, then the banner."""
@@ -116,6 +128,10 @@ class SimConfig:
             raise ValueError("bufsize must be >= 1")
         if self.planner_blocks < 2:
             raise ValueError("planner_blocks must be >= 2 (the ring keeps one slot free)")
+        if self.cut_tail not in ("reject", "marlin2"):
+            raise ValueError(f"cut_tail must be 'reject' or 'marlin2', got {self.cut_tail!r}")
+        if self.read_latency_s < 0:
+            raise ValueError("read_latency_s must be >= 0")
         if self.keepalive_s < 0:
             raise ValueError("keepalive_s must be >= 0")
         if self.boot_s < 0:

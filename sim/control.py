@@ -3,7 +3,7 @@
 One JSON object per line in, one JSON object per line out.  Requests:
   {"cmd": "flip", "dx": 0.5, "dy": -0.2, "rotation_deg": 1.0}
   {"cmd": "reset"} {"cmd": "disconnect"} {"cmd": "runaway"}
-  {"cmd": "stats"} {"cmd": "reset_stats"} {"cmd": "segments"} {"cmd": "commands"} {"cmd": "port"}
+  {"cmd": "stats"} {"cmd": "reset_stats"} {"cmd": "segments"} {"cmd": "commands"} {"cmd": "port"} {"cmd": "corrupt_rate", "rate": 0.05}
   {"cmd": "render", "path": "/tmp/out.png"}
 Answers are {"ok": true, ...} or {"ok": false, "error": "..."}.
 """
@@ -53,6 +53,12 @@ async def _answer(printer: SimulatedPrinter, req: dict[str, Any]) -> dict[str, A
         return {"ok": True, "segments": [dataclasses.asdict(s) for s in printer.segments()]}
     if cmd == "commands":
         return {"ok": True, "commands": [dataclasses.asdict(c) for c in printer.commands()]}
+    if cmd == "corrupt_rate":
+        try:
+            printer.set_corrupt_rate(float(req.get("rate", 0.0)))
+        except (TypeError, ValueError) as exc:
+            return {"ok": False, "error": str(exc)}
+        return {"ok": True}
     if cmd == "port":
         return {"ok": True, "port": printer.port}
     if cmd == "render":

@@ -196,6 +196,7 @@ class Firmware:
         self.rx = bytearray()
         self._lb = bytearray()
         self._lb_skip = False
+        self._flush_until: float | None = None  # bytes arriving by then go with the last flush
         self.queue: deque[QueuedCommand] = deque()
         self._current: _Running | None = None
         self.halted_at: float | None = None
@@ -255,6 +256,7 @@ class Firmware:
         self.rx.clear()
         self._lb.clear()
         self._lb_skip = False
+        self._flush_until = None
 
     def _stop_motion(self) -> None:
         partial = self.planner.quickstop(self.t)
@@ -360,6 +362,14 @@ class Firmware:
             self.stats.boot_lost_bytes += len(data)
             return
         emergencies = self._ep.feed(data)
+        if self._flush_until is not None:
+            # Bytes that arrived before the main loop came back to the buffer were flushed.
+            if t <= self._flush_until:
+                lost = len(data)
+            else:
+                lost = max(0, len(data) - int((t - self._flush_until) / self.config.byte_time) - 1)
+                self._flush_until = None
+            data = data[lost:]
         self._into_rx(data)
         for code in emergencies:
             self._emergency(code)
@@ -490,6 +500,17 @@ class Firmware:
                 return
             if strtol(text, star + 1) != checksum(cmd_b[:star]):
                 self.stats.checksum_errors += 1
+                if self.faults.config.skip_refused:
+                    # A buggy firmware: the refused line is marked received (never run), so the
+                    # request that follows asks for the line after it.
+                    self.emit(f"Error:{ERR_CHECKSUM}{self.last_n}")
+                    self.last_n = number
+                    self.rx.clear()
+                    self._lb.clear()
+                    self._lb_skip = False
+                    self.stats.skipped_lines += 1
+                    self._request_resend()
+                    return
                 self._line_error(ERR_CHECKSUM)
                 return
             self.last_n = number
@@ -498,13 +519,17 @@ class Firmware:
             line = strtol(text, 1)
             self.queue.append(QueuedCommand(text, line, n_text))
             self._after_numbered_line()
-        elif b"*" in cmd_b:
-            # Marlin: "No '*' without 'N'". A line cut by a receive-buffer flush arrives as its
+        elif b"*" in cmd_b and self.config.cut_tail == "reject":
+            # Marlin 1.x: "No '*' without 'N'". A line cut by a receive-buffer flush arrives as its
             # tail, with the checksum but without the number: it must never run unchecked.
+            # Marlin 2.x (cut_tail "marlin2") has no such check: the tail is queued as an
+            # unnumbered command, answered `echo:Unknown command` + `ok` (or run, if it parses).
             self.stats.checksum_errors += 1
             self._line_error(ERR_NO_LINE_NUMBER)
             return
         else:
+            if b"*" in cmd_b:
+                self.stats.cut_tails_queued += 1
             self.queue.append(QueuedCommand(text, None, None))
         if len(self.queue) > self.stats.queue_peak:
             self.stats.queue_peak = len(self.queue)
@@ -524,6 +549,8 @@ class Firmware:
     def _line_error(self, message: str) -> None:
         """gcode_line_error(): report, discard the receive buffer, ask for a resend."""
         self.emit(f"Error:{message}{self.last_n}")
+        if self.config.read_latency_s > 0:
+            self._flush_until = self.t + self.config.read_latency_s
         self.rx.clear()
         self._lb.clear()
         self._lb_skip = False

@@ -355,6 +355,15 @@ class SimulatedPrinter:
     def reset_stats(self) -> None:
         self._call(lambda: self._c().reset_stats())
 
+    def set_corrupt_rate(self, rate: float) -> None:
+        """Change the share of incoming lines corrupted from now on (benchmarks start the noise
+        after the handshake)."""
+        config = dataclasses.replace(self.config.faults, corrupt_rate=rate)  # validates the rate
+
+        def apply() -> None:
+            self._c().faults.config = config
+        self._call(apply)
+
     def trigger_reset(self) -> None:
         """Reboot the board now: banner, all state lost."""
         self._call(lambda: self._c().reset())

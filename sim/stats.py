@@ -33,6 +33,9 @@ class Stats:
     # Beyond the required counters:
     spurious_resends: int = 0
     corrupted_lines: int = 0
+    skipped_lines: int = 0
+    cut_tails_queued: int = 0
+    """Tails of flushed lines queued as unnumbered commands (cut_tail "marlin2")."""
     unsolicited_lines: int = 0
     slow_lines: int = 0
     busy_lines: int = 0

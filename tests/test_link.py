@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+import re
 import select
 import subprocess
 import sys
@@ -24,13 +25,14 @@ from ribbond.printer import (
     PrinterLink,
     PrinterReset,
     PrinterSilent,
+    ProtocolError,
     StreamCancelled,
     Timeouts,
     prepare_program,
 )
 from sim import FaultConfig
 
-from .conftest import assert_prefix_without_duplicates, executed_program, moves
+from .conftest import HOST_COMMANDS, assert_prefix_without_duplicates, executed_program, moves
 
 FAST = Timeouts(default_s=0.5, probes=4)
 
@@ -117,6 +119,48 @@ async def test_each_fault_alone_still_executes_every_line_once_in_order(make_sim
         assert stats.checksum_errors + stats.line_number_errors > 0, "the fault must have happened"
     if fault == "lost-oks":
         assert stats.oks_dropped > 0
+    await link.close()
+
+
+@pytest.mark.parametrize("advanced_ok", [True, False], ids=["advanced-ok", "plain-ok"])
+async def test_marlin2_cut_tails_are_not_taken_for_acknowledgements(make_sim, advanced_ok: bool) -> None:
+    """Marlin 2.x answers the tail of a line cut by its flush as an unnumbered command
+    (``echo:Unknown command`` + ``ok``): that ok must not acknowledge the line asked for again,
+    or the printer's next request for it would end the stream with a false "printer reset"."""
+    # A main loop 0.2 ms late to its receive buffer: the flush after an error cuts the line then
+    # arriving (20 bytes at 1 Mbaud).
+    sim = make_sim(faults=FaultConfig(corrupt_rate=0.05), cut_tail="marlin2", advanced_ok=advanced_ok,
+                   read_latency_s=0.0002, seed=5)
+    link = link_for(sim)
+    await link.connect()
+    program = moves(1500, seed=4)
+    await link.stream(program)
+    # Every numbered line ran once, in order. (A tail that happens to parse, e.g. cut right after
+    # its "N<k>", runs unnumbered as well: Marlin 2.x's own hazard, not the host's to prevent.)
+    numbered = [c.command for c in sim.commands() if c.line is not None
+                and c.command.split()[0] not in HOST_COMMANDS]
+    assert numbered == program
+    assert sim.stats().cut_tails_queued > 0, "the flushes must have cut lines"
+    await link.close()
+
+
+async def test_a_printer_that_skips_a_refused_line_stops_the_stream(make_sim) -> None:
+    """A printer that marks a refused line received and asks for the next one would run the job
+    with that line missing: the stream stops, names the line, and what ran is exactly the lines
+    before it."""
+    sim = make_sim(faults=FaultConfig(corrupt_rate=0.02, skip_refused=True), seed=3)
+    link = link_for(sim)
+    await link.connect()
+    program = moves(1500, seed=4)
+    with pytest.raises(ProtocolError, match=r"after refusing line \d+ \(program line \d+:") as caught:
+        await link.stream(program)
+    assert sim.stats().skipped_lines >= 1
+    message = str(caught.value)
+    refused = int(re.search(r"after refusing line (\d+)", message).group(1))
+    index = int(re.search(r"program line (\d+)", message).group(1)) - 1
+    assert refused not in [c.line for c in sim.commands()], "the refused line never ran"
+    executed = executed_program(sim)
+    assert executed[:index] == program[:index], "everything before it ran, once, in order"
     await link.close()
 
 

@@ -80,20 +80,23 @@ async def test_window_is_bounded_by_the_queue_slots() -> None:
 SETTLE = Timeouts(resend_settle_s=0.01)
 
 
-async def test_resend_waits_for_stale_requests_then_resends_once() -> None:
-    sender, wire = make(rx=127, timeouts=SETTLE)
+async def test_resend_goes_out_once_every_stale_line_has_drawn_its_request() -> None:
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10))
     done = sender.stream(program(10))
     feed(sender, "ok")  # line 0 processed; the window moves on
     first_window = wire.numbers()
     assert first_window[0] == 0 and len(first_window) >= 4
     # Line 1 arrived corrupted: Marlin flushes its buffer and asks for 1 (then a plain ok). The
-    # other lines of the window still reach its parser and are refused the same way.
+    # other lines of the window still reach its parser and are refused the same way, one request
+    # each: while one may still come, nothing goes out.
     feed(sender, "Error:checksum mismatch, Last Line: 0", "Resend: 1", "ok")
-    for _ in first_window[2:]:
+    for _ in first_window[2:-1]:
         feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 0", "Resend: 1", "ok")
     assert wire.numbers() == first_window, "nothing goes out while stale requests may still come"
-    await asyncio.sleep(0.05)
-    assert wire.numbers()[len(first_window)] == 1, "then the resend starts at the line asked for"
+    # The last line sent has drawn its request: nothing stale is left on the wire, so the resend
+    # starts at once (the settle time of 10 s is not waited for), from the line asked for.
+    feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 0", "Resend: 1", "ok")
+    assert wire.numbers()[len(first_window)] == 1
     while not done.done():
         feed(sender, "ok")
         await asyncio.sleep(0)
@@ -103,6 +106,26 @@ async def test_resend_waits_for_stale_requests_then_resends_once() -> None:
     assert sorted(set(sent)) == list(range(10))
     assert all(sent.count(n) == 2 for n in first_window[1:]), "the refused lines went out again, once"
     assert all(sent.count(n) == 1 for n in range(10) if n == 0 or n not in first_window)
+
+
+async def test_lines_flushed_silently_leave_the_hold_to_the_timer() -> None:
+    """Marlin's flush may eat stale lines without a reply: fewer requests than lines sent after
+    the one asked for, so only the wire time (plus the settle margin) ends the hold."""
+    sender, wire = make(rx=127, timeouts=SETTLE)
+    done = sender.stream(program(10))
+    feed(sender, "ok")
+    first_window = wire.numbers()
+    assert len(first_window) >= 4
+    feed(sender, "Error:checksum mismatch, Last Line: 0", "Resend: 1", "ok")
+    feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 0", "Resend: 1", "ok")
+    await asyncio.sleep(0)
+    assert wire.numbers() == first_window, "a stale line may still be on its way"
+    await asyncio.sleep(0.1)  # settle 10 ms + wire time of < 250 bytes at 115200 baud (22 ms)
+    assert wire.numbers()[len(first_window)] == 1
+    while not done.done():
+        feed(sender, "ok")
+        await asyncio.sleep(0)
+    assert done.result().lines == 10 and done.result().resends == 1
 
 
 async def test_a_request_after_the_resend_is_honoured() -> None:
@@ -237,3 +260,61 @@ async def test_pause_stops_feeding_and_resume_goes_on() -> None:
     assert wire.numbers() == [0, 1]
     feed(sender, "ok", "ok")
     await asyncio.wait_for(done, 1)
+
+
+async def test_unnumbered_ok_during_a_resend_acknowledges_nothing_at_or_above_the_line_asked_for() -> None:
+    """Marlin 2.x queues the tail of a line cut by its flush as an unnumbered command and answers
+    it ``echo:Unknown command`` + an ok without N. That ok is not line N's: taking it so would make
+    the printer's next request for N look like a reset."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10))
+    done = sender.stream(program(8))
+    feed(sender, "ok N0 P15 B3")  # ADVANCED_OK learned; line 0 processed
+    window = wire.numbers()
+    assert len(window) >= 4
+    feed(sender, "Error:checksum mismatch, Last Line: 0", "Resend: 1", "ok")
+    feed(sender, 'echo:Unknown command: "Y12.25 F3000*85"', "ok P15 B3")  # a cut tail
+    assert sender.last_acknowledged_line == 0, "the tail's ok acknowledged line 1"
+    for _ in window[2:]:
+        feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 0", "Resend: 1", "ok")
+    resent_from = len(window)
+    assert wire.numbers()[resent_from] == 1
+    feed(sender, 'echo:Unknown command: "5 F3000*85"', "ok P15 B3")  # a late tail, after the resend
+    assert sender.last_acknowledged_line == 0, "the resend is pending until line 1 is acknowledged"
+    next_line = 1
+    while not done.done():
+        feed(sender, f"ok N{next_line} P15 B3")
+        next_line += 1
+        await asyncio.sleep(0)
+    assert done.result().lines == 8
+
+
+async def test_a_request_past_a_refused_line_is_a_protocol_error() -> None:
+    """A printer that refuses line 2 and then asks for 3 marked 2 received without running it:
+    streaming on would report success with line 2 missing."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10))
+    commands = program(8)
+    done = sender.stream(commands)
+    feed(sender, "ok", "ok")  # lines 0 and 1 processed
+    feed(sender, "Error:checksum mismatch, Last Line: 1", "Resend: 3", "ok")
+    with pytest.raises(ProtocolError, match=rf"refusing line 2 \(program line 3: {commands[2]}\)"):
+        await asyncio.wait_for(done, 1)
+    assert sender.last_acknowledged_line == 1
+    assert wire.numbers().count(2) == 1, "nothing went out after the error"
+
+
+async def test_a_request_for_a_later_line_after_the_refused_one_was_resent_is_honoured() -> None:
+    sender, wire = make(rx=127, timeouts=SETTLE)
+    done = sender.stream(program(8))
+    feed(sender, "ok")
+    window = wire.numbers()
+    feed(sender, "Error:checksum mismatch, Last Line: 0", "Resend: 1", "ok")
+    for _ in window[2:]:
+        feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 0", "Resend: 1", "ok")
+    assert wire.numbers()[len(window)] == 1, "line 1 went out again"
+    # Line 1 accepted (in the queue), line 2 of the resend refused: a new request, no error.
+    feed(sender, "Error:checksum mismatch, Last Line: 1", "Resend: 2", "ok")
+    await asyncio.sleep(0)
+    while not done.done():
+        feed(sender, "ok")
+        await asyncio.sleep(0.01)
+    assert done.result().lines == 8

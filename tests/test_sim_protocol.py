@@ -10,7 +10,7 @@ import time
 
 import serial
 
-from sim import SimConfig
+from sim import FaultConfig, SimConfig
 from sim.testing import PtyHost, connected, numbered
 
 TEMP = r"T:\d+\.\d /\d+\.\d B:\d+\.\d /\d+\.\d @:\d+ B@:\d+"
@@ -81,6 +81,28 @@ def test_checksum_without_line_number_is_refused() -> None:
         assert sim.commands() == []
         host.write(b"G90\n")  # a line with neither number nor checksum is still accepted
         assert host.read_quiet() == ["ok P15 B3"]
+
+
+def test_marlin2_queues_a_cut_tail_as_an_unnumbered_command() -> None:
+    """Marlin 2.x has no "No Line Number with checksum" check: the tail of a cut line is queued
+    like any unnumbered command; one that does not parse is answered Unknown command + ok, with no
+    resend request (and, with ADVANCED_OK, an ok without N)."""
+    with connected(SimConfig(cut_tail="marlin2")) as (sim, host):
+        host.write(b"20.25 F3000*45\n")  # cut inside a number: not a command
+        assert host.read_quiet() == ['echo:Unknown command: "20.25 F3000"', "ok P15 B3"]
+        assert sim.stats().resends_requested == 0 and sim.stats().cut_tails_queued == 1
+        assert host.command("G90", 1) == ["ok N1 P15 B3"], "the line numbers are untouched"
+
+
+def test_skip_refused_asks_for_the_line_after_the_refused_one() -> None:
+    """The buggy firmware of the fault: it reports the refusal of line 1 with its last accepted
+    line (0), yet asks for 2, and line 1 never runs."""
+    with connected(SimConfig(faults=FaultConfig(skip_refused=True))) as (sim, host):
+        host.write(b"N1 G90*0\n")
+        assert host.read_quiet() == ["Error:checksum mismatch, Last Line: 0", "Resend: 2", "ok"]
+        assert host.command("G91", 2) == ["ok N2 P15 B3"]
+        assert [c.line for c in sim.commands()] == [2]
+        assert sim.stats().skipped_lines == 1
 
 
 def test_no_ok_after_resend_when_disabled() -> None:

@@ -9,10 +9,17 @@ It is a go-back-N sender over Marlin's line-number protocol:
   otherwise), so that no line waits in its receive buffer, and no more unacknowledged bytes than
   ``Capabilities.rx_buffer_bytes``, counting every byte as if it were still in that buffer. Ping-pong
   (one line in flight) is the fallback and an option.
-* ``Resend: N`` rewinds to N, once. The sender first holds for as long as the bytes it already sent
-  need to reach the printer: every request that arrives meanwhile comes from those stale lines (each
-  is rejected, or cut by the buffer flush the error causes) and only moves the target to the latest
-  line asked for. Then it resends from there. No request after the hold is ever ignored, so a
+* ``Resend: N`` rewinds to N, once. The sender first holds: every request that arrives meanwhile
+  comes from the stale lines sent after N (each is rejected, or cut by the buffer flush the error
+  causes) and only moves the target to the latest line asked for. The hold ends the moment each
+  line sent after the target has drawn its request (Marlin answers each with one), or, when the
+  flush ate some silently, once the bytes already sent have had time to reach the printer (their
+  wire time plus a settle margin). Then it resends from there. It never resends at once and
+  swallows the repeats: with the printer's queue full, stale lines still waiting in its receive
+  buffer would flush the resent ones (the "resend death loop" of Marlin PRs #24959/#24972).
+  An ``ok`` without a line number during a pending resend acknowledges nothing at or above N (Marlin
+  2.x answers the tail of a cut line as an unnumbered command). The request that answers a
+  line-check error may not ask past the line that error refused: that line would never run. No request after the hold is ever ignored, so a
   resent line destroyed by a later flush is asked for, and sent, again. The plain ``ok`` Marlin
   prints after each request acknowledges nothing.
   The firmware's line-number check guarantees that a line it accepted is never executed again; the
@@ -207,6 +214,10 @@ class Sender:
         self._resend_target: int | None = None  # latest line asked for while holding
         self._hold: asyncio.TimerHandle | None = None
         self._resend_ok_due = False
+        self._stale_expected = 0  # requests the lines sent after the target will draw
+        self._stale_seen = 0
+        self._pending_resend: int | None = None  # lowest line asked for and not yet acknowledged
+        self._refused: int | None = None  # the line the last line-check Error refused
         self._last_heard = time.monotonic()
         self._probes_outstanding = 0
         self._watchdog: asyncio.Task[None] | None = None
@@ -317,10 +328,13 @@ class Sender:
         elif _keeps_alive(event):
             self._last_heard = time.monotonic()
         if isinstance(event, codec.Ok):
+            self._refused = None  # no request followed the error
             self._on_ok(event)
         elif isinstance(event, codec.Resend):
             self._on_resend(event.line)
         else:
+            if isinstance(event, codec.Error):
+                self._on_line_error(event)
             oldest = self._history.get(self._acked_through + 1)
             if oldest is not None and oldest.number < self._next_number:
                 oldest.events.append(event)  # output comes before the ok of the command it answers
@@ -354,8 +368,20 @@ class Sender:
         self._pump()
 
     def _ack_oldest(self, ok: codec.Ok) -> None:
-        """A plain ok: the printer processes lines in number order, so it is the oldest's."""
-        self._ack_through(self._acked_through + 1, ok)
+        """A plain ok: the printer processes lines in number order, so it is the oldest's, except
+        during a pending resend, where it acknowledges nothing at or above the line asked for:
+        Marlin 2.x answers the tail of a line cut by its flush as an unnumbered command
+        (``echo:Unknown command`` + ``ok``). A firmware with ADVANCED_OK numbers the ok of every
+        numbered line, so there the resend stays pending until line N itself is acknowledged;
+        without it, only while holding (its plain oks are the only acknowledgements)."""
+        oldest = self._acked_through + 1
+        floor = self._resend_target if self._hold is not None else None
+        if self.capabilities.advanced_ok and self._pending_resend is not None:
+            floor = self._pending_resend if floor is None else min(floor, self._pending_resend)
+        if floor is not None and oldest >= floor:
+            log.debug("unnumbered ok during the resend of line %d acknowledges nothing", floor)
+            return
+        self._ack_through(oldest, ok)
 
     def _ack_through(self, number: int, ok: codec.Ok) -> None:
         """Every line up to ``number`` has been processed, whether it is in flight or was taken out
@@ -375,6 +401,9 @@ class Sender:
                 program_lines += 1
         while self._inflight and self._inflight[0].number <= number:
             self._inflight_bytes -= len(self._inflight.popleft().data)
+        if self._pending_resend is not None and self._pending_resend <= number:
+            self._pending_resend = None
+
         if program_lines and self._program is not None:
             self._program.acknowledged += program_lines
             self._report_progress()
@@ -382,6 +411,7 @@ class Sender:
         self._forget_old_history()
 
     def _on_resend(self, number: int) -> None:
+        refused, self._refused = self._refused, None
         if self.capabilities.ok_after_resend:
             self._resend_ok_due = True
         if number > self._next_number:
@@ -397,6 +427,17 @@ class Sender:
             self._fail(ProtocolError(f"printer asked to resend line {number}, which is no longer in "
                                      f"the history of {self._history_size} lines"))
             return
+        if refused is not None and number > refused:
+            # The request that answers an error asks past the line the error refused: the printer
+            # marked that line received without running it.
+            line = self._history.get(refused)
+            where = (f" (program line {line.program_index + 1}: {line.command})"
+                     if line is not None and line.program_index is not None else "")
+            self._fail(ProtocolError(
+                f"printer asked for line {number} after refusing line {refused}{where}, which "
+                f"was not sent again: that line would never run. Stopped with every line before it "
+                f"acknowledged (last line acknowledged: {self._acked_through}); resume from it"))
+            return
         # Lines from `number` on are not in the printer: flushed with its receive buffer, or still
         # on the way, where each will be refused. They will be sent again.
         for line in self._inflight:
@@ -404,13 +445,44 @@ class Sender:
                 self._inflight_bytes -= len(line.data)
                 line.events.clear()
         self._inflight = deque(line for line in self._inflight if line.number < number)
-        self._resend_target = number
+        if self._pending_resend is None or number < self._pending_resend:
+            self._pending_resend = number
         if self._hold is None:
             self.resends += 1
             in_transit = self._inflight_bytes + sum(len(line.data) for line in self._history_from(number))
             hold = self.timeouts.resend_settle_s + (in_transit + codec.MAX_LINE_LENGTH) * self._byte_time
             self._hold = asyncio.get_running_loop().call_later(hold, self._end_hold)
-            log.info("printer asked for line %d again; resending in %.0f ms", number, hold * 1000)
+            log.info("printer asked for line %d again; resending in at most %.0f ms", number, hold * 1000)
+        elif number == self._resend_target:
+            # A stale line refused: Marlin answers each line sent after the one asked for with
+            # one request for it (unless its flush ate the line, then the timer ends the hold).
+            self._stale_seen += 1
+            if self._stale_seen >= self._stale_expected:
+                self._hold.cancel()
+                self._end_hold()
+            return
+        # A new target: every line transmitted after it is on its way and will draw a request
+        # (the lines before it in flight are in the printer's queue and draw oks).
+        self._resend_target = number
+        self._stale_expected = max(0, self._cursor - 1 - number)
+        self._stale_seen = 0
+        if self._stale_expected == 0:
+            self._hold.cancel()
+            self._end_hold()
+
+    def _on_line_error(self, error: codec.Error) -> None:
+        """An error from the line checks names the last line the printer accepted: the line after
+        it was refused, so the request that follows the error (Marlin prints both together) may not
+        ask for a later one."""
+        if error.kind not in (codec.ErrorKind.CHECKSUM, codec.ErrorKind.LINE_NUMBER,
+                              codec.ErrorKind.NO_CHECKSUM, codec.ErrorKind.NO_LINE_NUMBER):
+            return
+        if error.last_line is None:
+            return
+        refused = error.last_line + 1
+        if refused <= self._acked_through or refused >= self._next_number:
+            return  # already processed, or never sent: nothing can be skipped
+        self._refused = refused
 
     def _history_from(self, number: int) -> list[_Line]:
         """The lines from ``number`` up to the last one numbered, oldest first."""
