@@ -105,6 +105,10 @@ class SolverSettings(BaseModel):
         None, gt=0, description="when set, θ's frequency is made integrable along the ribbon direction "
         "first, with this weight on Eq. 10's spacing (smaller: centerlines closer to the field, spacing "
         "further from Eq. 10); unset: Eq. 10's frequency as it is")
+    stripe_direction_weight: float = Field(
+        0.5, gt=0, description="θ's stripe energy weighs a phase change along the ribbons (their "
+        "direction) this many times one across them (their spacing): below 1 the rows keep Eq. 10's "
+        "spacing and turn a little instead; 1 is KCPS15's isotropic energy")
     stripe_max_faces: int = Field(
         150_000, ge=100, description="that triangulation is made coarser rather than exceed this many faces")
     coarse_faces: int = Field(

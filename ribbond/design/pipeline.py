@@ -227,7 +227,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     stripes = stripe_grid(uv, F, target.boundary, flat.sigma, direction, kappa1, params,
                           k1_direction=k1_direction, anisotropic=field.anisotropy > ANISOTROPY_THRESHOLD,
                           edge_fraction=solver.stripe_edge_fraction, max_faces=solver.stripe_max_faces,
-                          spacing_weight=solver.stripe_spacing_weight)
+                          spacing_weight=solver.stripe_spacing_weight,
+                          direction_weight=solver.stripe_direction_weight)
     timings["stripes"] = time.perf_counter() - t
     singular = int(stripes.theta.singular.sum() + stripes.psi.singular.sum())
     progress.stage_finished("stripes", timings["stripes"],

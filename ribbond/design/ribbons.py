@@ -94,7 +94,7 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
                 ribbon_direction: np.ndarray, kappa1: np.ndarray, params: DesignParameters, *,
                 k1_direction: np.ndarray | None = None, anisotropic: np.ndarray | None = None,
                 edge_fraction: float = 0.15, max_faces: int = 150_000,
-                spacing_weight: float | None = None) -> StripeGrid:
+                spacing_weight: float | None = None, direction_weight: float = 1.0) -> StripeGrid:
     """Spacing fields and the θ and ψ stripe patterns on the flat surface (§6.1–6.2).
 
     Parameters
@@ -112,6 +112,8 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
         direction as this weight of Eq. 10's spacing allows (``stripes.integrable_frequency``):
         centerlines closer to the field, spacing further from Eq. 10. None (default): Eq. 10's
         frequency as it is (KCPS15 as published).
+    direction_weight : θ's stripe energy is ∫ (∇φ − ω)ᵀ D (∇φ − ω) with D = n nᵀ + w t tᵀ, t the
+        ribbon direction: w < 1 makes a spacing error (across) cost more than a turn (along).
     """
     n = len(uv)
     area = face_areas(uv, F)
@@ -130,7 +132,8 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
     if spacing_weight is not None:
         nu_theta = np.clip(integrable_frequency(solver, X2, nu_theta, spacing_weight),
                            0.5 * nu_theta, 2.0 * nu_theta)
-    theta = solver.solve(X2, nu_theta)
+    theta = solver.solve(X2, nu_theta, ratio=direction_weight,
+                         face_direction=direction)     # a phase change along the ribbons turns them
     psi = solver.solve(X1, 2 * np.pi / mu_r[:, 0])
     k1_dir = (ribbon_direction if k1_direction is None else k1_direction)[mesh.parent]
     aniso = np.ones(len(mesh.F), dtype=bool) if anisotropic is None else np.asarray(anisotropic)[mesh.parent]
@@ -400,7 +403,7 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
     params : ribbon length and width, minimum length, trim angle.
     """
     l_r, w_r = params.ribbon_length, params.ribbon_width
-    inset = outline.buffer(-0.5 * w_r)
+    inset = outline.buffer(-(0.5 * w_r + SIMPLIFY_TOLERANCE))   # simplified within the tolerance later
     shapely.prepare(inset)
     X1 = grid.psi.direction
     edges = grid.theta.topology.edges

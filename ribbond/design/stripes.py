@@ -93,6 +93,24 @@ def face_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
 
 
+def anisotropic_weights(uv: np.ndarray, F: np.ndarray, topology: EdgeTopology, along: np.ndarray,
+                        ratio: float) -> np.ndarray:
+    """Edge weights (E,) of the Dirichlet energy ∫ ∇uᵀ D ∇u, D = n nᵀ + ratio · t tᵀ per face with
+    t = ``along`` (m, 2) unit and n ⟂ t (gradients along t cost ``ratio`` times those across);
+    ratio = 1 gives the cotangent weights. Raised to at least ``_MIN_WEIGHT`` like those."""
+    P = uv[F]                                            # (m, 3, 2)
+    e = np.roll(P, -1, axis=1) - np.roll(P, 1, axis=1)   # the edge opposite corner k
+    g = np.stack([-e[..., 1], e[..., 0]], axis=-1)       # ∝ ∇φ_k (the factor 1/(2A) below)
+    a2 = np.abs(e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0])
+    gt = np.einsum("fkc,fc->fk", g, along)
+    K = (np.einsum("fkc,flc->fkl", g, g) + (ratio - 1.0) * gt[:, :, None] * gt[:, None, :]) \
+        / (2.0 * np.maximum(a2, 1e-300))[:, None, None]
+    k = np.arange(3)
+    w = np.bincount(topology.face_edges.ravel(), weights=-K[:, k, (k + 1) % 3].ravel(),
+                    minlength=len(topology.edges))
+    return np.maximum(w, _MIN_WEIGHT)
+
+
 def cotangent_weights(uv: np.ndarray, F: np.ndarray, topology: EdgeTopology) -> np.ndarray:
     """w_ij = ½ Σ cot of the angles opposite each edge (E,), raised to at least ``_MIN_WEIGHT``."""
     P = uv[F]                                            # (m, 3, 2)
@@ -231,10 +249,11 @@ class StripeSolver:
                        + s * frequency[j] * np.einsum("ec,ec->e", direction[j], e))
         return omega, flip
 
-    def energy_matrix(self, omega: np.ndarray, flip: np.ndarray) -> sp.csc_matrix:
+    def energy_matrix(self, omega: np.ndarray, flip: np.ndarray,
+                      weights: np.ndarray | None = None) -> sp.csc_matrix:
         """The stripe energy as a real symmetric (2n, 2n) matrix, ψ_i ↦ (Re, Im) at rows 2i, 2i + 1."""
         i, j = self.topology.edges.T
-        w = self.weights
+        w = self.weights if weights is None else weights
         c, sn = np.cos(omega), np.sin(omega)
         s = np.where(flip, -1.0, 1.0)
         # S R(ω) with S = diag(1, s): the block coupling x_j to x_i, A_ji = −w S R, A_ij = A_jiᵀ
@@ -250,7 +269,8 @@ class StripeSolver:
         return sp.csc_matrix((data, (rows, cols)), shape=(2 * self.n, 2 * self.n))
 
     def solve(self, direction: np.ndarray, frequency: np.ndarray, *, tolerance: float = 1e-6,
-              max_iterations: int = 50, seed: int = 0) -> StripePattern:
+              max_iterations: int = 50, seed: int = 0, ratio: float = 1.0,
+              face_direction: np.ndarray | None = None) -> StripePattern:
         """The stripe pattern along the line field ``direction`` (n, 2) with ``frequency`` (n,) rad/mm.
 
         Inverse power iteration x ← (A + εM)⁻¹ M x, M-normalized, until the Rayleigh quotient
@@ -263,7 +283,12 @@ class StripeSolver:
         if frequency.shape != (self.n,) or not np.all(np.isfinite(frequency)) or np.any(frequency <= 0):
             raise ValueError("frequency must be finite and positive at every vertex")
         omega, flip = self.edge_rotations(direction, frequency)
-        A = self.energy_matrix(omega, flip)
+        weights = None
+        if ratio != 1.0:
+            if face_direction is None:
+                raise ValueError("an anisotropic stripe energy (ratio != 1) needs face_direction")
+            weights = anisotropic_weights(self.uv, self.F, self.topology, face_direction, ratio)
+        A = self.energy_matrix(omega, flip, weights)
         factor = SymmetricFactor(A + self._shift * self.mass)
         m = np.repeat(self.vertex_area, 2)
         x = np.random.default_rng(seed).standard_normal(2 * self.n)

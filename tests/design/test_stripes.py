@@ -229,3 +229,37 @@ def test_chain_segments_leaves_out_a_branching_crossing() -> None:
     pl = chain_segments(6, np.array([[0, 1], [0, 2], [0, 3], [3, 4], [4, 5]]), np.arange(5))
     got = [tuple(pl.nodes[pl.offsets[p]:pl.offsets[p + 1]]) for p in range(pl.count)]
     assert got == [(3, 4, 5)]
+
+
+def test_anisotropic_weights_are_the_dirichlet_energy_of_the_tensor():
+    from scipy.spatial import Delaunay
+
+    from ribbond.design.stripes import anisotropic_weights, cotangent_weights, edge_topology, face_areas
+    # a triangular lattice: equilateral faces, all weights positive
+    jj, ii = np.mgrid[0:10, 0:12]
+    uv = np.column_stack([(ii + 0.5 * (jj % 2)).ravel(), (jj * np.sqrt(3) / 2).ravel()]) * 2.0
+    F = Delaunay(uv).simplices.astype(np.int64)
+    e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
+    cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
+    F[cw] = F[cw][:, [0, 2, 1]]
+    F = F[face_areas(uv, F) > 1e-9]
+    topo = edge_topology(F)
+    t = np.tile([np.cos(0.3), np.sin(0.3)], (len(F), 1))
+    # ratio 1: the cotangent weights
+    assert np.allclose(anisotropic_weights(uv, F, topo, t, 1.0), cotangent_weights(uv, F, topo))
+    # ratio r: w_ij = −Σ_faces A ∇φ_iᵀ D ∇φ_j, D = n nᵀ + r t tᵀ, with the hat functions'
+    # gradients from the inverse of each face's edge matrix (an independent formula)
+    r = 0.5
+    w = anisotropic_weights(uv, F, topo, t, r)
+    P = uv[F]
+    E = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=1)         # rows: edges from corner 0
+    G12 = np.linalg.inv(E).transpose(0, 2, 1)                             # ∇φ1, ∇φ2 as rows
+    G = np.concatenate([-(G12[:, :1] + G12[:, 1:]), G12], axis=1)         # (m, 3, 2)
+    n = np.column_stack([-t[:, 1], t[:, 0]])
+    D = np.einsum("fi,fj->fij", n, n) + r * np.einsum("fi,fj->fij", t, t)
+    K = face_areas(uv, F)[:, None, None] * np.einsum("fki,fij,flj->fkl", G, D, G)
+    k = np.arange(3)
+    expected = np.bincount(topo.face_edges.ravel(), weights=-K[:, k, (k + 1) % 3].ravel(),
+                           minlength=len(topo.edges))
+    assert np.allclose(w, np.maximum(expected, 1e-3), rtol=1e-9, atol=1e-12)
+    assert (expected > 1e-3).mean() > 0.9          # the anisotropy is in the weights, not the floor
