@@ -1453,7 +1453,7 @@ class RibbonService:
         (``M105``, ``M114``: answered ahead of a running program). Halted or disconnected, no
         temperatures or position are shown: the last ones known would be stale."""
         if self.link is None:
-            return {"state": "disconnected", "heaters": {}, "position": None}
+            return {"state": "disconnected", "heaters": {}, "position": None, "profile": self._profile_info()}
         live = self.link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
         if refresh and live:
             with contextlib.suppress(LinkError, asyncio.TimeoutError):
@@ -1466,7 +1466,15 @@ class RibbonService:
                               "disconnected": "not connected: temperatures unknown",
                               "connecting": "connecting"}.get(status["state"])
         status["head"] = list(self._head) if self._head is not None else None
+        status["profile"] = self._profile_info()
         return status
+
+    def _profile_info(self) -> dict[str, Any]:
+        """The daemon's printer profile as a person choosing a design's size needs it: its name and
+        frame (the printable rectangle, its centre, the axis the frame is flipped about)."""
+        frame = self.profile.frame
+        return {"name": self.profile.name, "frame": {"bounds": list(frame.bounds), "center": list(frame.center),
+                                                     "size": list(frame.size), "flip_axis": frame.flip_axis}}
 
     def emergency_stop(self) -> None:
         link = self.link

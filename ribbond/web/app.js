@@ -100,6 +100,14 @@ function renderPrinter() {
   $("t-nozzle").textContent = heater(p?.heaters?.T);
   $("t-bed").textContent = heater(p?.heaters?.B);
   $("p-note").textContent = p?.note || "";
+  const prof = p?.profile;
+  if (prof) {
+    const [x0, y0, x1, y1] = prof.frame.bounds;
+    const [cx, cy] = prof.frame.center;
+    $("profile").textContent = `${prof.name}: frame ${mm(x1 - x0, 0)} × ${mm(y1 - y0, 0)} mm ` +
+      `(x ${mm(x0, 0)}–${mm(x1, 0)}, y ${mm(y0, 0)}–${mm(y1, 0)}), flipped about its ${prof.frame.flip_axis} axis ` +
+      `(${prof.frame.flip_axis === "y" ? `x = ${mm(cx, 0)}` : `y = ${mm(cy, 0)}`})`;
+  }
   const halted = s === "halted";
   $("halted").hidden = !halted;
   if (halted) $("halted-text").textContent = `The printer is halted${p.last_error ? ` (${p.last_error})` : ""}. Check the machine, then recover.`;

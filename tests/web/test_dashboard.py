@@ -320,6 +320,12 @@ def test_manual_control_and_a_plain_gcode_job(browser_page: Any, shared_daemon: 
     page.on("dialog", lambda d: d.accept())
     page.goto(shared_daemon.url + "/")
     page.wait_for_selector("#conn.ready", timeout=20 * SECOND)
+    # the submit form shows the daemon's profile and its frame, as the profile file gives them
+    x0f, y0f, x1f, y1f = PROFILE.frame.bounds
+    page.wait_for_function(f"document.querySelector('#profile').textContent.startsWith('{PROFILE.name}:')")
+    shown = page.inner_text("#profile")
+    assert f"frame {x1f - x0f:.0f} × {y1f - y0f:.0f} mm" in shown and f"its {PROFILE.frame.flip_axis} axis" in shown
+    assert api.get("/printer").json()["profile"]["frame"]["bounds"] == list(PROFILE.frame.bounds)
     page.click("#home-axes")
     page.wait_for_function("document.querySelector('#p-position').textContent.startsWith('x ')")
     # homed, the head is outside the frame: a jog is refused, the page says why
