@@ -54,6 +54,16 @@ class JsonProgress:
         _emit({"event": "finished", "stage": stage, "seconds": seconds, "summary": summary})
 
 
+
+def lower_priority(nice: int) -> None:
+    """Lower this process's CPU priority by ``nice`` before numpy is imported, so that the BLAS
+    threads it starts inherit it (the daemon's loop must keep feeding the printer)."""
+    if nice > 0 and hasattr(os, "nice"):
+        try:
+            os.nice(nice)
+        except OSError:
+            pass
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m ribbond.worker", description=__doc__.split("\n\n")[0])
     parser.add_argument("mesh", type=Path)
@@ -63,11 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     args = parser.parse_args(argv)
-    if args.nice > 0 and hasattr(os, "nice"):
-        try:
-            os.nice(args.nice)
-        except OSError:
-            pass
+    lower_priority(args.nice)
     from .design.errors import DesignError, MeshError
     from .design.format import design_to_dict
     from .design.params import DesignParameters

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
+
+from ..worker import lower_priority
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -23,11 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("-o", "--output", type=Path, required=True)
     p.add_argument("--nice", type=int, default=10)
     args = parser.parse_args(argv)
-    if args.nice > 0 and hasattr(os, "nice"):
-        try:
-            os.nice(args.nice)
-        except OSError:
-            pass
+    lower_priority(args.nice)
     from pydantic import ValidationError
 
     from .plan import make_plan, write_plan
