@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import sys
 import tempfile
@@ -91,7 +92,6 @@ def main() -> int:
                     results[name, target] = run_child(mesh)
                 except RuntimeError as exc:
                     failures.append(f"{name} ~{target}: {exc}")
-    import os
     print(f"load average (1, 5, 15 min) at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())} "
           f"on {os.cpu_count()} cores (the machine is shared: read the times with it)")
     print(f"{'surface':<12} {'faces':>7} {'pred.faces':>10} {'predict s':>9} {'engine s':>8} {'ratio':>6} "
