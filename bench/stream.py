@@ -17,7 +17,10 @@ with that share of incoming lines corrupted, checks that every program line ran 
 order, and prints the noisy rate as a ratio of the clean one. Goal: >= 0.85 at 5 %, zero planner
 starvations on the balanced program.
 
-    python bench/stream.py [--lines N] [--quick] [--corrupt RATE] [--cut-tail marlin2]
+With ``--overflow`` it streams to a board with a 64-byte receive buffer, the host told 63 bytes
+(the default) and told 127 (the governor must notice the lost bytes and shrink the window).
+
+    python bench/stream.py [--lines N] [--quick] [--corrupt RATE] [--cut-tail marlin2] [--overflow]
 """
 
 from __future__ import annotations
@@ -32,12 +35,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from ribbond.printer import PrinterLink, Timeouts, codec  # noqa: E402
+from ribbond.printer import Capabilities, PrinterLink, Timeouts, codec  # noqa: E402
 from sim.process import SimProcess  # noqa: E402
 
 BALANCED_LOAD = 0.95
 FEED = 6000.0  # mm/min
 HANDSHAKE_LINES = 3  # M110, M115, M155: the program's first line number
+#: The simulated board has Marlin's standard 128-byte receive buffer (the simulator's default), so
+#: the host is told so, as a user with such a board sets [serial] rx_buffer = 127.
+BOARD_WINDOW = 127
 
 
 @dataclass
@@ -53,6 +59,8 @@ class Row:
     resends: int
     exactly_once: bool = True
     corrupt: float = 0.0
+    window_bytes: int = 0
+    window_verdict: str = "none"
 
     @property
     def ratio(self) -> float:
@@ -74,13 +82,16 @@ def mean_encoded_length(lines: list[str]) -> float:
 
 
 async def run(baud: int, ping_pong: bool, kind: str, count: int, corrupt: float = 0.0,
-              extra: list[str] | None = None) -> Row:
+              extra: list[str] | None = None, window: int = BOARD_WINDOW) -> Row:
     # Size the moves from the wire time of a line of this program (the step barely changes it).
     probe = program(count, 0.1)
     line_s = mean_encoded_length(probe) * 10 / baud
     if kind == "link-bound":
         time_scale = 1e-6
         step = 0.1
+    elif kind == "printer-bound":  # the printer takes twice the wire time: its planner stays full
+        time_scale = 1.0
+        step = FEED / 60 * line_s * 2
     else:
         time_scale = 1.0
         step = FEED / 60 * line_s / BALANCED_LOAD
@@ -89,7 +100,8 @@ async def run(baud: int, ping_pong: bool, kind: str, count: int, corrupt: float 
     # The simulator runs as its own process, as firmware runs on its own board.
     args = ["--baud", str(baud), "--time-scale", str(time_scale), *(extra or [])]
     with SimProcess(args, cwd=ROOT) as sim:
-        link = PrinterLink(sim.port, baud, ping_pong=ping_pong, boot_wait_s=1.0, timeouts=Timeouts(default_s=5))
+        link = PrinterLink(sim.port, baud, ping_pong=ping_pong, boot_wait_s=1.0, timeouts=Timeouts(default_s=5),
+                           capabilities=Capabilities(rx_buffer_bytes=window))
         await link.connect()
         await link.send("G28")
         await link.send(f"G1 X100 Y100 F{FEED:.0f}")  # to the program's start, outside the timing
@@ -104,15 +116,21 @@ async def run(baud: int, ping_pong: bool, kind: str, count: int, corrupt: float 
         stats = sim.stats()
         executed = sim.request({"cmd": "commands"})["commands"]
         await link.close()
-    # Exactly once, in order: the executed commands end with the program, with consecutive line
-    # numbers, and nothing before it ran with one of those numbers.
-    tail = executed[-len(lines):]
-    first = tail[0]["line"]
-    once = ([c["command"] for c in tail] == lines
-            and [c["line"] for c in tail] == list(range(first, first + len(lines)))
-            and all(c["line"] is None or c["line"] < first for c in executed[:-len(lines)]))
     return Row(baud, "ping-pong" if ping_pong else "windowed", kind, count, result.lines / elapsed, limit,
-               stats["starvations"], stats["dropped_bytes"], result.resends, once, corrupt)
+               stats["starvations"], stats["dropped_bytes"], result.resends, exactly_once(lines, executed),
+               corrupt, result.window_bytes, result.window_verdict)
+
+
+def exactly_once(lines: list[str], executed: list[dict]) -> bool:
+    """The program ran exactly once, in order: after the handshake, the executed commands (less the
+    sender's numbered M105 probes, which the program does not contain) are the program, with
+    increasing line numbers, and nothing before it ran with one of those numbers."""
+    ran = [c for c in executed[HANDSHAKE_LINES:] if c["command"] != "M105"]
+    tail = ran[-len(lines):]
+    numbers = [c["line"] for c in tail]
+    return ([c["command"] for c in tail] == lines and None not in numbers
+            and all(a < b for a, b in zip(numbers, numbers[1:]))
+            and all(c["line"] is None or c["line"] < numbers[0] for c in ran[:-len(lines)]))
 
 
 async def main() -> int:
@@ -121,11 +139,15 @@ async def main() -> int:
     parser.add_argument("--quick", action="store_true", help="250000 baud only")
     parser.add_argument("--corrupt", type=float, default=None, metavar="RATE",
                         help="issue 16: windowed at 250000 baud, clean and with RATE of lines corrupted")
+    parser.add_argument("--overflow", action="store_true",
+                        help="issue 16: a board with a 64-byte receive buffer, the host told 127 bytes")
     parser.add_argument("--cut-tail", choices=("reject", "marlin2"), default="reject",
                         help="the simulator's answer to the tail of a flushed line (with --corrupt)")
     args = parser.parse_args()
     if args.corrupt is not None:
         return await noisy(args.lines, args.corrupt, args.cut_tail)
+    if args.overflow:
+        return await overflow(args.lines)
     bauds = [250000] if args.quick else [115200, 250000]
     rows = []
     print(f"{'baud':>7} {'mode':>9} {'program':>10} {'lines/s':>8} {'limit':>7} {'ratio':>6} "
@@ -148,7 +170,7 @@ async def main() -> int:
 
 async def noisy(count: int, rate: float, cut_tail: str) -> int:
     print(f"{'program':>10} {'noise':>6} {'lines/s':>8} {'limit':>7} {'of clean':>8} {'starved':>7} "
-          f"{'resends':>7} {'once':>5}")
+          f"{'resends':>7} {'once':>5} {'window':>6} {'verdict':>8}")
     met = True
     for kind in ("link-bound", "balanced"):
         clean = await run(250000, False, kind, count, extra=["--cut-tail", cut_tail])
@@ -156,13 +178,36 @@ async def noisy(count: int, rate: float, cut_tail: str) -> int:
         for row in (clean, dirty):
             print(f"{row.program:>10} {row.corrupt:>6.0%} {row.lines_per_s:>8.0f} {row.link_limit:>7.0f} "
                   f"{row.lines_per_s / clean.lines_per_s:>8.2f} {row.starvations:>7} {row.resends:>7} "
-                  f"{'yes' if row.exactly_once else 'NO':>5}", flush=True)
+                  f"{'yes' if row.exactly_once else 'NO':>5} {row.window_bytes:>6} {row.window_verdict:>8}",
+                  flush=True)
         ok = dirty.lines_per_s / clean.lines_per_s >= 0.85 and dirty.exactly_once and clean.exactly_once
         if kind == "balanced":
             ok = ok and dirty.starvations == 0
         met = met and ok
     print(f"\ngoal (issue 16) at 250000 baud with {rate:.0%} corruption: >= 0.85 of the clean rate, "
           f"every line exactly once, 0 starvations on the balanced program: {'met' if met else 'NOT met'}")
+    return 0
+
+
+async def overflow(count: int) -> int:
+    """A 64-byte board whose main loop reads no serial while a move waits for the planner: told the
+    truth (63), told 127 (the governor must find out), and, for the record, a 128-byte board. The
+    printer-bound program keeps the planner full, as a real print does."""
+    print(f"{'program':>10} {'board':>5} {'told':>4} {'lines/s':>8} {'ratio':>6} {'dropped':>7} {'resends':>7} "
+          f"{'window':>6} {'verdict':>8} {'once':>5}")
+    met = True
+    for kind in ("balanced", "printer-bound"):
+        for board, told in ((64, 63), (64, BOARD_WINDOW), (128, BOARD_WINDOW)):
+            row = await run(250000, False, kind, count, extra=["--rx-buffer", str(board), "--blocking-intake"],
+                            window=told)
+            print(f"{row.program:>10} {board:>5} {told:>4} {row.lines_per_s:>8.0f} {row.ratio:>6.2f} "
+                  f"{row.dropped_bytes:>7} {row.resends:>7} {row.window_bytes:>6} {row.window_verdict:>8} "
+                  f"{'yes' if row.exactly_once else 'NO':>5}", flush=True)
+            met = met and row.exactly_once
+            if board == 64 and told == BOARD_WINDOW and row.dropped_bytes:
+                met = met and row.window_verdict == "overflow"
+    print(f"\ngoal (issue 16): every line exactly once on a 64-byte board whatever the host was told, and a "
+          f"window found too large shrunk: {'met' if met else 'NOT met'}")
     return 0
 
 

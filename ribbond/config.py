@@ -43,8 +43,10 @@ class SerialSettings(BaseModel):
 
     port: str = Field("/dev/ttyUSB0", min_length=1, description="serial device of the printer")
     baud: int = Field(250000, gt=0, description="baud rate")
-    # Marlin's receive buffer is 128 bytes; fewer than 16 cannot hold one G-code line.
-    rx_buffer: int = Field(127, ge=16, description="bytes the sender keeps in flight")
+    # Safe for 64-byte receive buffers (Marlin's default is 128: set 127 for such a board, the
+    # sender shrinks a window found too large); fewer than 16 cannot hold one G-code line.
+    rx_buffer: int = Field(63, ge=16, description="bytes the sender keeps in flight (the printer's "
+                                                  "receive buffer less one)")
 
 
 class ApiSettings(BaseModel):

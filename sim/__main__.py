@@ -62,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--read-latency", type=float, default=d.read_latency_s, metavar="S",
                    help="main-loop latency: bytes arriving this long after a bad line are flushed "
                         "with it, cutting the line being received (default 0)")
+    g.add_argument("--blocking-intake", action="store_true",
+                   help="read no serial while a command blocks (Marlin's main loop): lines pile up "
+                        "in the receive buffer, and bytes beyond it are lost")
     g.add_argument("--seed", type=int, default=d.seed,
                    help="seed of every fault's random stream (default %(default)s)")
     g.add_argument("--boot-time", type=float, default=d.boot_s,
@@ -117,6 +120,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         keepalive_s=args.keepalive,
         cut_tail=args.cut_tail,
         read_latency_s=args.read_latency,
+        blocking_intake=args.blocking_intake,
         seed=args.seed,
         boot_s=args.boot_time,
         faults=FaultConfig(

@@ -111,6 +111,10 @@ class SimConfig:
     """Wall time Marlin's main loop may take to come back to the receive buffer: bytes arriving
     that long after a bad line are already in the buffer when the error flushes it, so the line
     being received is cut in two (0: the line after a bad one is never cut)."""
+    blocking_intake: bool = False
+    """Marlin's main loop reads no serial while a command blocks (waiting for a planner block, a
+    dwell, a heating wait): lines pile up in the receive buffer, and a host sending more than it
+    holds loses bytes (False: lines move to free queue slots whenever they arrive)."""
     seed: int = 0
     boot_s: float = 0.05
     """Wall time a (re)boot takes: bytes arriving meanwhile are lost, then the banner."""

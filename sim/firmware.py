@@ -435,6 +435,8 @@ class Firmware:
     def _intake(self) -> bool:
         """get_serial_commands(): move complete lines into the queue while it has room."""
         progressed = False
+        if self.config.blocking_intake and self._current is not None:
+            return False  # the main loop is inside the blocked handler
         while len(self.queue) < self.config.bufsize and self.rx and self.booting_until is None:
             i = self.rx.find(b"\n")
             j = self.rx.find(b"\r")

@@ -38,7 +38,9 @@ FAST = Timeouts(default_s=0.5, probes=4)
 
 
 def link_for(sim, **kwargs) -> PrinterLink:
+    """A link to ``sim``, told the window of its board (128-byte buffer unless the test says)."""
     kwargs.setdefault("timeouts", FAST)
+    kwargs.setdefault("capabilities", Capabilities(rx_buffer_bytes=sim.config.rx_buffer - 1))
     kwargs.setdefault("boot_wait_s", 1.0)
     return PrinterLink(sim.port, sim.config.baud, **kwargs)
 
@@ -133,7 +135,7 @@ async def test_marlin2_cut_tails_are_not_taken_for_acknowledgements(make_sim, ad
                    read_latency_s=0.0002, seed=5)
     link = link_for(sim)
     await link.connect()
-    program = moves(1500, seed=4)
+    program = moves(3500, seed=4)
     await link.stream(program)
     # Every numbered line ran once, in order. (A tail that happens to parse, e.g. cut right after
     # its "N<k>", runs unnumbered as well: Marlin 2.x's own hazard, not the host's to prevent.)
@@ -151,7 +153,7 @@ async def test_a_printer_that_skips_a_refused_line_stops_the_stream(make_sim) ->
     sim = make_sim(faults=FaultConfig(corrupt_rate=0.02, skip_refused=True), seed=3)
     link = link_for(sim)
     await link.connect()
-    program = moves(1500, seed=4)
+    program = moves(3500, seed=4)
     with pytest.raises(ProtocolError, match=r"after refusing line \d+ \(program line \d+:") as caught:
         await link.stream(program)
     assert sim.stats().skipped_lines >= 1
@@ -405,4 +407,36 @@ async def test_recover_after_a_halt(make_sim) -> None:
     assert sim.halted_at is None
     after_restart = [(c.line, c.command) for c in sim.commands()][-4:]
     assert after_restart == [(0, "M110 N0"), (1, "M115"), (2, "M155 S2"), (3, "G28")]
+    await link.close()
+
+
+async def test_a_window_too_large_for_the_board_is_found_and_shrunk(make_sim, caplog) -> None:
+    # A 64-byte board whose main loop reads nothing while a move waits for the planner, and a host
+    # told 127 bytes: lines pile up in its buffer and are cut. The printer asks for each; the
+    # governor sees the errors stop with a 63-byte window and keeps it.
+    # A queue of 8 commands (reported by ADVANCED_OK): while an M400 blocks, the lines sent after it
+    # pile up in the 64-byte buffer, up to the 127 bytes the host was told.
+    sim = make_sim(rx_buffer=64, blocking_intake=True, bufsize=8, time_scale=0.01)
+    link = link_for(sim, capabilities=Capabilities(rx_buffer_bytes=127))
+    await link.connect()
+    program = ["G1 F3000"] + [("M400" if i % 10 == 9 else f"G1 X{100 + 2 * (i % 2)}.{i % 10} Y{100 + i % 7}")
+                              for i in range(2500)]
+    with caplog.at_level("WARNING", logger="ribbond.printer.window"):
+        result = await link.stream(program)
+    assert executed_program(sim) == program
+    assert sim.stats().dropped_bytes > 0, "the board must have lost bytes for the test to mean anything"
+    assert result.window_verdict == "overflow" and result.window_bytes == 63, (result, sim.stats())
+    assert "set [serial] rx_buffer = 63" in caplog.text
+    await link.close()
+
+
+async def test_the_default_window_loses_nothing_on_a_64_byte_board(make_sim) -> None:
+    sim = make_sim(rx_buffer=64, blocking_intake=True, bufsize=8, time_scale=0.01)
+    link = link_for(sim, capabilities=Capabilities())  # the default, as nothing tells the host
+    await link.connect()
+    program = ["G1 F3000"] + [("M400" if i % 10 == 9 else f"G1 X{100 + 2 * (i % 2)}.{i % 10} Y{100 + i % 7}")
+                              for i in range(1500)]
+    result = await link.stream(program)
+    assert executed_program(sim) == program
+    assert sim.stats().dropped_bytes == 0 and result.resends == 0
     await link.close()

@@ -20,8 +20,12 @@ class Wire:
 
     def __init__(self) -> None:
         self.lines: list[tuple[int, str]] = []
+        self.nudges = 0
 
     def write(self, data: bytes) -> None:
+        if data == b"\n":
+            self.nudges += 1
+            return
         match = LINE.match(data)
         assert match, data
         self.lines.append((int(match.group(1)), match.group(2).decode()))
@@ -318,3 +322,34 @@ async def test_a_request_for_a_later_line_after_the_refused_one_was_resent_is_ho
         feed(sender, "ok")
         await asyncio.sleep(0.01)
     assert done.result().lines == 8
+
+
+async def test_a_silent_printer_is_nudged_with_one_bare_newline_per_silence() -> None:
+    # Noise that turns a line's newline into another byte leaves the printer waiting for the rest
+    # of that line: an empty line ends it (a checksum error follows) and is ignored otherwise.
+    sender, wire = make(timeouts=Timeouts(nudge_s=0.1, default_s=5))
+    sender.start()
+    done = sender.stream(program(1))
+    await asyncio.sleep(0.35)
+    assert wire.nudges == 1, "once per silence, not every watchdog tick"
+    feed(sender, "Error:checksum mismatch, Last Line: -1", "Resend: 0", "ok")
+    await asyncio.sleep(0.3)
+    assert wire.numbers() == [0, 0], "the line whose newline was lost goes again"
+    assert wire.nudges == 2, "the resent line met silence again: a new silence, a new nudge"
+    feed(sender, "ok N0 P15 B3")
+    assert (await asyncio.wait_for(done, 1)).lines == 1
+    sender.stop(StreamCancelled("test over"))
+
+
+async def test_nudges_can_be_turned_off() -> None:
+    sender, wire = make(timeouts=Timeouts(nudge_s=0, default_s=5))
+    sender.start()
+    done = sender.stream(program(1))
+    await asyncio.sleep(0.3)
+    assert wire.nudges == 0
+    done.cancel()
+    sender.stop(StreamCancelled("test over"))
+
+
+def test_the_default_window_is_safe_for_a_64_byte_receive_buffer() -> None:
+    assert Capabilities().rx_buffer_bytes == 63

@@ -34,9 +34,9 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument("--baud", type=int, default=250000, help="baud rate (default 250000)")
     common.add_argument("--ping-pong", action="store_true",
                         help="one line in flight at a time (slower; for firmwares that mishandle windows)")
-    common.add_argument("--rx-buffer", type=int, default=127, metavar="BYTES",
-                        help="unacknowledged bytes allowed in flight (default 127, for Marlin's standard "
-                             "128-byte receive buffer; set it below your board's buffer size if smaller)")
+    common.add_argument("--rx-buffer", type=int, default=63, metavar="BYTES",
+                        help="unacknowledged bytes allowed in flight (default 63, safe for 64-byte receive "
+                             "buffers; 127 for Marlin's standard 128-byte buffer)")
     common.add_argument("--no-ok-after-resend", action="store_true",
                         help="the firmware sends no 'ok' after a resend request (Marlin does)")
     common.add_argument("--timeout", type=float, default=8.0, metavar="S",

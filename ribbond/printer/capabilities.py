@@ -13,6 +13,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field
 
 from . import codec
+from .window import SAFE_WINDOW
 
 
 class Capabilities(BaseModel):
@@ -30,9 +31,10 @@ class Capabilities(BaseModel):
     ok_after_resend: bool = True
     #: Bytes the host lets be unacknowledged, counted as if all were still in the printer's receive
     #: buffer (they are when the firmware is blocked in a long command). Marlin's RX_BUFFER_SIZE is
-    #: 128 by default; set this lower for boards with a smaller buffer. At 96 bytes a window holds
-    #: only two typical lines, which starves the planner now and then at 250000 baud.
-    rx_buffer_bytes: int = Field(default=127, ge=16, le=65536)
+    #: 128 by default, but boards with 64 bytes exist and nothing in M115 tells: the default is the
+    #: window safe for them (``window.SAFE_WINDOW``); set 127 for a board known to have 128. A
+    #: window found too large is shrunk while streaming (``window.WindowGovernor``).
+    rx_buffer_bytes: int = Field(default=SAFE_WINDOW, ge=16, le=65536)
     #: Command queue slots (Marlin's BUFSIZE). Raised when ADVANCED_OK reports more free slots.
     queue_slots: int = Field(default=4, ge=1, le=64)
     #: Planner blocks (Marlin's BLOCK_BUFFER_SIZE), learned from the largest ``P`` seen + 1.

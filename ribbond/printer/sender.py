@@ -47,6 +47,7 @@ from pydantic import BaseModel, Field
 from . import codec
 from .capabilities import Capabilities
 from .errors import LinkError, PrinterSilent, ProtocolError, StreamCancelled
+from .window import WindowGovernor
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +70,10 @@ class Timeouts(BaseModel):
     #: After a resend request, wait this long beyond the wire time of the bytes already sent before
     #: resending (USB serial bridges buffer for up to ~16 ms each way).
     resend_settle_s: float = Field(default=0.04, ge=0)
+    #: Silence after which a bare newline goes out, once: if noise turned the last line's newline
+    #: into another byte, the printer waits for the rest of that line and would answer nothing
+    #: until the probe. An empty line is ignored by the firmware otherwise. 0 disables it.
+    nudge_s: float = Field(default=0.3, ge=0)
 
     def for_command(self, command: str) -> float | None:
         """Seconds of silence allowed while ``command`` is the oldest unacknowledged one; None
@@ -142,6 +147,9 @@ class StreamResult:
     resends: int
     elapsed_s: float
     probes: int
+    #: The byte window at the end (smaller than configured after an overflow verdict).
+    window_bytes: int = 0
+    window_verdict: str = "none"
 
 
 @dataclass(eq=False)
@@ -150,6 +158,7 @@ class _Line:
     command: str
     data: bytes
     program_index: int | None = None  # index in the running program, None for other commands
+    offset: int | None = None  # unacknowledged bytes, this line included, when it was last sent
     future: asyncio.Future[Answer] | None = None
     events: list[codec.Event] = field(default_factory=list)
 
@@ -219,11 +228,14 @@ class Sender:
         self._pending_resend: int | None = None  # lowest line asked for and not yet acknowledged
         self._refused: int | None = None  # the line the last line-check Error refused
         self._last_heard = time.monotonic()
+        self._nudged_at = -1.0  # the _last_heard of the silence already nudged
         self._probes_outstanding = 0
         self._watchdog: asyncio.Task[None] | None = None
         # Statistics for reports and benchmarks.
         self.resends = 0
         self.probes = 0
+        self.nudges = 0
+        self.window = WindowGovernor(capabilities.rx_buffer_bytes)
 
     # ------------------------------------------------------------------ public API
 
@@ -477,9 +489,15 @@ class Sender:
         if error.kind not in (codec.ErrorKind.CHECKSUM, codec.ErrorKind.LINE_NUMBER,
                               codec.ErrorKind.NO_CHECKSUM, codec.ErrorKind.NO_LINE_NUMBER):
             return
+        first = self._hold is None  # later errors of the episode come from the stale lines after it
         if error.last_line is None:
+            if first:
+                self.window.line_error(None)
             return
         refused = error.last_line + 1
+        line = self._history.get(refused)
+        if first:
+            self.window.line_error(line.offset if line is not None else None)
         if refused <= self._acked_through or refused >= self._next_number:
             return  # already processed, or never sent: nothing can be skipped
         self._refused = refused
@@ -513,7 +531,7 @@ class Sender:
         # left waiting in the receive buffer could be cut in two by the flush after an error.
         if len(self._inflight) >= self.capabilities.queue_slots:
             return False
-        return self._inflight_bytes + size <= self.capabilities.rx_buffer_bytes
+        return self._inflight_bytes + size <= self.window.window
 
     def _next_fresh(self) -> tuple[_Line, bool] | None:
         """The next command not yet numbered, and whether it is a single (not a program line)."""
@@ -560,6 +578,8 @@ class Sender:
             self._last_heard = time.monotonic()  # the silence clock starts with the first line out
         self._inflight.append(line)
         self._inflight_bytes += len(line.data)
+        line.offset = self._inflight_bytes
+        self.window.line_sent(line.offset)
         self._write(line.data)
 
     def _forget_old_history(self) -> None:
@@ -608,6 +628,8 @@ class Sender:
                 resends=self.resends,
                 elapsed_s=time.monotonic() - program.started,
                 probes=self.probes,
+                window_bytes=self.window.window,
+                window_verdict=self.window.verdict.value,
             ))
 
     # ------------------------------------------------------------------ silence
@@ -621,7 +643,10 @@ class Sender:
             if limit is None:
                 continue
             silent = time.monotonic() - self._last_heard
-            if silent < limit or self._hold is not None:
+            if self._hold is not None:
+                continue
+            self._maybe_nudge(silent)
+            if silent < limit:
                 continue
             if self._probes_outstanding >= self.timeouts.probes:
                 oldest = self._inflight[0]
@@ -631,6 +656,14 @@ class Sender:
                 return
             self._probe()
 
+    def _maybe_nudge(self, silent: float) -> None:
+        nudge = self.timeouts.nudge_s
+        if nudge <= 0 or silent < nudge or self._nudged_at == self._last_heard:
+            return
+        self._nudged_at = self._last_heard
+        self.nudges += 1
+        self._write(b"\n")
+
     def _probe(self) -> None:
         """Send a numbered M105 regardless of the window: its answer settles what happened."""
         self._probes_outstanding += 1
@@ -639,10 +672,14 @@ class Sender:
         line = _Line(self._next_number, PROBE_COMMAND, codec.encode(self._next_number, PROBE_COMMAND))
         log.info("printer silent; probing with line %d", line.number)
         if self._cursor < self._next_number:
-            # Rewound lines are waiting: they go first, and the probe will follow them.
+            # Rewound lines are waiting: they go first and the probe follows them, whatever the
+            # window says (after this silence its count of bytes in flight is not to be trusted).
             self._history[line.number] = line
             self._next_number += 1
-            self._pump()
+            if self._hold is None:
+                while self._cursor < self._next_number:
+                    self._transmit(self._history[self._cursor])
+                    self._cursor += 1
             return
         self._history[line.number] = line
         self._next_number += 1

@@ -80,7 +80,7 @@ def test_empty_file_means_defaults(tmp_path: Path) -> None:
 
 def test_full_round_trip(tmp_path: Path) -> None:
     config = DaemonConfig(
-        serial=SerialSettings(port="/dev/ttyACM3", baud=115200, rx_buffer=63),
+        serial=SerialSettings(port="/dev/ttyACM3", baud=115200, rx_buffer=127),
         printer_profile="generic-marlin",
         state_dir=tmp_path / "state",
         api=ApiSettings(host="0.0.0.0", port=8125, token="s3cret-token",
