@@ -870,6 +870,12 @@ class RibbonService:
         if job.state is not JobState.SUBMITTED:
             return
         folder = self.job_dir(job_id)
+        if not Path(job.mesh_path).is_file() or not folder.is_dir():
+            # a job an older daemon left without its upload (its row was written first)
+            self._transition(job_id, JobState.FAILED, reason="the uploaded mesh is missing",
+                             error=f"the uploaded mesh {job.mesh_name!r} was never stored (the submit failed "
+                                   "part way); submit it again")
+            return
         params = {**job.parameters, "printer_profile": self.config.printer_profile}
         self._transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
         log_path = folder / "compile.log"

@@ -217,3 +217,20 @@ def test_a_restart_finds_no_orphan(daemon: Daemon, small: Path) -> None:
     assert after == jobs                                      # nothing new, nothing resurrected
     assert not stray.exists()
     assert {p.name for p in (daemon.state_dir / "jobs").iterdir()} <= set(after)
+
+
+def test_an_orphan_an_older_daemon_left_fails_clearly(tmp_path: Path) -> None:
+    """A row in ``submitted`` whose upload never reached its folder (the old order: row first)."""
+    sim = Sim()
+    d = Daemon(tmp_path / "state", sim.port)
+    try:
+        with JobStore(d.state_dir / "jobs.sqlite3") as store:
+            orphan = store.create(mesh_name="a" * 250 + ".obj", mesh_path=str(d.state_dir / "uploads" / "upload-gone"),
+                                  parameters=dict(SIZE), start_when_ready=False)
+        d.start()
+        assert d.client is not None
+        failed = wait_for(d.client, orphan.id, "failed", timeout=60)
+        assert "never stored" in failed["error"] and "submit it again" in failed["error"]
+    finally:
+        d.stop()
+        sim.stop()
