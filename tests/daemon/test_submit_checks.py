@@ -23,7 +23,7 @@ from ribbond.config import DaemonConfig
 from ribbond.design.mesh_io import write_obj
 from ribbond.design.surfaces import saddle
 from ribbond.gcode.profiles import load_profile
-from ribbond.service import RibbonService
+from ribbond.service import MAX_NAME_BYTES, RibbonService, mesh_file_name
 from ribbond.store import JobStore
 
 from .conftest import ROOT, Daemon, Sim, cancel_leftovers, wait_for
@@ -107,6 +107,15 @@ def test_a_300_byte_name_is_shortened_and_compiles(client: httpx.Client, small: 
     assert len(stored.encode()) <= 120 and stored.startswith("a" * 100) and stored.endswith(".obj")
     assert Path(job["mesh_path"]).name == stored and Path(job["mesh_path"]).is_file()
     wait_for(client, job["id"], "ready", timeout=120)
+
+
+def test_long_names_stay_readable_and_apart() -> None:
+    first, second = "p" * 200 + "q" * 96 + ".obj", "p" * 200 + "r" * 96 + ".obj"
+    a, b = mesh_file_name(first), mesh_file_name(second)
+    assert a != b and a.startswith("p" * 100) and a.endswith(".obj") and len(a.encode()) <= MAX_NAME_BYTES
+    accented = mesh_file_name("é" * 150 + ".stl")            # 304 bytes of UTF-8
+    assert accented.endswith(".stl") and len(accented.encode()) <= MAX_NAME_BYTES
+    assert mesh_file_name("saddle.obj") == "saddle.obj"       # short names unchanged
 
 
 def test_refused_submits_leave_no_job_and_no_file(daemon: Daemon, client: httpx.Client,
