@@ -296,7 +296,11 @@ def cmd_submit(args: argparse.Namespace) -> int:
     params: dict[str, Any] = {}
     if args.params:
         from .design.params import load_settings          # only here: it is the engine's reader
-        params = load_settings(args.params).parameters.model_dump(mode="json", exclude_unset=True)
+        settings = load_settings(args.params)
+        params = settings.parameters.model_dump(mode="json", exclude_unset=True)
+        solver = settings.solver.model_dump(mode="json", exclude_unset=True)
+        if solver:                                        # the daemon applies it (or refuses it)
+            params["solver"] = solver
     if args.size is not None:
         params["size"] = {"bbox_diagonal": args.size}
     job = c.upload("mesh", args.mesh, {"parameters": json.dumps(params), "start": str(args.start).lower()},
@@ -659,7 +663,8 @@ def add_commands(sub: Any) -> None:
     s = cmd("submit", "upload a mesh to the daemon and compile it", cmd_submit)
     s.add_argument("mesh", type=Path)
     s.add_argument("--size", type=float, metavar="MM", help="bounding-box diagonal of the target, mm")
-    s.add_argument("--params", type=Path, metavar="FILE", help="TOML or JSON design parameters")
+    s.add_argument("--params", type=Path, metavar="FILE",
+                   help="TOML or JSON design parameters (and an optional [solver] table, applied by the daemon)")
     s.add_argument("--start", action="store_true", help="print as soon as it is compiled")
     s.add_argument("--no-wait", action="store_true", help="print the job id and return at once")
     p = cmd("print", "print a plain G-code file through the daemon", cmd_print,

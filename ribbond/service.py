@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import hashlib
 import json
 import logging
 import os
@@ -39,7 +40,7 @@ from pydantic import ValidationError
 from .alignment import AlignmentRefused, check_fit, expected_marks, fit_rigid
 from .config import DaemonConfig
 from .design.folder import read_design_folder
-from .design.params import DesignParameters
+from .design.params import check_printable, settings_from_dict
 from .design.thickness import TABLE_NAME, CurvatureTable, available_tables, load_curvature_table
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, SidePlan, render_side
@@ -49,7 +50,7 @@ from .printer.errors import LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
 from .programs import Timeline, check_program, program_timeline
-from .store import JobRecord, JobStore
+from .store import JobRecord, JobStore, new_id
 
 log = logging.getLogger(__name__)
 
@@ -72,11 +73,31 @@ JOG_SPEED = 50.0
 _MOVES_HEAD = frozenset({"G0", "G1", "G2", "G3", "G28", "G29", "G92", "G30", "M206", "M428"})
 
 
+#: Longest stored mesh file name, bytes (file systems allow 255); longer names are shortened.
+MAX_NAME_BYTES = 120
+
+
+def mesh_file_name(name: str) -> str:
+    """The upload's name as stored: a sanitized basename, at most ``MAX_NAME_BYTES`` bytes.
+
+    A longer name keeps its first 100 bytes, a hash of the whole name (two long names that share
+    a start stay apart) and its extension: readable, and always a valid file name."""
+    safe = re.sub(r"[^A-Za-z0-9._-]", "_", Path(name).name) or "mesh.obj"
+    if len(safe.encode()) <= MAX_NAME_BYTES:
+        return safe
+    suffix = Path(safe).suffix if len(Path(safe).suffix) <= 10 else ""
+    stem = safe[:len(safe) - len(suffix)].encode()[:100].decode("utf-8", errors="ignore")
+    return f"{stem}-{hashlib.sha256(name.encode('utf-8', errors='surrogatepass')).hexdigest()[:8]}{suffix}"
+
+
 def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path,
-                   tables: Path | None = None) -> list[str]:
-    """The command line of one compile (``python -m ribbond.worker``)."""
+                   tables: Path | None = None, max_faces: int | None = None) -> list[str]:
+    """The command line of one compile (``python -m ribbond.worker``); ``parameters`` in the
+    ``--params`` layout (design parameters, an optional ``solver`` table), ``max_faces`` the
+    daemon's ``[limits] max_faces``."""
     return [python, "-m", "ribbond.worker", mesh, str(out), "--params", json.dumps(parameters),
-            "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else [])
+            "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else []) \
+        + (["--max-faces", str(max_faces)] if max_faces is not None else [])
 
 
 def worker_environment() -> dict[str, str]:
@@ -249,6 +270,7 @@ class RibbonService:
         """Mark jobs the last daemon left holding the printer as interrupted; start the queues."""
         for job in self.store.mark_interrupted("the daemon stopped while this job was running"):
             self._publish(job)
+        self._remove_orphan_folders()
         for job in self.store.active():
             if job.state is JobState.SUBMITTED:
                 self._compile_queue.put_nowait(job.id)
@@ -381,29 +403,55 @@ class RibbonService:
                                "(limits.max_jobs); wait for some to finish, or cancel some")
 
     def submit(self, upload: Path, name: str, parameters: dict[str, Any], start: bool) -> JobRecord:
-        """Take an uploaded mesh (``upload``, moved into the job's folder) and queue its compile."""
-        safe = re.sub(r"[^A-Za-z0-9._-]", "_", Path(name).name) or "mesh.obj"
+        """Take an uploaded mesh (``upload``, moved into the job's folder) and queue its compile.
+
+        Everything is checked first (the name, the parameters against the engine, the daemon's
+        limits and its printer); the job's row is written only once the mesh is in its folder, and
+        if anything fails on the way neither the row nor the folder remains."""
+        safe = mesh_file_name(name)
         if Path(safe).suffix.lower() in GCODE_SUFFIXES:
             raise ValueError(f"{name!r} is a G-code program, not a mesh: print it with 'ribbonctl print {name}'")
         if Path(safe).suffix.lower() not in MESH_SUFFIXES:
             raise ValueError(f"{name!r}: not a mesh file the engine reads ({', '.join(MESH_SUFFIXES)})")
-        DesignParameters.model_validate(parameters)              # refuse bad parameters now
-        self.check_table_name(parameters.get("curvature_table", DesignParameters().curvature_table))
+        self._check_settings(parameters)
+        self._check_queue()
+        job_id = new_id()
+        folder = self.job_dir(job_id)
+        try:
+            folder.mkdir(parents=True)
+            mesh = folder / safe
+            shutil.move(str(upload), mesh)
+            job = self.store.create(mesh_name=safe, mesh_path=str(mesh), parameters=parameters,
+                                    start_when_ready=start, job_id=job_id)
+        except BaseException:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
+        self._publish(job)
+        self._compile_queue.put_nowait(job.id)
+        return job
+
+    def _check_settings(self, parameters: dict[str, Any]) -> None:
+        """Refuse (ValueError naming the field sent) what the compile could not take: the engine's
+        checks, this printer's frame and nozzle, its curvature tables and ``[limits] max_faces``."""
+        settings = settings_from_dict(parameters)
         asked = parameters.get("printer_profile")
         if asked is not None and asked != self.config.printer_profile:
             raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
                              "printer; leave printer_profile out (designs are made for the daemon's printer)")
-        self._check_queue()
-        job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters=parameters,
-                                start_when_ready=start)
-        folder = self.job_dir(job.id)
-        folder.mkdir(parents=True, exist_ok=True)
-        mesh = folder / safe
-        shutil.move(str(upload), mesh)
-        job = self.store.update(job.id, mesh_path=str(mesh))
-        self._publish(job)
-        self._compile_queue.put_nowait(job.id)
-        return job
+        check_printable(settings.parameters, self.profile.frame.size, self.profile.extruder.nozzle_diameter)
+        self.check_table_name(settings.parameters.curvature_table)
+        limit = self.config.limits.max_faces
+        if settings.solver.max_faces > limit and "max_faces" in settings.solver.model_fields_set:
+            raise ValueError(f"solver.max_faces = {settings.solver.max_faces}: above this daemon's limit "
+                             f"([limits] max_faces = {limit})")
+
+    def _remove_orphan_folders(self) -> None:
+        """Job folders without a job: a daemon stopped between storing an upload and its row."""
+        known = {j.id for j in self.store.list()}
+        for entry in self.jobs_dir.iterdir():
+            if entry.is_dir() and re.fullmatch(r"[0-9a-f]{12}", entry.name) and entry.name not in known:
+                log.warning("removing %s: a job folder without a job", entry)
+                shutil.rmtree(entry, ignore_errors=True)
 
     async def submit_gcode(self, upload: Path, name: str, start: bool) -> JobRecord:
         """Take an uploaded G-code program, check it line by line against the profile (refused with
@@ -822,13 +870,19 @@ class RibbonService:
         if job.state is not JobState.SUBMITTED:
             return
         folder = self.job_dir(job_id)
+        if not Path(job.mesh_path).is_file() or not folder.is_dir():
+            # a job an older daemon left without its upload (its row was written first)
+            self._transition(job_id, JobState.FAILED, reason="the uploaded mesh is missing",
+                             error=f"the uploaded mesh {job.mesh_name!r} was never stored (the submit failed "
+                                   "part way); submit it again")
+            return
         params = {**job.parameters, "printer_profile": self.config.printer_profile}
         self._transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
         log_path = folder / "compile.log"
         with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
             proc = await asyncio.create_subprocess_exec(
                 *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans",
-                                self.tables_dir),
+                                self.tables_dir, self.config.limits.max_faces),
                 stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
         self._compiling[job_id] = proc
         last: dict[str, Any] = {}

@@ -158,6 +158,11 @@ def _format_errors(exc: ValidationError) -> str:
     return "; ".join(f"{'.'.join(str(p) for p in e['loc']) or '(record)'}: {e['msg']}" for e in exc.errors())
 
 
+def new_id() -> str:
+    """A fresh job id (12 hex digits)."""
+    return secrets.token_hex(6)
+
+
 class JobStore:
     """The jobs database: one SQLite file, one connection.
 
@@ -352,11 +357,15 @@ class JobStore:
                              + ", ".join(sorted(MUTABLE_FIELDS)))
 
     def create(self, *, mesh_name: str, mesh_path: str, parameters: dict[str, Any],
-               start_when_ready: bool, kind: Literal["design", "gcode"] = "design") -> JobRecord:
-        """A new job in state ``submitted`` (with its first ``transitions`` row), committed."""
+               start_when_ready: bool, kind: Literal["design", "gcode"] = "design",
+               job_id: str | None = None) -> JobRecord:
+        """A new job in state ``submitted`` (with its first ``transitions`` row), committed.
+
+        ``job_id`` (from ``new_id``): the caller chose the id so that the job's files are in place
+        before its row exists."""
         now = self._clock()
         try:
-            record = JobRecord(id=secrets.token_hex(6), state=JobState.SUBMITTED, created=now, updated=now,
+            record = JobRecord(id=job_id or new_id(), state=JobState.SUBMITTED, created=now, updated=now,
                                mesh_name=mesh_name, mesh_path=mesh_path, parameters=parameters,
                                start_when_ready=start_when_ready, kind=kind)
         except ValidationError as exc:

@@ -1,6 +1,10 @@
 """The compile worker: one design, in its own process, reporting progress as JSON lines.
 
-    python -m ribbond.worker MESH OUT_DIR [--params JSON] [--plans DIR]
+    python -m ribbond.worker MESH OUT_DIR [--params JSON] [--plans DIR] [--max-faces N]
+
+``--params`` has the layout of a ``--params`` file: design parameters at the top level and an
+optional ``solver`` table (``SolverSettings``), both applied; ``--max-faces`` is the daemon's
+``[limits] max_faces``, which the solver's own ``max_faces`` cannot raise.
 
 The daemon runs it with ``asyncio.create_subprocess_exec`` so that a 160k-face compile runs beside
 the event loop that streams to the printer, never in it (and at a lower CPU priority). Every line
@@ -68,7 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m ribbond.worker", description=__doc__.split("\n\n")[0])
     parser.add_argument("mesh", type=Path)
     parser.add_argument("out", type=Path)
-    parser.add_argument("--params", default="{}", help="design parameters as a JSON object")
+    parser.add_argument("--params", default="{}", help="design parameters (and a 'solver' table) as a JSON object")
+    parser.add_argument("--max-faces", type=int, help="the daemon's [limits] max_faces")
     parser.add_argument("--plans", type=Path, help="also write the front and back plans into this folder")
     parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
@@ -76,19 +81,27 @@ def main(argv: list[str] | None = None) -> int:
     lower_priority(args.nice)
     from .design.errors import DesignError, MeshError
     from .design.format import design_to_dict
-    from .design.params import DesignParameters
+    from .design.params import settings_from_dict
     from .design.pipeline import design_mesh, write_design
 
+    limited = False                                   # the daemon's limit is below the solver's
     try:
-        params = DesignParameters.model_validate(json.loads(args.params))
-        result = design_mesh(args.mesh, params, progress=JsonProgress(), tables_dir=args.tables)
+        settings = settings_from_dict(json.loads(args.params))
+        solver = settings.solver
+        limited = args.max_faces is not None and args.max_faces < solver.max_faces
+        if limited:
+            solver = solver.model_copy(update={"max_faces": args.max_faces})
+        result = design_mesh(args.mesh, settings.parameters, solver, progress=JsonProgress(),
+                             tables_dir=args.tables)
         path = write_design(result, args.out, JsonProgress())
         if args.plans is not None:
             args.plans.mkdir(parents=True, exist_ok=True)
             result.programs.front_plan.save(args.plans / "front-plan.npz")
             result.programs.back_plan.save(args.plans / "back-plan.npz")
     except MeshError as exc:
-        _emit({"event": "error", "kind": "mesh", "message": str(exc)})
+        where = " ([limits] max_faces in the daemon's configuration)" \
+            if limited and exc.problem == "too_many_faces" else ""
+        _emit({"event": "error", "kind": "mesh", "message": f"{exc}{where}"})
         return 2
     except (DesignError, ValueError) as exc:
         _emit({"event": "error", "kind": "design", "message": str(exc)})

@@ -8,6 +8,7 @@ change the design the method aims at, only how closely and how fast it is reache
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from pathlib import Path
 from typing import Any, Literal
@@ -32,7 +33,7 @@ def spacing_for_sigma(sigma: float, ribbon_size: float, prestretch: float) -> fl
 class SizeSpec(BaseModel):
     """The physical size of the target surface: its bounding-box diagonal in mm (as the paper)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     bbox_diagonal: float = Field(gt=0, description="bounding-box diagonal of the target surface, mm")
 
 
@@ -44,7 +45,7 @@ class DesignParameters(BaseModel):
     μ2max = l_r (≈ 1.51 for the defaults).
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     prestretch: float = Field(1.6, gt=1.0, description="fabric pre-stretch factor s")
     ribbon_length: float = Field(15.0, gt=0, description="ribbon length l_r, mm")
@@ -65,18 +66,37 @@ class DesignParameters(BaseModel):
     @model_validator(mode="after")
     def _check_bounds(self) -> "DesignParameters":
         s = self.prestretch
+        if self.min_ribbon_length > self.ribbon_length:
+            # a ribbon is at most ribbon_length long (its staggered segment): all would be dropped
+            raise ValueError(f"min_ribbon_length = {self.min_ribbon_length:g} mm: longer than ribbon_length = "
+                             f"{self.ribbon_length:g} mm, the longest a ribbon is: every ribbon would be dropped")
         if self.sigma2_bounds is None:
-            hi = sigma_for_spacing(self.ribbon_length, self.ribbon_width, s)
-            object.__setattr__(self, "sigma2_bounds", (min(1.3, hi), hi))
+            object.__setattr__(self, "sigma2_bounds", self._default_sigma2())
         for name in ("sigma1_bounds", "sigma2_bounds"):
             lo, hi = getattr(self, name)
+            # name what the user sent: a default bound is not a field they set
+            given = name in self.model_fields_set
+            what = f"{name} = [{lo:g}, {hi:g}]" if given else f"the default {name} = [{lo:g}, {hi:g}]"
             if not 1.0 <= lo <= hi:
-                raise ValueError(f"{name} = [{lo}, {hi}]: need 1 <= lower <= upper "
-                                 "(the flat surface is the stretched one)")
+                raise ValueError(f"{what}: need 1 <= lower <= upper (the flat surface is the stretched one)")
             if hi >= s:
-                raise ValueError(f"{name} = [{lo}, {hi}]: the upper bound must stay below the "
-                                 f"pre-stretch s = {s} (Eq. 10 diverges at σ = s)")
+                raise ValueError(f"{what}: the upper bound must stay below prestretch = {s:g} (Eq. 10 "
+                                 "diverges at σ = s)" + ("" if given else f"; set {name} below it"))
         return self
+
+    def _default_sigma2(self) -> tuple[float, float]:
+        """[1.3, σ2max] with σ2max from Eq. 10 at μ2max = l_r; refused naming l_r and w_r (the
+        fields the user set) when they give no stretch range."""
+        length, width, s = self.ribbon_length, self.ribbon_width, self.prestretch
+        if not length > width:
+            raise ValueError(f"ribbon_length = {length:g} mm, ribbon_width = {width:g} mm: a ribbon must be "
+                             "longer than it is wide (the default sigma2_bounds, Eq. 10 at μ2 = ribbon_length, "
+                             "has no stretch above 1 otherwise)")
+        hi = sigma_for_spacing(length, width, s)
+        if not hi < s:
+            raise ValueError(f"ribbon_length = {length:g} mm is too long for ribbon_width = {width:g} mm: "
+                             f"the default sigma2_bounds reaches prestretch = {s:g}; set sigma2_bounds")
+        return (min(1.3, hi), hi)
 
     @property
     def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -88,7 +108,7 @@ class DesignParameters(BaseModel):
 class SolverSettings(BaseModel):
     """Numerical settings of the engine: tolerances, caps and accelerations."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     tolerance: float = Field(1e-6, gt=0, description="stop when the mean change of σ1 and of σ2 is below")
     max_iterations: int = Field(3000, ge=1, description="cap on local/global iterations")
@@ -149,6 +169,105 @@ class DesignSettings(BaseModel):
         return self
 
 
+def _value(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    return json.dumps(value, default=str, allow_nan=True) if not isinstance(value, str) else repr(value)
+
+
+def _bounds_text(model: type[BaseModel] | None, field: str) -> str:
+    """' > 0', ' in (0, 90)'…: the numeric constraints of ``model.field`` for a message."""
+    info = model.model_fields.get(field) if model is not None else None
+    parts = []
+    for item in (info.metadata if info is not None else []):
+        for attr, op in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+            bound = getattr(item, attr, None)
+            if bound is not None:
+                parts.append(f"{op} {bound:g}")
+    return (" " + " and ".join(parts)) if parts else ""
+
+
+#: The model behind each section of the ``--params`` layout, for the constraints a message names.
+_MODELS: dict[str, type[BaseModel]] = {"": DesignParameters, "size": SizeSpec, "solver": SolverSettings}
+
+
+def _problem(err: Any, section: str | None) -> str:
+    """One pydantic error as ``field = value: what is wrong``, in the user's own field names."""
+    loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
+    index = "".join(f"[{p}]" for p in err["loc"] if isinstance(p, int))   # an element of a bounds pair
+    field = ".".join(([section] if section else []) + loc) + index
+    kind = err["type"]
+    if kind == "missing":
+        return f"{field}: required"
+    if kind == "extra_forbidden":
+        model = _MODELS.get(".".join(([section] if section else []) + loc[:-1]))
+        known = ", ".join(model.model_fields) if model is not None else ""
+        return f"{field}: unknown setting" + (f" (known: {known})" if known else "")
+    if not loc:                                   # a model validator: its message names the fields
+        return str(err.get("ctx", {}).get("error") or err["msg"]).removeprefix("Value error, ")
+    model = _MODELS.get(".".join(([section] if section else []) + loc[:-1]))
+    shown = f"{field} = {_value(err.get('input'))}"
+    if kind == "finite_number":
+        return f"{shown}: must be a finite number{_bounds_text(model, loc[-1])}"
+    return f"{shown}: {err['msg'].removeprefix('Value error, ')}"
+
+
+def settings_from_dict(data: dict[str, Any]) -> DesignSettings:
+    """``DesignSettings`` from the ``--params`` layout: design parameters at the top level and an
+    optional ``solver`` table.
+
+    Raises
+    ------
+    ValueError
+        naming each offending field as the user wrote it (``ribbon_length = inf: must be a finite
+        number > 0``), unknown keys by name, never a derived field.
+    """
+    if not isinstance(data, dict):
+        raise ValueError("expected a table of parameters at the top level")
+    data = dict(data)
+    solver = data.pop("solver", {})
+    if not isinstance(solver, dict):
+        raise ValueError(f"solver = {_value(solver)}: expected a table of solver settings")
+    try:
+        parameters = DesignParameters(**data)
+    except ValidationError as exc:
+        raise ValueError("; ".join(_problem(err, None) for err in exc.errors())) from None
+    try:
+        settings = SolverSettings(**solver)
+    except ValidationError as exc:
+        raise ValueError("; ".join(_problem(err, "solver") for err in exc.errors())) from None
+    try:
+        return DesignSettings(parameters=parameters, solver=settings)
+    except ValidationError as exc:
+        raise ValueError("; ".join(_problem(err, None) for err in exc.errors())) from None
+
+
+def check_printable(params: DesignParameters, frame_size: tuple[float, float], nozzle_diameter: float) -> None:
+    """Refuse, before any compile, parameters that can only make a design that prints nothing or
+    degenerate geometry on this printer (``frame_size`` mm, ``nozzle_diameter`` mm).
+
+    Raises
+    ------
+    ValueError
+        naming the field the user sent and the printer's dimension it is measured against.
+    """
+    diagonal = math.hypot(*frame_size)
+    frame = f"the printer's frame ({frame_size[0]:g} × {frame_size[1]:g} mm, diagonal {diagonal:.0f} mm)"
+    for name in ("ribbon_length", "ribbon_width", "min_ribbon_length"):
+        value = getattr(params, name)
+        if value > diagonal:
+            why = ": every ribbon would be dropped" if name == "min_ribbon_length" else ""
+            raise ValueError(f"{name} = {value:g} mm: longer than {frame}{why}")
+    if params.ribbon_width < nozzle_diameter:
+        raise ValueError(f"ribbon_width = {params.ribbon_width:g} mm: narrower than the printer's nozzle "
+                         f"({nozzle_diameter:g} mm)")
+    if params.size is not None and params.size.bbox_diagonal < params.ribbon_width:
+        raise ValueError(f"size.bbox_diagonal = {params.size.bbox_diagonal:g} mm: smaller than one ribbon "
+                         f"width (ribbon_width = {params.ribbon_width:g} mm): the surface cannot hold a ribbon")
+
+
 def load_settings(path: Path) -> DesignSettings:
     """Read a ``--params`` file (TOML or JSON).
 
@@ -170,10 +289,7 @@ def load_settings(path: Path) -> DesignSettings:
         raise ValueError(f"{path}: not valid {'JSON' if path.suffix.lower() == '.json' else 'TOML'}: {exc}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a table of parameters at the top level")
-    solver = data.pop("solver", {})
     try:
-        return DesignSettings(parameters=DesignParameters(**data), solver=SolverSettings(**solver))
-    except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in err['loc']) or '(file)'}: {err['msg']}" for err in exc.errors())
-        raise ValueError(f"{path}: invalid parameters: {problems}") from None
+        return settings_from_dict(data)
+    except ValueError as exc:
+        raise ValueError(f"{path}: invalid parameters: {exc}") from None

@@ -31,7 +31,7 @@ from .frames import face_frames
 from .intake import TargetMesh, load_target
 from .mesh_io import obj_bytes
 from .line_field import ANISOTROPY_THRESHOLD, LineField, curvature_line_field, field_k1_deviation
-from .params import DesignParameters, SolverSettings, check_smoothing
+from .params import DesignParameters, SolverSettings, check_printable, check_smoothing
 from .placement import fit_scale, place_in_frame, registration_marks
 from .preview import render_preview
 from .report import flattening_report
@@ -142,6 +142,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     frame = frame or profile.frame
     try:
         check_smoothing(params, solver)
+        check_printable(params, frame.size, profile.extruder.nozzle_diameter)
     except ValueError as exc:
         raise DesignError(str(exc)) from None
     table = load_curvature_table(params.curvature_table, tables_dir=tables_dir)
@@ -240,6 +241,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     t = time.perf_counter()
     outline = shapely.Polygon(uv[target.boundary])
     layout = layout_ribbons(stripes, outline, params)
+    _check_some_ribbons(layout, params, size)
     ribbons, clamped = _ribbons(layout, table)
     try:
         marks = registration_marks(uv, frame, MARK_OFFSET)
@@ -280,6 +282,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                             f"front {fs.lines} lines, ~{fs.time_s / 60:.0f} min; back {bs.lines} lines, "
                             f"~{bs.time_s / 60:.0f} min; travel {fs.travel_mm + bs.travel_mm:.0f} mm for "
                             f"{fs.extrusion_mm + bs.extrusion_mm:.0f} mm printed")
+    if fs.extrusion_mm + bs.extrusion_mm <= 0.0:
+        raise DesignError(f"the print programs extrude nothing ({len(ribbons)} ribbons): the design would print "
+                          "nothing; check ribbon_width and the curvature table's thicknesses")
     report["print"] = PrintReport(front=SidePrintReport(**fs.report()), back=SidePrintReport(**bs.report()))
 
     # -- deploy: the predicted deployed shape --------------------------------------------------------
@@ -316,6 +321,20 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                         flattening=flat, kappa1=kappa1, ribbon_direction=direction, stripes=stripes,
                         layout=layout, frame=frame, design=design, programs=programs,
                         preview_svg=svg, preview_png=png, prediction=prediction, deployed_png=deployed_png)
+
+
+def _check_some_ribbons(layout: RibbonLayout, params: DesignParameters, size: float) -> None:
+    """A design without ribbons prints nothing: refuse it, naming the parameter that emptied it."""
+    if layout.count > 0:
+        return
+    if layout.dropped_short:
+        raise DesignError(f"no ribbons: all {layout.dropped_short} pieces of ribbon were shorter than "
+                          f"min_ribbon_length = {params.min_ribbon_length:g} mm (with max_trim_angle = "
+                          f"{params.max_trim_angle:g}°, {layout.trimmed_angle} were trimmed); lower "
+                          "min_ribbon_length or raise max_trim_angle, or make the design larger (size)")
+    raise DesignError(f"no ribbons: at size {size:.1f} mm (bounding-box diagonal) the stripe patterns leave no "
+                      f"ribbon of ribbon_width = {params.ribbon_width:g} mm inside the flat surface; make the "
+                      "design larger (size) or the ribbons smaller (ribbon_length, ribbon_width)")
 
 
 def _predict(uv: np.ndarray, V: np.ndarray, F: np.ndarray, ribbons: list[Ribbon], params: DesignParameters,

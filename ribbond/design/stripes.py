@@ -467,7 +467,8 @@ def chain_segments(n_points: int, segments: np.ndarray, segment_face: np.ndarray
     has_next = np.ones(len(nodes), dtype=bool)
     has_next[offsets[1:] - 1] = False
     src, dst = nodes[has_next], nodes[np.flatnonzero(has_next) + 1]
-    link_face[has_next] = np.asarray(face_of[src, dst]).ravel().astype(np.int64) - 1
+    if src.size:                       # scipy answers an empty fancy index with a matrix, not an array
+        link_face[has_next] = np.asarray(face_of[src, dst]).ravel().astype(np.int64) - 1
     return Polylines(nodes=nodes, offsets=offsets, closed=loop_of_begin, link_face=link_face)
 
 
