@@ -59,6 +59,8 @@ class JobStatus(JobRecord):
     ribbons: int | None = Field(None, description="ribbons on the side being printed")
     print_side: str | None = Field(None, description="the side printed now or next")
     waits_for_operator: bool = Field(False, description="nothing happens until the operator acts")
+    fit: dict[str, Any] | None = Field(None, description="in state fitted: the alignment's fit under review "
+                                                         "(rotation_deg, offset, rms_mm, max_residual_mm)")
     next: NextStep
 
 
@@ -164,6 +166,8 @@ class AlignRequest(BaseModel):
                                                      "registration_marks[mark - 1]); default: the one the head was sent to")
     jog: tuple[float, float] | None = Field(None, description="(dx, dy) mm from where the head was sent to the mark")
     here: bool = Field(False, description="the nozzle is over the mark now (after jogging it there)")
+    review: bool = Field(False, description="after the last mark, wait in 'fitted' for accept or re-seat "
+                                            "instead of printing the back at once")
 
 
 def create_app(service: RibbonService, token: str | None) -> FastAPI:
@@ -341,7 +345,15 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/jobs/{job_id}/align", dependencies=auth)
     async def align(job_id: str, body: AlignRequest) -> dict[str, Any]:
-        return await service.align_mark(job_id, body.mark, body.jog, body.here)
+        return await service.align_mark(job_id, body.mark, body.jog, body.here, body.review)
+
+    @app.post("/jobs/{job_id}/accept", response_model=JobStatus, dependencies=auth)
+    async def accept(job_id: str) -> JobStatus:
+        return status(await service.accept_fit(job_id))
+
+    @app.post("/jobs/{job_id}/re-seat", response_model=JobStatus, dependencies=auth)
+    async def re_seat(job_id: str) -> JobStatus:
+        return status(await service.re_seat(job_id))
 
     @app.post("/printer/home", dependencies=auth)
     async def home() -> dict[str, Any]:

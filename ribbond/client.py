@@ -3,7 +3,7 @@ default, ``--json`` for scripts. Nothing here imports the design engine (a comma
 fraction of a second, also on a Raspberry Pi).
 
 Jobs: submit, print (a plain G-code program), status, watch, start, pause, resume, cancel,
-flip-done, align, delete. The printer: printer, home, jog, goto, gcode, heat, cool, stop, recover.
+flip-done, align, accept, re-seat, delete. The printer: printer, home, jog, goto, gcode, heat, cool, stop, recover.
 
 Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
 is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
@@ -448,7 +448,9 @@ def _align_text(status: dict[str, Any]) -> str:
     fit = status.get("fit", {})
     return (f"{got}\nfit: rotation {fit.get('rotation_deg', 0):+.3f}°, offset ({fit.get('offset', [0, 0])[0]:+.3f}, "
             f"{fit.get('offset', [0, 0])[1]:+.3f}) mm, residual {fit.get('max_residual_mm', 0):.3f} mm: "
-            + ("accepted, printing the back" if status.get("accepted") else "refused"))
+            + ("accepted, printing the back" if status.get("accepted") else
+               "within the limits; accept it (ribbonctl accept JOB) or re-seat the frame (ribbonctl re-seat JOB)"
+               if status.get("review") else "refused"))
 
 
 def cmd_align(args: argparse.Namespace) -> int:
@@ -456,11 +458,12 @@ def cmd_align(args: argparse.Namespace) -> int:
     if args.here or args.jog is not None or args.mark is not None:
         if args.jog is None and not args.here and args.mark is not None:
             raise ClientError("--mark needs --jog DX DY (or use --here: the nozzle is on the mark)", 2)
-        body: dict[str, Any] = {"here": bool(args.here), "jog": list(args.jog) if args.jog else None}
+        body: dict[str, Any] = {"here": bool(args.here), "jog": list(args.jog) if args.jog else None,
+                                "review": bool(args.review)}
         if args.mark is not None:
             body["mark"] = args.mark
         status = c.request("POST", f"/jobs/{args.job}/align", json=body)
-        _out(args, status, _align_text(status))
+        _out(args, status, _align_text(status).replace("JOB", args.job))
         return 0
     job = c.request("GET", f"/jobs/{args.job}")
     if job["state"] != "aligning":
@@ -493,8 +496,8 @@ def cmd_align(args: argparse.Namespace) -> int:
             except ClientError as exc:
                 print(f"  {exc}", file=sys.stderr)
             continue
-        status = c.request("POST", f"/jobs/{args.job}/align", json={"here": True})
-        print(_align_text(status))
+        status = c.request("POST", f"/jobs/{args.job}/align", json={"here": True, "review": bool(args.review)})
+        print(_align_text(status).replace("JOB", args.job))
         if status.get("next_mark") is None:
             return 0
 
@@ -681,7 +684,9 @@ def add_commands(sub: Any) -> None:
     w.add_argument("job")
     for name, text in (("start", "print a job (again: a new run of the same design)"), ("pause", "pause a print"),
                        ("resume", "resume a paused print (it reheats first)"), ("cancel", "cancel a job"),
-                       ("flip-done", "the frame is turned over: go on to the alignment")):
+                       ("flip-done", "the frame is turned over: go on to the alignment"),
+                       ("accept", "print the back with the alignment's fit (after align --review)"),
+                       ("re-seat", "refuse the alignment's fit: seat the frame again, then flip-done")):
         a = cmd(name, text, _action(name))
         a.add_argument("job")
     d = cmd("delete", "remove jobs and their files (not while they print)", cmd_delete)
@@ -694,6 +699,8 @@ def add_commands(sub: Any) -> None:
     a.add_argument("--mark", type=int, metavar="N", help="the mark, numbered from 1 (default: the current one)")
     a.add_argument("--jog", type=float, nargs=2, metavar=("DX", "DY"), help="the mark's offset from where the "
                    "head was sent, mm")
+    a.add_argument("--review", action="store_true", help="after the last mark, show the fit and wait for "
+                   "ribbonctl accept or re-seat (default: an accepted fit prints the back at once)")
     cmd("printer", "the printer's state, temperatures and head position", cmd_printer)
     cmd("home", "home the axes (G28)", cmd_home)
     j = cmd("jog", "move the head by DX DY [DZ] mm (within the frame)", cmd_jog)

@@ -1,9 +1,14 @@
 """The job state machine: one Enum, one transition table (issue 6 §2, issue 13).
 
     submitted → compiling → ready → heating → printing_front → awaiting_flip → aligning
-              → printing_back → done
+              [→ fitted] → printing_back → done
 
-plus ``paused`` (from either printing state, resumable to it), ``cancelled``, ``failed`` (with a
+``fitted`` (issue 14) is the review of the alignment's fit, when the last mark was measured with
+``review``: the operator sees rotation, offset and residual, then ``accept`` (the back prints with
+that correction) or ``re-seat`` (back to ``awaiting_flip``: put the frame back in its seat, then
+flip-done and the check again). Without ``review`` an accepted fit prints the back at once.
+
+Plus ``paused`` (from either printing state, resumable to it), ``cancelled``, ``failed`` (with a
 reason) and ``interrupted`` (the daemon stopped, or the print task failed, while the job held the
 printer). A one-sided design goes from ``printing_front`` to ``done``; a plain G-code program needs
 no compile (``submitted → ready``) and prints as ``printing_front``. A job that ended (``done``,
@@ -29,6 +34,7 @@ class JobState(enum.Enum):
     PRINTING_FRONT = "printing_front"
     AWAITING_FLIP = "awaiting_flip"
     ALIGNING = "aligning"
+    FITTED = "fitted"
     PRINTING_BACK = "printing_back"
     PAUSED = "paused"
     DONE = "done"
@@ -58,14 +64,14 @@ class JobState(enum.Enum):
 
 
 _J = JobState
-_HOLDS_PRINTER = frozenset({_J.HEATING, _J.PRINTING_FRONT, _J.AWAITING_FLIP, _J.ALIGNING,
+_HOLDS_PRINTER = frozenset({_J.HEATING, _J.PRINTING_FRONT, _J.AWAITING_FLIP, _J.ALIGNING, _J.FITTED,
                             _J.PRINTING_BACK, _J.PAUSED})
 #: The run is over; the job can be printed again or deleted.
 ENDED = frozenset({_J.DONE, _J.CANCELLED, _J.FAILED, _J.INTERRUPTED})
 #: A program is streaming: the printer takes no manual commands.
 STREAMING = frozenset({_J.HEATING, _J.PRINTING_FRONT, _J.PRINTING_BACK})
 #: The job waits for the operator.
-WAITING = frozenset({_J.READY, _J.AWAITING_FLIP, _J.ALIGNING, _J.PAUSED})
+WAITING = frozenset({_J.READY, _J.AWAITING_FLIP, _J.ALIGNING, _J.FITTED, _J.PAUSED})
 _ENDS = frozenset({_J.CANCELLED, _J.FAILED})
 
 #: The only transitions a job makes.
@@ -76,7 +82,9 @@ TRANSITIONS: dict[JobState, frozenset[JobState]] = {
     _J.HEATING: frozenset({_J.PRINTING_FRONT, _J.PRINTING_BACK}) | _ENDS | {_J.INTERRUPTED},
     _J.PRINTING_FRONT: frozenset({_J.AWAITING_FLIP, _J.DONE, _J.PAUSED}) | _ENDS | {_J.INTERRUPTED},
     _J.AWAITING_FLIP: frozenset({_J.ALIGNING}) | _ENDS | {_J.INTERRUPTED},
-    _J.ALIGNING: frozenset({_J.PRINTING_BACK, _J.AWAITING_FLIP}) | _ENDS | {_J.INTERRUPTED},
+    _J.ALIGNING: frozenset({_J.PRINTING_BACK, _J.AWAITING_FLIP, _J.FITTED}) | _ENDS | {_J.INTERRUPTED},
+    # accept, or re-seat the frame and align again
+    _J.FITTED: frozenset({_J.PRINTING_BACK, _J.AWAITING_FLIP}) | _ENDS | {_J.INTERRUPTED},
     _J.PRINTING_BACK: frozenset({_J.DONE, _J.PAUSED}) | _ENDS | {_J.INTERRUPTED},
     _J.PAUSED: frozenset({_J.PRINTING_FRONT, _J.PRINTING_BACK}) | _ENDS | {_J.INTERRUPTED},
     # a new print run of the same design
@@ -96,6 +104,7 @@ COMMANDS: dict[JobState, tuple[str, ...]] = {
     _J.PRINTING_FRONT: ("pause", "cancel"),
     _J.AWAITING_FLIP: ("flip-done", "cancel"),
     _J.ALIGNING: ("align", "cancel"),
+    _J.FITTED: ("accept", "re-seat", "cancel"),
     _J.PRINTING_BACK: ("pause", "cancel"),
     _J.PAUSED: ("resume", "cancel"),
     _J.DONE: ("start", "delete"),

@@ -146,6 +146,8 @@ class _Alignment:
     measured: dict[int, tuple[float, float]] = field(default_factory=dict)
     correction: Correction | None = None        # the accepted fit, once every mark is in
     refused: AlignmentRefused | None = None     # or why it was refused
+    fit: dict[str, Any] | None = None           # the fit shown for review (state fitted)
+    reseat: bool = False                        # the operator refused the fit under review
 
     current: int = 0                            # the mark the head is above (from 1; 0: on its way)
 
@@ -755,7 +757,7 @@ class RibbonService:
         front = totals.get("front", 0.0)
         if s in (JobState.READY, JobState.SUBMITTED):
             out.update(progress=0.0, eta_s=total * rate)
-        elif s in (JobState.AWAITING_FLIP, JobState.ALIGNING):
+        elif s in (JobState.AWAITING_FLIP, JobState.ALIGNING, JobState.FITTED):
             out.update(progress=min(1.0, front / total), eta_s=totals.get("back", 0.0) * rate, print_side="back")
         elif done_side is not None:
             done = (front if side == "back" else 0.0) + done_side
@@ -821,6 +823,13 @@ class RibbonService:
                         f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
                         f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
             cmds = [f"ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
+        elif s is JobState.FITTED:
+            fit = run.alignment.fit if run is not None and run.alignment is not None else None
+            seen = (f"the fit turns the back by {fit['rotation_deg']:.2f}° and moves it by "
+                    f"({fit['offset'][0]:.2f}, {fit['offset'][1]:.2f}) mm, {fit['max_residual_mm']:.2f} mm "
+                    "off at the worst mark. ") if fit else ""
+            text = (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
+                    f"re-seat the frame and align again (ribbonctl re-seat {j})")
         elif s is JobState.DONE:
             text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
         else:
@@ -838,6 +847,9 @@ class RibbonService:
         info = self.progress(job)
         data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
                     compile_progress=job.progress, waits_for_operator=self._waits(job))
+        run = self._run
+        if job.state is JobState.FITTED and run is not None and run.job_id == job.id and run.alignment is not None:
+            data["fit"] = run.alignment.fit
         return data
 
     def _waits(self, job: JobRecord) -> bool:
@@ -849,7 +861,7 @@ class RibbonService:
             run = self._run
             return run is not None and run.job_id == job.id and run.alignment is not None \
                 and run.alignment.current > 0
-        return job.state in (JobState.AWAITING_FLIP, JobState.PAUSED)
+        return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED)
 
     # ------------------------------------------------------------------ compiling
 
@@ -1038,8 +1050,10 @@ class RibbonService:
             if refused is not None or correction is None:
                 run.flip.clear()
                 run.aligned.clear()
-                self._transition(job.id, JobState.AWAITING_FLIP, reason=f"alignment refused: {refused}",
-                                 error=str(refused))
+                reseat = run.alignment.reseat
+                self._transition(job.id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
+                                 reason="the operator chose to re-seat the frame" if reseat
+                                 else f"alignment refused: {refused}")
                 continue
             break
         plan = SidePlan.load(self.job_dir(job.id) / "plans" / "back-plan.npz")
@@ -1206,11 +1220,12 @@ class RibbonService:
                           "expected": [x, y], "message": self.guidance(job)["instruction"]})
 
     async def align_mark(self, job_id: str, mark: int | None, jog: tuple[float, float] | None,
-                         here: bool = False) -> dict[str, Any]:
+                         here: bool = False, review: bool = False) -> dict[str, Any]:
         """Measure registration mark ``mark`` (numbered from 1; None: the one the head was sent to):
         ``here`` takes the head's commanded position (the operator jogged the nozzle onto the mark),
         else ``jog`` (dx, dy) is the offset of the mark from where the head was sent (None: it was
-        on the mark). Returns the alignment's status; the last mark ends the check."""
+        on the mark). Returns the alignment's status; the last mark ends the check. With
+        ``review``, a fit within the limits waits in ``fitted`` for ``accept`` or ``re_seat``."""
         run = self._run
         job = self.job(job_id)
         if job.state is not JobState.ALIGNING or run is None or run.job_id != job_id or run.alignment is None:
@@ -1254,12 +1269,41 @@ class RibbonService:
         except AlignmentRefused as exc:
             al.refused = exc
             raise
-        else:
-            al.correction = fit.correction()
-            status["accepted"] = True
-        finally:
+        except BaseException:
             run.aligned.set()
+            raise
+        al.correction = fit.correction()
+        if review:
+            al.fit = status["fit"]
+            self._transition(job_id, JobState.FITTED, stage="the fit is ready: accept or re-seat")
+            status["review"] = True
+            return status
+        status["accepted"] = True
+        run.aligned.set()
         return status
+
+    def _fitted_run(self, job_id: str, command: str) -> _Run:
+        run = self._run
+        job = self.job(job_id)
+        if job.state is not JobState.FITTED or run is None or run.job_id != job_id or run.alignment is None:
+            raise IllegalTransition(job.state, command)
+        return run
+
+    async def accept_fit(self, job_id: str) -> JobRecord:
+        """The operator accepts the fit under review: the back prints with it (returns once printing)."""
+        run = self._fitted_run(job_id, "accept")
+        run.aligned.set()
+        return await self._wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
+
+    async def re_seat(self, job_id: str) -> JobRecord:
+        """The operator refuses the fit under review: back to the flip step, to seat the frame again."""
+        run = self._fitted_run(job_id, "re-seat")
+        al = run.alignment
+        assert al is not None
+        al.correction = None
+        al.reseat = True
+        run.aligned.set()
+        return await self._wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
 
     # ------------------------------------------------------------------ pause and resume
 
@@ -1357,7 +1401,8 @@ class RibbonService:
         run = self._run
         if run is not None:
             job = self.job(run.job_id)
-            if job.state.streams or job.state not in (JobState.PAUSED, JobState.AWAITING_FLIP, JobState.ALIGNING):
+            if job.state.streams or job.state not in (JobState.PAUSED, JobState.AWAITING_FLIP, JobState.ALIGNING,
+                                                      JobState.FITTED):
                 hint = f"pause it first: ribbonctl pause {job.id}" if job.state in (
                     JobState.PRINTING_FRONT, JobState.PRINTING_BACK) else f"wait, or cancel it: ribbonctl cancel {job.id}"
                 raise ServiceError(f"cannot {what}: job {job.id} is {job.state.value} (a program is streaming "

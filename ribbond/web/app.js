@@ -10,7 +10,7 @@ const ENDED = new Set(["done", "cancelled", "failed", "interrupted"]);
 const STREAMS = new Set(["heating", "printing_front", "printing_back"]);
 const STAGES = ["load", "curvature", "flatten", "stripes", "ribbons", "gcode", "deploy", "preview", "write"];
 const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", heating: "heating",
-  printing_front: "printing front", awaiting_flip: "flip the frame", aligning: "aligning",
+  printing_front: "printing front", awaiting_flip: "flip the frame", aligning: "aligning", fitted: "check the fit",
   printing_back: "printing back", paused: "paused", done: "done", cancelled: "cancelled", failed: "failed",
   interrupted: "interrupted" };
 
@@ -245,13 +245,14 @@ function renderJobs() {
         <td><span class="state ${esc(j.state)}">${esc(st)}</span></td><td>${esc(sizeOf(j))}</td>
         <td>${when(j.created)}</td><td>${ended ? when(j.updated) : "–"}</td><td>${duration(dur)}</td></tr>`;
     }).join("")}</tbody></table>`;
-  const waiting = [...state.jobs.values()].find((j) => ["awaiting_flip", "aligning"].includes(j.state) && j.waits_for_operator);
+  const waiting = [...state.jobs.values()].find((j) => ["awaiting_flip", "aligning", "fitted"].includes(j.state) && j.waits_for_operator);
   const banner = $("needs-you");
   const here = state.route.page === "job" && waiting && state.route.id === waiting.id;
   banner.hidden = !waiting || here;
   if (waiting && !here) {
     banner.href = `#/job/${waiting.id}`;
-    banner.textContent = `${waiting.mesh_name}: ${waiting.state === "awaiting_flip" ? "turn the frame over" : "align the marks"} →`;
+    const what = { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
+    banner.textContent = `${waiting.mesh_name}: ${what} →`;
   }
 }
 
@@ -424,11 +425,16 @@ function alignResultHTML(res) {
   }
   if (res.fit) {
     const f = res.fit;
-    return `<div class="result accepted"><h3>Alignment accepted</h3><dl class="facts">
+    const review = res.review && !res.accepted;
+    return `<div class="result ${review ? "fitted" : "accepted"}"><h3>${review ? "Check the fit" : "Alignment accepted"}</h3><dl class="facts">
       <dt>Rotation</dt><dd>${mm(f.rotation_deg, 3)}°</dd>
       <dt>Offset</dt><dd>x ${mm(f.offset[0], 3)}, y ${mm(f.offset[1], 3)} mm</dd>
       <dt>Residual</dt><dd>${mm(f.max_residual_mm, 3)} mm max, ${mm(f.rms_mm, 3)} mm rms</dd></dl>
-      <p>The back side is printed with this correction.</p></div>`;
+      ${review ? `<p>Within the limits. Accept to print the back side with this correction, or re-seat the
+      frame on its pins and measure the marks again.</p>
+      <div class="actions"><button id="fit-accept" class="primary huge" type="button">Accept, print the back</button>
+      <button id="fit-reseat" class="huge" type="button">Re-seat the frame</button></div>`
+      : "<p>The back side is printed with this correction.</p>"}</div>`;
   }
   return "";
 }
@@ -447,6 +453,7 @@ function nextText(j) {
     case "printing_front": case "printing_back": return "";       // the progress line says it
     case "awaiting_flip": return "The front is printed: turn the frame over (below).";
     case "aligning": return "Align the back side on the registration marks (below).";
+    case "fitted": return "Check the alignment's fit (below): accept it, or re-seat the frame.";
     case "done": return "Done. Print it again, or delete it.";
     case "cancelled": case "failed": case "interrupted":
       return commandsOf(j).includes("start") ? "Print it again, or delete it." : "Nothing to print: submit the mesh again.";
@@ -466,7 +473,7 @@ function renderJobPage() {
   $("j-title").textContent = j.mesh_name;
   $("j-state").textContent = LABEL[j.state];
   $("j-state").className = `state ${j.state}`;
-  const stage = j.stage && !["compiling", "awaiting_flip", "aligning"].includes(j.state) ? j.stage : "";
+  const stage = j.stage && !["compiling", "awaiting_flip", "aligning", "fitted"].includes(j.state) ? j.stage : "";
   $("j-stage").textContent = stage.replace(/_/g, " ") === LABEL[j.state] ? "" : stage;
   $("j-next").textContent = nextText(j);
   $("j-next").hidden = !$("j-next").textContent;
@@ -505,12 +512,12 @@ function renderJobPage() {
   }
   // a step that waits for the operator comes into view when it begins (on a phone it is below the fold)
   if (state.shownState !== `${j.id}:${j.state}`) {
-    const step = j.state === "awaiting_flip" ? $("flip") : j.state === "aligning" ? $("align") : null;
+    const step = j.state === "awaiting_flip" ? $("flip") : ["aligning", "fitted"].includes(j.state) ? $("align") : null;
     state.shownState = `${j.id}:${j.state}`;
     if (step) requestAnimationFrame(() => step.scrollIntoView({ block: "start", behavior: "instant" }));
   }
   // the alignment step
-  $("align").hidden = j.state !== "aligning" && !(state.align.get(j.id)?.fit && j.state === "printing_back");
+  $("align").hidden = !["aligning", "fitted"].includes(j.state) && !(state.align.get(j.id)?.fit && j.state === "printing_back");
   if (!$("align").hidden) {
     const m = /^mark (\d+) of (\d+)/.exec(j.next?.instruction || "");
     const k = m ? Number(m[1]) : state.alignMark.get(j.id)?.mark;
@@ -523,7 +530,13 @@ function renderJobPage() {
     $("align-here").disabled = !ready;
     $("align-here").hidden = j.state !== "aligning";
     $("align-jog").hidden = j.state !== "aligning";
-    $("align-result").innerHTML = alignResultHTML(state.align.get(j.id));
+    // (after a reload the fit under review comes with the job)
+    const res = state.align.get(j.id) ?? (j.state === "fitted" && j.fit ? { fit: j.fit, review: true } : undefined);
+    const rkey = JSON.stringify([res, j.state]);
+    if ($("align-result").dataset.key !== rkey) {
+      $("align-result").dataset.key = rkey;
+      $("align-result").innerHTML = alignResultHTML(res);
+    }
     const akey = `${j.id}:${design ? 1 : 0}:${ready ? k : 0}:${j.state}`;
     if ($("align-picture").dataset.key !== akey) {
       $("align-picture").dataset.key = akey;
@@ -574,13 +587,30 @@ $("align-here").addEventListener("click", async () => {
   while (pad.dataset.pending !== "0") await new Promise((r) => setTimeout(r, 50));
   $("align-here").disabled = true;
   try {
-    const res = await api.post(`/jobs/${id}/align`, { here: true });
+    // review: the last mark's fit waits for Accept or Re-seat (state fitted)
+    const res = await api.post(`/jobs/${id}/align`, { here: true, review: true });
     if (res.fit) state.align.set(id, res);
     else toast(`Mark ${res.mark} measured (off by ${mm(res.offset[0], 2)}, ${mm(res.offset[1], 2)} mm).`);
   } catch (e) {
     if (e.data && e.data.refused) state.align.set(id, { ...e.data });
     else toast(`Nozzle is on the mark: ${e.message}`, "error");
   }
+  renderJobPage();
+});
+
+$("align-result").addEventListener("click", async (ev) => {
+  const button = ev.target.closest("#fit-accept, #fit-reseat");
+  if (!button) return;
+  const id = state.route.id;
+  const accept = button.id === "fit-accept";
+  button.disabled = true;
+  const shown = state.align.get(id) ?? { fit: state.jobs.get(id)?.fit, review: true };
+  try {
+    const j = await api.post(`/jobs/${id}/${accept ? "accept" : "re-seat"}`);
+    state.jobs.set(j.id, j);
+    if (accept && shown.fit) state.align.set(id, { ...shown, accepted: true });
+    else state.align.delete(id);
+  } catch (e) { toast(`${button.textContent}: ${e.message}`, "error"); button.disabled = false; }
   renderJobPage();
 });
 

@@ -472,3 +472,59 @@ def test_swagger_ui_is_served_from_the_package(api: httpx.Client) -> None:
     assert js.status_code == 200 and len(js.content) > 100_000
     assert api.get("/docs-assets/swagger-ui.css").status_code == 200
     assert api.get("/openapi.json").json()["paths"]["/printer/jog"]
+
+
+def align_all(api: httpx.Client, job: str, marks: list[list[float]], pose: tuple[float, float, float],
+              review: bool) -> dict[str, Any]:
+    """Jog onto every mark of the frame put back at ``pose`` and align --here; the last status."""
+    for k, (x, y) in enumerate(marks, start=1):
+        wait_for(api, job, "aligning", timeout=60, until=lambda j: j["waits_for_operator"])
+        head = api.get("/printer").json()["head"]
+        tx, ty = true_mark(x, y, *pose)
+        assert api.post("/printer/jog", json={"dx": tx - head[0], "dy": ty - head[1]}).status_code == 200
+        r = api.post(f"/jobs/{job}/align", json={"here": True, "review": review})
+        assert r.status_code == 200, r.text
+    return r.json()
+
+
+@pytest.mark.timeout(300)
+def test_a_reviewed_fit_waits_then_re_seat_aligns_again_and_accept_prints(
+        api: httpx.Client, shared_sim: Sim, meshes: dict[str, Path]) -> None:
+    """With review, the fit waits in 'fitted' (rotation, offset, residual shown; nothing printed);
+    re-seat goes back to the flip step; the frame seated again is aligned again, and accept prints
+    the back with the second fit."""
+    shared_sim.ensure_front()
+    job = submit(api, meshes["two_sided"], start=True)
+    wait_for(api, job, "awaiting_flip", timeout=90)
+    marks = api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"]
+    first = (0.8, 0.4, -0.9)
+    shared_sim.flip(*first)
+    assert api.post(f"/jobs/{job}/flip-done").status_code == 200
+    status = align_all(api, job, marks, first, review=True)
+    assert status["review"] and not status.get("accepted")
+    assert status["fit"]["rotation_deg"] == pytest.approx(first[2], abs=2e-3)
+    fitted = wait_for(api, job, "fitted", timeout=10)
+    assert fitted["waits_for_operator"] and fitted["next"]["commands"][:2] == [
+        f"ribbonctl accept {job}", f"ribbonctl re-seat {job}"]
+    assert f"{first[2]:.2f}°" in fitted["next"]["instruction"]
+    extruded = len(shared_sim.segments())
+    time.sleep(1.0)
+    assert wait_for(api, job, "fitted", timeout=5)["state"] == "fitted" and len(shared_sim.segments()) == extruded
+    refused = api.post(f"/jobs/{job}/align", json={"here": True})
+    assert refused.status_code == 409 and "accept, re-seat, cancel" in refused.json()["detail"]
+
+    r = api.post(f"/jobs/{job}/re-seat")
+    assert r.status_code == 200 and r.json()["state"] == "awaiting_flip", r.text
+    assert r.json()["error"] is None, "re-seating is a choice, not a failure"
+    second = (-0.4, 0.6, 0.5)
+    shared_sim.flip()            # the frame out of its seat, front up again
+    shared_sim.flip(*second)     # and turned over once more, seated a little differently
+    assert api.post(f"/jobs/{job}/flip-done").status_code == 200
+    status = align_all(api, job, marks, second, review=True)
+    assert status["fit"]["rotation_deg"] == pytest.approx(second[2], abs=2e-3)
+    wait_for(api, job, "fitted", timeout=10)
+    r = api.post(f"/jobs/{job}/accept")
+    assert r.status_code == 200 and r.json()["state"] == "printing_back", r.text
+    done = wait_for(api, job, "done", timeout=120)
+    assert done["correction"]["rotation_deg"] == pytest.approx(second[2], abs=2e-3)
+    assert api.post(f"/jobs/{job}/accept").status_code == 409

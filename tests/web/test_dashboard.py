@@ -120,10 +120,11 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
 
     first_segment = len(shared_sim.segments())
     # what the progress bar shows, sampled in the page every 20 ms from here to the end
-    page.evaluate("""() => { window.seen = []; setInterval(() => {
+    sampler = """() => { window.seen = []; setInterval(() => {
         const v = document.querySelector('#j-bar').value, st = document.querySelector('#j-state').className;
         const last = window.seen[window.seen.length - 1];
-        if (!last || last[0] !== v || last[1] !== st) window.seen.push([v, st]); }, 20); }""")
+        if (!last || last[0] !== v || last[1] !== st) window.seen.push([v, st]); }, 20); }"""
+    page.evaluate(sampler)
     page.click("#j-actions button[data-action='start']")
     page.wait_for_selector("#j-state.printing_front", timeout=60 * SECOND)
     page.wait_for_function("document.querySelector('#j-bar').value > 0", timeout=60 * SECOND)
@@ -149,9 +150,19 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
         if k == 1:
             shot(page, "06-align-mark-1")
         page.click("#align-here")
-    page.wait_for_selector(".result.accepted", timeout=30 * SECOND)
-    result = page.inner_text(".result.accepted")
+    # the fit waits for the operator: nothing more is printed until Accept
+    page.wait_for_selector("#j-state.fitted", timeout=30 * SECOND)
+    result = page.inner_text(".result.fitted")
     assert f"{rot:.3f}°" in result or f"{rot - 0.001:.3f}°" in result or f"{rot + 0.001:.3f}°" in result, result
+    extruded = len(shared_sim.segments())
+    shot(page, "07-fit-to-accept")
+    seen_before_reload = page.evaluate("window.seen")
+    page.reload()  # the fit under review survives a reload (it comes with the job)
+    page.wait_for_selector("#fit-accept", timeout=30 * SECOND)
+    page.evaluate(sampler)
+    assert len(shared_sim.segments()) == extruded
+    page.click("#fit-accept")
+    page.wait_for_selector(".result.accepted", timeout=30 * SECOND)
     shot(page, "07-aligned")
     page.wait_for_selector("#j-state.printing_back", timeout=30 * SECOND)
     page.wait_for_selector("#j-progress-text:text('back side')")
@@ -159,7 +170,7 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
     page.wait_for_selector("#j-state.done", timeout=90 * SECOND)
     page.wait_for_selector("#j-actions button[data-action='start']:text('Print again')")
     shot(page, "09-done")
-    seen = page.evaluate("window.seen")
+    seen = seen_before_reload + page.evaluate("window.seen")
     values = [v for v, _ in seen]
     moving = sorted({round(v, 4) for v, st in seen if 0 < v < 1})
     assert len(moving) >= 3, f"the bar showed {moving} between 0 and 1"
