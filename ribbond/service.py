@@ -108,6 +108,10 @@ def worker_environment() -> dict[str, str]:
     return {**os.environ, **limits}
 
 
+#: How often the printer's status is checked for a change worth an event (seconds).
+PRINTER_EVENT_S = 0.5
+
+
 class ServiceError(Exception):
     """A request that cannot be done now, with the reason (the API answers 409)."""
 
@@ -279,7 +283,23 @@ class RibbonService:
             elif job.state is JobState.READY and job.start_when_ready:
                 self._print_queue.put_nowait(job.id)
         self._tasks = [asyncio.create_task(self._compile_loop(), name="compile"),
-                       asyncio.create_task(self._print_loop(), name="print")]
+                       asyncio.create_task(self._print_loop(), name="print"),
+                       asyncio.create_task(self._printer_events(), name="printer events")]
+
+    async def _printer_events(self) -> None:
+        """Publish the printer's status (state, temperatures, position, head) as an event whenever
+        it changed, checked every PRINTER_EVENT_S: the dashboard and ``ribbonctl`` follow /events."""
+        last: dict[str, Any] | None = None
+        while True:
+            await asyncio.sleep(PRINTER_EVENT_S)
+            try:
+                status = await self.printer_status()
+            except Exception:  # noqa: BLE001 - a status that cannot be read is not worth a stop
+                log.debug("printer status for the events", exc_info=True)
+                continue
+            if status != last:
+                self.bus.publish({"type": "printer", "printer": status})
+                last = status
 
     async def shutdown(self, reason: str = "the daemon was stopped") -> None:
         """Stop safely before the daemon exits: a job on the printer ends its stream at a line

@@ -1,5 +1,6 @@
 // The dashboard: the printer, the jobs, a job's page with the flip and the alignment steps.
-// Live over /events; the printer's temperatures are read every 2 s (GET /printer).
+// Live over /events (jobs, progress, the printer's state and temperatures); GET /printer is read
+// at start and while the events are down.
 import * as api from "./api.js";
 import { drawChart } from "./chart.js";
 import { layoutSVG, flipSVG, backSVG } from "./draw.js";
@@ -15,7 +16,7 @@ const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", 
   interrupted: "interrupted" };
 
 const state = {
-  printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [],
+  printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [], live: false,
   designs: new Map(), files: new Map(), busy: new Set(), align: new Map(), alignMark: new Map(), compileInfo: new Map(),
 };
 
@@ -122,19 +123,25 @@ function renderPrinter() {
   drawChart($("chart"), state.temps);
 }
 
-async function pollPrinter() {
-  try {
-    state.printer = await api.get("/printer");
-    const h = state.printer.heaters || {};
-    if (h.T || h.B) {
-      state.temps.push({ t: Date.now() / 1000, T: h.T?.current, Tt: h.T?.target, B: h.B?.current, Bt: h.B?.target });
-      const cut = Date.now() / 1000 - 600;
-      while (state.temps.length && state.temps[0].t < cut) state.temps.shift();
-    }
-  } catch (e) {
-    if (e.status !== 401) state.printer = { state: "unreachable", note: e.message };
+/** Take a printer status (from an event or GET /printer): keep ten minutes of temperatures. */
+function takePrinter(status) {
+  state.printer = status;
+  const h = status.heaters || {};
+  if (h.T || h.B) {
+    state.temps.push({ t: Date.now() / 1000, T: h.T?.current, Tt: h.T?.target, B: h.B?.current, Bt: h.B?.target });
+    const cut = Date.now() / 1000 - 600;
+    while (state.temps.length && state.temps[0].t < cut) state.temps.shift();
   }
   renderPrinter();
+}
+
+async function pollPrinter() {
+  try {
+    takePrinter(await api.get("/printer"));
+  } catch (e) {
+    if (e.status !== 401) state.printer = { state: "unreachable", note: e.message };
+    renderPrinter();
+  }
 }
 
 $("estop").addEventListener("click", async () => {
@@ -630,6 +637,9 @@ function onEvent(type, ev) {
     state.alignMark.set(ev.job_id, ev);
   } else if (type === "notice") {
     toast(ev.message);
+  } else if (type === "printer" && ev.printer) {
+    takePrinter(ev.printer);
+    return;
   }
   renderJobPage();
 }
@@ -642,10 +652,13 @@ function restartEvents() {
   (async () => {
     while (!signal.aborted) {
       try {
-        await api.events(onEvent, () => { $("live").textContent = "live"; $("live").className = "pill ready"; quiet(loadJobs()); }, signal);
+        await api.events(onEvent, () => {
+          state.live = true; $("live").textContent = "live"; $("live").className = "pill ready"; quiet(loadJobs());
+        }, signal);
       } catch (e) {
         if (signal.aborted) return;
       }
+      state.live = false;
       $("live").textContent = "offline";
       $("live").className = "pill quiet";
       await new Promise((r) => setTimeout(r, 2000));
@@ -675,7 +688,8 @@ async function main() {
   route();
   restartEvents();
   refreshAll();
-  setInterval(pollPrinter, 2000);
+  // the printer's status comes with the events; read it only while they are down
+  setInterval(() => { if (!state.live) pollPrinter(); }, 2000);
   setInterval(() => { for (const j of state.jobs.values()) if (!ENDED.has(j.state)) { renderJobs(); break; } }, 5000);
 }
 main();

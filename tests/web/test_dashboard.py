@@ -259,6 +259,28 @@ def test_the_emergency_stop_halts_the_printer(browser_page: Any, shared_daemon: 
     assert not browser_page.errors, browser_page.errors
 
 
+def test_the_printer_panel_follows_the_events(browser_page: Any, shared_daemon: Daemon, api: httpx.Client) -> None:
+    """Once the events are live, the page reads GET /printer no more: a heater target set from
+    elsewhere (here the API, as ribbonctl heat does) and the printer's answer reach the page as
+    printer events."""
+    page = browser_page()
+    polls: list[str] = []
+    page.on("request", lambda r: polls.append(r.url) if r.url.endswith("/printer") and r.method == "GET" else None)
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#live.ready", timeout=20 * SECOND)
+    page.wait_for_selector("#conn.ready", timeout=20 * SECOND)
+    before = len(polls)
+    try:
+        assert api.post("/printer/heat", json={"nozzle": 45, "bed": 0}).status_code == 200
+        page.wait_for_function("document.querySelector('#t-nozzle').textContent.includes('/ 45')",
+                               timeout=20 * SECOND)
+    finally:
+        api.post("/printer/cool")
+    page.wait_for_function("!document.querySelector('#t-nozzle').textContent.includes('/ 45')", timeout=20 * SECOND)
+    assert len(polls) == before, f"the page polled GET /printer while the events were live: {polls[before:]}"
+    assert not browser_page.errors, browser_page.errors
+
+
 def test_the_page_on_a_phone(browser_page: Any, shared_daemon: Daemon, api: httpx.Client) -> None:
     """On a 390 × 844 screen nothing is wider than the screen, the emergency stop stays in view when
     the page is scrolled, the jog pad's buttons are big enough for a finger, a job page reads."""
