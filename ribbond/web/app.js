@@ -159,6 +159,12 @@ $("recover").addEventListener("click", () => act("Recover", async () => {
 $("heat").addEventListener("click", () => act("Heat", async () => { state.printer = await api.post("/printer/heat", {}); renderPrinter(); }));
 $("cool").addEventListener("click", () => act("Cool", async () => { state.printer = await api.post("/printer/cool"); renderPrinter(); }));
 $("home-axes").addEventListener("click", () => act("Home", async () => { await api.post("/printer/home"); await pollPrinter(); }));
+$("goto-centre").addEventListener("click", () => act("Go to the frame's centre", async () => {
+  const [x, y] = state.printer?.profile?.frame?.center ?? [];
+  if (x === undefined) throw new Error("the printer's frame is not known yet");
+  await api.post("/printer/goto", { x, y });
+  await pollPrinter();
+}));
 
 // ------------------------------------------------------------------ the jog pad
 

@@ -281,6 +281,38 @@ def test_the_printer_panel_follows_the_events(browser_page: Any, shared_daemon: 
     assert not browser_page.errors, browser_page.errors
 
 
+def test_an_upload_shows_its_progress(browser_page: Any, shared_daemon: Daemon, api: httpx.Client,
+                                      tmp_path: Path) -> None:
+    """A large mesh file over a slow link: the progress bar under the form moves from 0 to 1 while
+    the bytes go (the upload is throttled in the browser to 2 MB/s), then the job page opens."""
+    mesh = tmp_path / "big.obj"
+    with mesh.open("w") as f:                 # 6 MB: a triangle and a long header of comments
+        f.write("".join(f"# padding line {i:07d} {'.' * 48}\n" for i in range(90_000)))
+        f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    page = browser_page()
+    page.goto(shared_daemon.url + "/")
+    page.wait_for_selector("#conn.ready", timeout=20 * SECOND)
+    cdp = page.context.new_cdp_session(page)
+    cdp.send("Network.enable")
+    cdp.send("Network.emulateNetworkConditions", {"offline": False, "latency": 0,
+                                                  "downloadThroughput": -1, "uploadThroughput": 2_000_000})
+    page.evaluate("""() => { window.bar = []; setInterval(() => {
+        const b = document.querySelector('#upload-progress');
+        if (!b.hidden) window.bar.push(b.value); }, 20); }""")
+    page.set_input_files("#file", str(mesh))
+    page.click("#submit-btn")
+    page.wait_for_url(re.compile(r"#/job/"), timeout=60 * SECOND)
+    values = page.evaluate("window.bar")
+    between = sorted({round(v, 2) for v in values if 0.02 < v < 0.98})
+    assert len(between) >= 3, f"the bar showed {between} between 0 and 1"
+    assert all(b >= a for a, b in zip(values, values[1:])), "the bar only moves forward"
+    cdp.send("Network.emulateNetworkConditions", {"offline": False, "latency": 0,
+                                                  "downloadThroughput": -1, "uploadThroughput": -1})
+    job = page.url.rsplit("/", 1)[1]
+    api.post(f"/jobs/{job}/cancel")
+    assert not browser_page.errors, browser_page.errors
+
+
 def test_the_page_on_a_phone(browser_page: Any, shared_daemon: Daemon, api: httpx.Client) -> None:
     """On a 390 × 844 screen nothing is wider than the screen, the emergency stop stays in view when
     the page is scrolled, the jog pad's buttons are big enough for a finger, a job page reads."""
@@ -365,6 +397,14 @@ def test_manual_control_and_a_plain_gcode_job(browser_page: Any, shared_daemon: 
     page.click("#manual-jog label[data-step='10']")
     page.click("#manual-jog button[data-jog='x+']")
     page.wait_for_selector("#toast.error:text('outside the frame')")
+    # from there, one button brings the head over the frame's centre, at the safe height
+    page.click("#goto-centre")
+    cx, cy = PROFILE.frame.center
+    page.wait_for_function(f"document.querySelector('#p-position').textContent.startsWith('x {cx:.2f}  y {cy:.2f}')",
+                           timeout=30 * SECOND)
+    head = api.get("/printer").json()["head"]
+    assert head[:2] == pytest.approx([cx, cy], abs=1e-3)
+    assert head[2] >= PROFILE.layers.fabric_z + PROFILE.layers.safe_height - 1e-6
     page.fill("#console-in", "G0 X110 Y110 Z10 F3000")
     page.press("#console-in", "Enter")
     page.wait_for_selector("#console-out .sent:text('G0 X110')")
