@@ -1286,10 +1286,9 @@ class RibbonService:
         try:
             check_fit(fit, max_residual=tol.max_residual, max_rotation_deg=tol.max_rotation_deg,
                       max_offset=tol.max_offset)
-        except AlignmentRefused as exc:
-            al.refused = exc
-            raise
-        except BaseException:
+        except BaseException as exc:  # refused, or the check itself failed: the printer task decides
+            if isinstance(exc, AlignmentRefused):
+                al.refused = exc
             run.aligned.set()
             raise
         al.correction = fit.correction()

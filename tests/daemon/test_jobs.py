@@ -55,7 +55,8 @@ def test_every_command_names_a_possible_move() -> None:
     """Each state's commands lead somewhere the table allows (manual commands are not job commands)."""
     target = {"start": {J.READY, J.HEATING, J.SUBMITTED}, "cancel": {J.CANCELLED}, "pause": {J.PAUSED},
               "resume": {J.PRINTING_FRONT, J.PRINTING_BACK}, "flip-done": {J.ALIGNING},
-              "align": {J.PRINTING_BACK, J.AWAITING_FLIP}}
+              "align": {J.PRINTING_BACK, J.AWAITING_FLIP, J.FITTED}, "accept": {J.PRINTING_BACK},
+              "re-seat": {J.AWAITING_FLIP}}
     assert set(COMMANDS) == set(JobState)
     for state, commands in COMMANDS.items():
         for command in commands:
