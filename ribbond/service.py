@@ -128,6 +128,12 @@ class _Alignment:
 
     current: int = 0                            # the mark the head is above (from 1; 0: on its way)
 
+    @property
+    def next_mark(self) -> int | None:
+        """The first mark (numbered from 1) not measured yet."""
+        missing = [i for i in range(1, len(self.expected) + 1) if i not in self.measured]
+        return missing[0] if missing else None
+
 
 @dataclass(frozen=True)
 class _Resume:
@@ -140,12 +146,6 @@ class _Resume:
     parts: int
     partial: int | None = None
     choice: str | None = None
-
-    @property
-    def next_mark(self) -> int | None:
-        """The first mark (numbered from 1) not measured yet."""
-        missing = [i for i in range(1, len(self.expected) + 1) if i not in self.measured]
-        return missing[0] if missing else None
 
 
 @dataclass
