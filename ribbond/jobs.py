@@ -20,7 +20,7 @@ marks re-measured; ``frame-ok --keep-alignment`` takes the stored correction ins
 ``heating`` → ``printing_back``). A part is proven printed when the ``M400`` after it was
 acknowledged; the part that had begun and was not proven (at most one per interruption) is skipped
 or printed again as ``resume --partial`` says. A job interrupted after its front was printed resumes
-at the alignment of the back.
+at the alignment of the back; one whose every part was proven printed is ``done`` on ``resume``.
 
 Every state change goes through ``check_transition``. What a person can do in each state is
 ``COMMANDS`` (ribbonctl's verbs); a request the state does not allow raises ``IllegalTransition``
@@ -97,7 +97,7 @@ TRANSITIONS: dict[JobState, frozenset[JobState]] = {
     _J.FAILED: frozenset({_J.READY}),
     # (and a compile the daemon's stop interrupted is made again)
     # (or the print is resumed where it was proven to stand: the frame is checked first)
-    _J.INTERRUPTED: frozenset({_J.READY, _J.SUBMITTED, _J.CANCELLED, _J.AWAITING_CHECK}),
+    _J.INTERRUPTED: frozenset({_J.READY, _J.SUBMITTED, _J.CANCELLED, _J.AWAITING_CHECK, _J.DONE}),
     _J.AWAITING_CHECK: frozenset({_J.HEATING, _J.ALIGNING}) | _ENDS | {_J.INTERRUPTED},
 }
 

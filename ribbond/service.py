@@ -836,7 +836,8 @@ class RibbonService:
                         f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
             cmds = [f"ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
         elif s is JobState.AWAITING_CHECK:
-            side = "back" if job.side == "back" or job.checkpoint in ("front_done", "flip") else "front"
+            plan = run.resume if run is not None and run.resume is not None else self._resumes.get(j)
+            side = plan.side if plan is not None else job.side or "front"
             keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
                 "stored alignment" if job.side == "back" and job.correction else ""
             text = (f"resuming: check the frame is seated, {side} side up, and nothing is in the way, then "
@@ -1429,16 +1430,22 @@ class RibbonService:
             base = Path(job.design_dir or "") / "back.gcode"
         return base.read_text(encoding="utf-8").splitlines()
 
-    def _resume_plan(self, job: JobRecord, partial: str | None) -> tuple[_Resume, list[Part]]:
+    def _resume_plan(self, job: JobRecord, partial: str | None) -> _Resume | None:
         """Where the interrupted ``job`` goes on: the side it stood on, from the first part not
-        proven printed (a part begun and not proven: skipped or printed again, as ``partial`` says)."""
+        proven printed (a part begun and not proven: skipped or printed again, as ``partial`` says);
+        None: every part of the job was proven printed (or skipped)."""
         if job.kind != "design" or not self._has_program(job):
             raise ServiceError(f"cannot resume job {job.id}: only a compiled design is resumed at a part "
                                f"boundary; print it again from the start: ribbonctl start {job.id}")
+        if partial is not None and partial not in ("skip", "reprint"):
+            raise ValueError(f"partial={partial!r}: 'skip' (leave the part begun as it is) or 'reprint'")
+        design = read_design_folder(Path(job.design_dir or "")).design
+        has_back = any(r.side == "back" for r in design.ribbons or [])
         front_done = job.checkpoint in ("front_done", "flip")
         side = "back" if job.side == "back" or front_done else "front"
         if side == "back" and job.side != "back":
-            return _Resume(side="back", start=0, parts=0), []      # the front is printed: align the back
+            # the front is printed: align the back (a one-sided design is complete)
+            return _Resume(side="back", start=0, parts=0) if has_back else None
         parts = program_parts(self._side_program(job, side))
         unproven = [p.ordinal + 1 for p in parts if p.sync is None]
         if unproven:
@@ -1446,23 +1453,13 @@ class RibbonService:
                                f"part(s) {unproven[:5]} (compiled by an older ribbond); start it again")
         states = self.store.part_states(job.id, side)
         first = next((p.ordinal for p in parts if states.get(p.ordinal) not in ("done", "skipped")), len(parts))
-        if side == "front" and first == len(parts):
-            return _Resume(side="back", start=0, parts=0), []      # every front part proven: the back
-        if first == len(parts):
-            raise ServiceError(f"cannot resume job {job.id}: every part of the back was proven printed; "
-                               f"nothing is left to print (ribbonctl start {job.id} prints it again)")
-        if partial is not None and partial not in ("skip", "reprint"):
-            raise ValueError(f"partial={partial!r}: 'skip' (leave the part begun as it is) or 'reprint'")
-        if states.get(first) != "started":
-            return _Resume(side=side, start=first, parts=len(parts)), parts
-        choice = partial or "skip"
+        partial_at, choice = (first, partial or "skip") if states.get(first) == "started" else (None, None)
         start = first + 1 if choice == "skip" else first
-        if start == len(parts) and side == "back":
-            raise ServiceError(f"cannot resume job {job.id}: the last part of the back is the partial one; "
-                               "skipping it leaves nothing to print (resume --partial reprint prints it again)")
-        if start == len(parts):
-            return _Resume(side="back", start=0, parts=0, partial=first, choice=choice), parts
-        return _Resume(side=side, start=start, parts=len(parts), partial=first, choice=choice), parts
+        if start < len(parts):
+            return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
+        if side == "front" and has_back:                     # every front part proven: the back
+            return _Resume(side="back", start=0, parts=0, partial=partial_at, choice=choice)
+        return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
 
     def resume_interrupted(self, job_id: str, partial: str | None = None) -> JobRecord:
         """Resume an interrupted design print where it was proven to stand (issue 16).
@@ -1491,10 +1488,17 @@ class RibbonService:
                                "it is free")
         if not self._connected():
             raise LinkError("the printer is not connected (or busy): resume when it is ready")
-        plan, parts = self._resume_plan(job, partial)
+        plan = self._resume_plan(job, partial)
+        if plan is None:
+            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed, "
+                                    "nothing is left to print", error=None, stage=None, start_when_ready=False)
         if plan.partial is not None:
             self.store.record_part(job_id, job.side or "front", plan.partial,
                                    "skipped" if plan.choice == "skip" else "reprint")
+        if plan.start >= plan.parts > 0:                     # every part proven printed (or the last skipped)
+            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed or "
+                                    "skipped, nothing is left to print", error=None, stage=None,
+                                    start_when_ready=False)
         where = (f"the {plan.side} from part {plan.start + 1} of {plan.parts}" if plan.parts
                  else "the alignment of the back")
         note = f"; part {plan.partial + 1} begun and not proven printed: {plan.choice}" \
