@@ -16,7 +16,11 @@ import httpx
 import pytest
 
 from ribbond.gcode.profiles import load_profile
+from ribbond.printer import PrinterLink, Timeouts
+from sim import FaultConfig
 
+from ..conftest import HOST_COMMANDS as LINK_COMMANDS
+from ..conftest import moves
 from .conftest import HOST_COMMANDS, Daemon, Sim, submit, wait_for
 from .deposits import executed, integrity, outcome, part_events, program_parts
 from .test_daemon_e2e import flip_and_align
@@ -133,3 +137,31 @@ def test_interrupted_front_and_back_resume_after_the_last_proven_part(tmp_path: 
     finally:
         daemon.stop()
         sim.stop()
+
+
+@pytest.mark.parametrize("faults", [FaultConfig(), FaultConfig(corrupt_rate=0.03, drop_ok_rate=0.03)],
+                         ids=["clean", "faults"])
+async def test_a_barrier_line_goes_out_only_after_every_line_before_it_is_acknowledged(make_sim, faults) -> None:
+    """The hook the part records rely on: while fewer than k program lines are acknowledged, line k
+    has not been sent (so what the host records at that moment precedes it). Without barriers the
+    window does send past k early (the check can fail); with them every line still runs once, in order."""
+    sim = make_sim(faults)
+    link = PrinterLink(sim.port, sim.config.baud, timeouts=Timeouts(default_s=0.5, probes=4), boot_wait_s=1.0)
+    await link.connect()
+    program = moves(400)
+    barriers = frozenset(range(20, 400, 37))
+    for use in (frozenset(), barriers):
+        early: list[tuple[int, int, int]] = []
+
+        def progress(p, use=use) -> None:
+            early.extend((k, p.acknowledged, p.sent) for k in barriers if p.acknowledged < k < p.sent)
+
+        before = len(sim.commands())
+        await link.stream(program, progress, use)
+        ran = [c.command for c in sim.commands()[before:] if c.command.split()[0] not in LINK_COMMANDS]
+        assert ran == program
+        if use:
+            assert early == []
+        else:
+            assert early, "the window never ran past a barrier line: this test could not fail"
+    await link.close()
