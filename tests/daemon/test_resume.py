@@ -8,6 +8,7 @@ events. Nothing is compared with an earlier run.
 
 from __future__ import annotations
 
+import sqlite3
 import time
 from pathlib import Path
 from typing import Any
@@ -16,7 +17,9 @@ import httpx
 import pytest
 
 from ribbond.gcode.profiles import load_profile
+from ribbond.jobs import JobState
 from ribbond.printer import PrinterLink, Timeouts
+from ribbond.store import SCHEMA_VERSION, JobStore
 from sim import FaultConfig
 
 from ..conftest import HOST_COMMANDS as LINK_COMMANDS
@@ -165,3 +168,35 @@ async def test_a_barrier_line_goes_out_only_after_every_line_before_it_is_acknow
         else:
             assert early, "the window never ran past a barrier line: this test could not fail"
     await link.close()
+
+
+def test_part_events_per_run_and_a_version_2_database_gains_the_table(tmp_path: Path) -> None:
+    """The store's part records: the last event of a part decides, only the current run counts,
+    bad input is refused naming it, deleting the job removes them; a schema-2 database is migrated."""
+    db = tmp_path / "jobs.sqlite3"
+    with JobStore(db) as store:
+        job = store.create(mesh_name="m.obj", mesh_path="/m.obj", parameters={}, start_when_ready=False)
+    conn = sqlite3.connect(db)                      # as ribbond before issue 16 left it
+    conn.executescript("DROP TABLE part_events; PRAGMA user_version = 2;")
+    conn.close()
+    with JobStore(db) as store:
+        assert SCHEMA_VERSION == 3
+        for part, event in ((0, "started"), (0, "done"), (1, "started"), (1, "reprint"), (1, "started"),
+                            (2, "started"), (2, "skipped")):
+            store.record_part(job.id, "front", part, event, line=part * 10, durable=part != 1)
+        store.record_part(job.id, "back", 0, "started")
+        assert store.part_states(job.id, "front") == {0: "done", 1: "started", 2: "skipped"}
+        assert store.part_states(job.id, "back") == {0: "started"}
+        for bad, match in ((dict(side="top"), "side 'top'"), (dict(part=-1), "part -1"),
+                           (dict(event="finished"), "part event 'finished'")):
+            args = {"side": "front", "part": 0, "event": "done", **bad}
+            with pytest.raises(ValueError, match=match):
+                store.record_part(job.id, args["side"], args["part"], args["event"])
+        # a new run of the job (start_job appends the ended run to runs): its parts start afresh
+        store.update(job.id, runs=[{"run": 1}])
+        assert store.part_states(job.id, "front") == {}
+        assert [e["run"] for e in store.part_events(job.id)] == [1] * 8
+        assert store.integrity() == "ok"
+        store.transition(job.id, JobState.CANCELLED)
+        store.delete(job.id)
+        assert sqlite3.connect(db).execute("SELECT count(*) FROM part_events").fetchone()[0] == 0
