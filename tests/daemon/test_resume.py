@@ -8,7 +8,10 @@ events. Nothing is compared with an earlier run.
 
 from __future__ import annotations
 
+import json
 import sqlite3
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -24,7 +27,7 @@ from sim import FaultConfig
 
 from ..conftest import HOST_COMMANDS as LINK_COMMANDS
 from ..conftest import moves
-from .conftest import HOST_COMMANDS, Daemon, Sim, submit, wait_for
+from .conftest import HOST_COMMANDS, ROOT, Daemon, Sim, submit, wait_for
 from .deposits import executed, integrity, outcome, part_events, program_parts
 from .test_daemon_e2e import flip_and_align
 
@@ -60,14 +63,30 @@ def restart(daemon: Daemon, sim: Sim) -> httpx.Client:
     return daemon.client
 
 
-def resume(api: httpx.Client, job: str, partial: str | None, keep: bool = False) -> dict[str, Any]:
-    r = api.post(f"/jobs/{job}/resume", json={"partial": partial} if partial else None)
-    assert r.status_code == 200, r.text
-    assert r.json()["state"] == "awaiting_check"
+def ribbonctl(daemon: Daemon, *args: str) -> dict[str, Any]:
+    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url, "--json"], cwd=ROOT,
+                          text=True, capture_output=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return dict(json.loads(proc.stdout))
+
+
+def resume(api: httpx.Client, job: str, partial: str | None, keep: bool = False,
+           daemon: Daemon | None = None) -> dict[str, Any]:
+    """Resume (through the API, or with ribbonctl when ``daemon`` is given), check the frame, go on."""
+    if daemon is not None:
+        answer = ribbonctl(daemon, "resume", job, *(["--partial", partial] if partial else []))
+    else:
+        r = api.post(f"/jobs/{job}/resume", json={"partial": partial} if partial else None)
+        assert r.status_code == 200, r.text
+        answer = r.json()
+    assert answer["state"] == "awaiting_check"
     checked = wait_for(api, job, "awaiting_check", timeout=60, until=lambda j: j["waits_for_operator"])
     assert f"ribbonctl frame-ok {job}" in checked["next"]["instruction"]
+    assert ("--keep-alignment" in checked["next"]["instruction"]) == keep
     # nothing prints before the operator says the frame is in place
     assert api.post(f"/jobs/{job}/resume").status_code == 409
+    if daemon is not None:
+        return ribbonctl(daemon, "frame-ok", job, *(["--keep-alignment"] if keep else []))
     r = api.post(f"/jobs/{job}/frame-ok", json={"keep_alignment": keep})
     assert r.status_code == 200, r.text
     return dict(r.json())
@@ -110,7 +129,7 @@ def test_interrupted_front_and_back_resume_after_the_last_proven_part(tmp_path: 
         kill_at(daemon, job, "printing_back", record["lines_total"] * 2 // 5)
 
         api = restart(daemon, sim)
-        resumed = resume(api, job, "reprint", keep=True)
+        resumed = resume(api, job, "reprint", keep=True, daemon=daemon)
         assert resumed["state"] in ("heating", "printing_back", "done")
         done = wait_for(api, job, "done", timeout=150)
         assert done["checkpoint"] == "back_done"
