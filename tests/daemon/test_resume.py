@@ -19,7 +19,6 @@ from typing import Any
 import httpx
 import pytest
 
-from ribbond.gcode.profiles import load_profile
 from ribbond.jobs import JobState
 from ribbond.printer import PrinterLink, Timeouts
 from ribbond.store import SCHEMA_VERSION, JobStore
@@ -33,7 +32,6 @@ from .test_daemon_e2e import flip_and_align
 
 pytestmark = pytest.mark.timeout(240)
 
-PROFILE = load_profile("ultimaker2-tpu")
 MISALIGNMENT = (0.4, -0.3, 0.5)
 
 
@@ -142,7 +140,7 @@ def test_interrupted_front_and_back_resume_after_the_last_proven_part(tmp_path: 
         assert integrity(daemon.state_dir / "jobs.sqlite3") == "ok"
         for side, parts, choice in (("front", front, "skipped"), ("back", back, "reprint")):
             done_moves = executed(segments, side)
-            result = {p.ordinal if hasattr(p, "ordinal") else i: outcome(p, done_moves) for i, p in enumerate(parts)}
+            result = {i: outcome(p, done_moves) for i, p in enumerate(parts)}
             chosen = {e["part"] for e in events if e["side"] == side and e["event"] == choice}
             assert len(chosen) <= 1, events
             odd = {i for i, o in result.items() if o != "full"}
