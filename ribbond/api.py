@@ -14,7 +14,7 @@ import contextlib
 import json
 import tempfile
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from fastapi import Depends, FastAPI, File, Form, HTTPException, Query, Request, Response, UploadFile
 from fastapi.openapi.docs import get_swagger_ui_html
@@ -156,6 +156,18 @@ class BodyLimit:
 
 class _TooLarge(Exception):
     pass
+
+
+class ResumeRequest(BaseModel):
+    """Resuming: for an interrupted print, what to do with the part begun and not proven printed."""
+
+    partial: Literal["skip", "reprint"] | None = Field(None, description="skip it (default) or print it again")
+
+
+class FrameOkRequest(BaseModel):
+    """The frame of a resumed print is checked; for the back, whether the stored alignment holds."""
+
+    keep_alignment: bool = Field(False, description="the frame was not moved: keep the stored correction")
 
 
 class AlignRequest(BaseModel):
@@ -332,8 +344,12 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         return status(await service.pause(job_id))
 
     @app.post("/jobs/{job_id}/resume", response_model=JobStatus, dependencies=auth)
-    async def resume(job_id: str) -> JobStatus:
-        return status(await service.resume(job_id))
+    async def resume(job_id: str, body: ResumeRequest | None = None) -> JobStatus:
+        return status(await service.resume(job_id, body.partial if body is not None else None))
+
+    @app.post("/jobs/{job_id}/frame-ok", response_model=JobStatus, dependencies=auth)
+    async def frame_ok(job_id: str, body: FrameOkRequest | None = None) -> JobStatus:
+        return status(await service.frame_ok(job_id, body.keep_alignment if body is not None else False))
 
     @app.post("/jobs/{job_id}/cancel", response_model=JobStatus, dependencies=auth)
     async def cancel(job_id: str) -> JobStatus:

@@ -2,7 +2,7 @@
 
 ``ribbonctl design MESH -o DIR [--size MM] [--params FILE] [--profile NAME]`` runs the design
 engine locally (no daemon) and writes the design folder. The daemon commands (``submit``,
-``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``align``,
+``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``frame-ok``, ``align``,
 ``printer``, ``stop``) are in ``client.py``.
 
 Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still

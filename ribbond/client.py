@@ -3,7 +3,7 @@ default, ``--json`` for scripts. Nothing here imports the design engine (a comma
 fraction of a second, also on a Raspberry Pi).
 
 Jobs: submit, print (a plain G-code program), status, watch, start, pause, resume, cancel,
-flip-done, align, accept, re-seat, delete. The printer: printer, home, jog, goto, gcode, heat, cool, stop, recover.
+flip-done, frame-ok, align, accept, re-seat, delete. The printer: printer, home, jog, goto, gcode, heat, cool, stop, recover.
 
 Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
 is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
@@ -429,6 +429,21 @@ def _action(name: str) -> Any:
     return cmd
 
 
+def cmd_resume(args: argparse.Namespace) -> int:
+    """Resume a paused print, or an interrupted one (``--partial``: the part begun and not proven)."""
+    body = {"partial": args.partial} if args.partial else None
+    job = _client(args).request("POST", f"/jobs/{args.job}/resume", json=body)
+    _out(args, job, _detail(job))
+    return 0
+
+
+def cmd_frame_ok(args: argparse.Namespace) -> int:
+    job = _client(args).request("POST", f"/jobs/{args.job}/frame-ok",
+                                json={"keep_alignment": bool(args.keep_alignment)})
+    _out(args, job, _detail(job))
+    return 0
+
+
 def cmd_delete(args: argparse.Namespace) -> int:
     c = _client(args)
     for job in args.job:
@@ -683,12 +698,24 @@ def add_commands(sub: Any) -> None:
     w = cmd("watch", "follow a job (progress bar) until it waits for you or ends", cmd_watch)
     w.add_argument("job")
     for name, text in (("start", "print a job (again: a new run of the same design)"), ("pause", "pause a print"),
-                       ("resume", "resume a paused print (it reheats first)"), ("cancel", "cancel a job"),
+                       ("cancel", "cancel a job"),
                        ("flip-done", "the frame is turned over: go on to the alignment"),
                        ("accept", "print the back with the alignment's fit (after align --review)"),
                        ("re-seat", "refuse the alignment's fit: seat the frame again, then flip-done")):
         a = cmd(name, text, _action(name))
         a.add_argument("job")
+    r = cmd("resume", "resume a paused print, or an interrupted one where it was proven to stand", cmd_resume,
+            "Paused: reheat and go on. Interrupted (daemon crash, power cut, lost USB): home, heat, wait for "
+            "frame-ok, then print the side it stood on from the first ribbon not proven printed.")
+    r.add_argument("job")
+    r.add_argument("--partial", choices=("skip", "reprint"),
+                   help="interrupted: the ribbon begun and not proven printed is skipped (default: a second "
+                        "bead over a printed one is worse than a gap) or printed again")
+    f = cmd("frame-ok", "a resumed print: the frame is checked, go on", cmd_frame_ok)
+    f.add_argument("job")
+    f.add_argument("--keep-alignment", action="store_true",
+                   help="the back was being printed and the frame was not moved: keep the stored alignment "
+                        "instead of measuring the marks again")
     d = cmd("delete", "remove jobs and their files (not while they print)", cmd_delete)
     d.add_argument("job", nargs="+")
     a = cmd("align", "the alignment check after the flip: jog onto each mark, then --here", cmd_align,

@@ -16,6 +16,17 @@ no compile (``submitted → ready``) and prints as ``printing_front``. A job tha
 print run of the same design (the store keeps the earlier runs); an interrupted compile goes back to
 ``submitted`` to be compiled again.
 
+Resuming an interrupted print (issue 16): ``resume`` on an ``interrupted`` design job (the same
+verb resumes a ``paused`` one) goes to ``awaiting_check``: the printer is homed, the heaters set,
+and the job waits for the operator to check the frame (``frame-ok``). Then the side it stood on is
+printed from the first part (ribbon, registration mark) not proven printed: ``heating`` →
+``printing_front`` (then the flip and the back as usual), or, for the back, ``aligning`` again (the
+marks re-measured; ``frame-ok --keep-alignment`` takes the stored correction instead and goes to
+``heating`` → ``printing_back``). A part is proven printed when the ``M400`` after it was
+acknowledged; the part that had begun and was not proven (at most one per interruption) is skipped
+or printed again as ``resume --partial`` says. A job interrupted after its front was printed resumes
+at the alignment of the back; one whose every part was proven printed is ``done`` on ``resume``.
+
 Every state change goes through ``check_transition``. What a person can do in each state is
 ``COMMANDS`` (ribbonctl's verbs); a request the state does not allow raises ``IllegalTransition``
 naming the command tried, the state, and the commands possible now (the API answers 409).
@@ -41,6 +52,7 @@ class JobState(enum.Enum):
     CANCELLED = "cancelled"
     FAILED = "failed"
     INTERRUPTED = "interrupted"
+    AWAITING_CHECK = "awaiting_check"
 
     @property
     def terminal(self) -> bool:
@@ -65,13 +77,13 @@ class JobState(enum.Enum):
 
 _J = JobState
 _HOLDS_PRINTER = frozenset({_J.HEATING, _J.PRINTING_FRONT, _J.AWAITING_FLIP, _J.ALIGNING, _J.FITTED,
-                            _J.PRINTING_BACK, _J.PAUSED})
+                            _J.PRINTING_BACK, _J.PAUSED, _J.AWAITING_CHECK})
 #: The run is over; the job can be printed again or deleted.
 ENDED = frozenset({_J.DONE, _J.CANCELLED, _J.FAILED, _J.INTERRUPTED})
 #: A program is streaming: the printer takes no manual commands.
 STREAMING = frozenset({_J.HEATING, _J.PRINTING_FRONT, _J.PRINTING_BACK})
 #: The job waits for the operator.
-WAITING = frozenset({_J.READY, _J.AWAITING_FLIP, _J.ALIGNING, _J.FITTED, _J.PAUSED})
+WAITING = frozenset({_J.READY, _J.AWAITING_FLIP, _J.ALIGNING, _J.FITTED, _J.PAUSED, _J.AWAITING_CHECK})
 _ENDS = frozenset({_J.CANCELLED, _J.FAILED})
 
 #: The only transitions a job makes.
@@ -92,7 +104,9 @@ TRANSITIONS: dict[JobState, frozenset[JobState]] = {
     _J.CANCELLED: frozenset({_J.READY}),
     _J.FAILED: frozenset({_J.READY}),
     # (and a compile the daemon's stop interrupted is made again)
-    _J.INTERRUPTED: frozenset({_J.READY, _J.SUBMITTED, _J.CANCELLED}),
+    # (or the print is resumed where it was proven to stand: the frame is checked first)
+    _J.INTERRUPTED: frozenset({_J.READY, _J.SUBMITTED, _J.CANCELLED, _J.AWAITING_CHECK, _J.DONE}),
+    _J.AWAITING_CHECK: frozenset({_J.HEATING, _J.ALIGNING}) | _ENDS | {_J.INTERRUPTED},
 }
 
 #: What a person can do with a job in each state: ribbonctl's commands (``ribbonctl CMD JOB``).
@@ -110,12 +124,14 @@ COMMANDS: dict[JobState, tuple[str, ...]] = {
     _J.DONE: ("start", "delete"),
     _J.CANCELLED: ("start", "delete"),
     _J.FAILED: ("start", "delete"),
-    _J.INTERRUPTED: ("start", "cancel", "delete"),
+    _J.INTERRUPTED: ("resume", "start", "cancel", "delete"),
+    _J.AWAITING_CHECK: ("frame-ok", "cancel"),
 }
 
 #: The command that asks for a state, for messages about refused transitions.
 _VERB = {_J.HEATING: "start", _J.READY: "start", _J.PAUSED: "pause", _J.CANCELLED: "cancel",
-         _J.ALIGNING: "flip-done", _J.PRINTING_FRONT: "resume", _J.PRINTING_BACK: "resume"}
+         _J.ALIGNING: "flip-done", _J.PRINTING_FRONT: "resume", _J.PRINTING_BACK: "resume",
+         _J.AWAITING_CHECK: "resume"}
 
 
 class IllegalTransition(Exception):

@@ -19,10 +19,12 @@ from .gcode.profiles import PrinterProfile
 from .printer import codec
 from .printer.link import prepare_program
 
-__all__ = ["Timeline", "check_program", "command_of", "program_timeline"]
+__all__ = ["Part", "Timeline", "check_program", "command_of", "program_parts", "program_timeline",
+           "resumed_program"]
 
 _NUMBER = re.compile(r"^N\d+\s+")
 _RIBBON = re.compile(r"^;TYPE:RIBBON\s+\d+\s+\((\d+) of (\d+)\)")
+_PART = re.compile(r"^;TYPE:(\S+)\s*(\d*)")
 #: Commands that wait for a heater: the program prints only after the last of them.
 _HEAT_WAITS = ("M109", "M190", "M116")
 
@@ -238,3 +240,113 @@ def check_program(lines: Sequence[str], profile: PrinterProfile, source: str = "
             if "Z" in axes and z is not None and z < fabric - eps:
                 raise ValueError(f"{where}: the move goes down to z {z:g}, below the fabric (z {fabric:g} mm)")
     return commands
+
+
+@dataclass(frozen=True)
+class Part:
+    """One independent piece of a program (a ribbon, a registration mark): the section from its
+    ``;TYPE:`` comment to the next one (issue 16). Indices are command indices (stream lines).
+
+    Attributes
+    ----------
+    ordinal : the part's place in the program, from 0.
+    kind : the ``;TYPE:`` word (``RIBBON``, ``REGISTRATION``, …); number : the number after it.
+    begin : its first command (the travel to it).
+    first_e : its first command that feeds filament (None: it prints nothing). Sent only once the
+        host has recorded that the part started.
+    sync : the first ``M400`` after its last extrusion: acknowledged, it proves every move of the
+        part executed (None: no proof possible; programs written before issue 16).
+    """
+
+    ordinal: int
+    kind: str
+    number: int | None
+    begin: int
+    first_e: int | None
+    sync: int | None
+
+
+def _feeds(command: str) -> tuple[bool, bool]:
+    """Whether a G0/G1 command feeds filament, and whether it also moves in X/Y."""
+    words = command.split()
+    if not words or words[0].upper() not in ("G0", "G1"):
+        return False, False
+    e = next((w[1:] for w in words[1:] if w[:1].upper() == "E"), None)
+    try:
+        feeds = e is not None and float(e) > 0
+    except ValueError:
+        feeds = False
+    return feeds, any(w[:1].upper() in "XY" for w in words[1:])
+
+
+def program_parts(lines: Sequence[str]) -> list[Part]:
+    """The parts of a program (text lines), in print order; none for a program without ``;TYPE:``."""
+    found: list[dict[str, object]] = []
+    n = 0
+    for raw in lines:
+        mark = _PART.match(raw.strip())
+        if mark:
+            found.append({"kind": mark.group(1), "number": int(mark.group(2)) if mark.group(2) else None,
+                          "begin": n, "first_e": None, "last_xy_e": None, "sync": None})
+        command = command_of(raw)
+        if command is None:
+            continue
+        if found:
+            part = found[-1]
+            feeds, xy = _feeds(command)
+            if feeds and part["first_e"] is None:
+                part["first_e"] = n
+            if feeds and xy:
+                part["last_xy_e"], part["sync"] = n, None
+            elif command.split()[0].upper() == "M400" and part["sync"] is None:
+                part["sync"] = n
+        n += 1
+    return [Part(ordinal=i, kind=str(p["kind"]), number=p["number"], begin=int(p["begin"]),  # type: ignore[arg-type]
+                 first_e=p["first_e"], sync=p["sync"]) for i, p in enumerate(found)]  # type: ignore[arg-type]
+
+
+def resumed_program(lines: Sequence[str], start: int, modal: dict[str, object], profile: PrinterProfile,
+                    note: str) -> list[str]:
+    """The program that prints ``lines``' parts from ordinal ``start`` on (then its footer).
+
+    The prelude restores what the skipped lines had set up: units, absolute positioning, relative
+    extrusion, the heaters (``modal``: ``service.modal_state`` at the part's first command), homing,
+    the fan, a retraction (the part's own travel primes the nozzle again, as after the part before
+    it), the head at the safe height over the position the part starts from, then down to it, and
+    ``G92 E0``. The profile's start G-code is not repeated (a purge line would land on the fabric).
+
+    Raises
+    ------
+    ValueError
+        ``start`` is not a part of the program, or the position before it is unknown.
+    """
+    parts = program_parts(lines)
+    if not 0 <= start < len(parts):
+        raise ValueError(f"part {start + 1}: the program has {len(parts)} parts")
+    x, y, z = (modal.get(k) for k in ("x", "y", "z"))
+    if x is None or y is None or z is None:
+        raise ValueError(f"part {start + 1}: the head's position before it is not known from the program")
+    prof, mo, r = profile, profile.motion, profile.retraction
+    nozzle = modal.get("nozzle") or prof.temperatures.nozzle
+    bed = modal.get("bed") if modal.get("bed") is not None else prof.temperatures.bed
+    safe = max(float(z) + r.z_hop, prof.layers.fabric_z + prof.layers.safe_height)  # type: ignore[arg-type]
+    head = [f";RESUMED: {note}"] + (["G21"] if prof.gcode.emit_units else []) + ["G90", "M83"]
+    if bed:
+        head += [f"M140 S{bed:.0f}"]
+    head += [f"M104 S{nozzle:.0f}", "G28"] + ([f"M190 S{bed:.0f}"] if bed else []) + [f"M109 S{nozzle:.0f}"]
+    if modal.get("fan"):
+        head.append(f"M106 S{int(modal['fan'])}")  # type: ignore[call-overload]
+    if r.length > 0:
+        head.append(f"G1 E{-r.length:.5f} F{mo.retract_speed * 60:.0f}")
+    head += [f"G0 Z{safe:.3f} F{mo.z_speed * 60:.0f}", f"G0 X{x:.3f} Y{y:.3f} F{mo.travel_speed * 60:.0f}",
+             f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}", "G92 E0"]
+    # the text from the part's ;TYPE: comment on
+    begin = parts[start].begin
+    n, at = 0, len(lines)
+    for i, raw in enumerate(lines):
+        if n == begin and _PART.match(raw.strip()):
+            at = i
+            break
+        if command_of(raw) is not None:
+            n += 1
+    return head + list(lines[at:])

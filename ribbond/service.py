@@ -49,7 +49,7 @@ from .printer import codec
 from .printer.errors import LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
-from .programs import Timeline, check_program, program_timeline
+from .programs import Part, Timeline, check_program, program_parts, program_timeline, resumed_program
 from .store import JobRecord, JobStore, new_id
 
 log = logging.getLogger(__name__)
@@ -162,6 +162,19 @@ class _Alignment:
         return missing[0] if missing else None
 
 
+@dataclass(frozen=True)
+class _Resume:
+    """Where an interrupted print goes on (issue 16): ``side`` from part ``start`` (its place in the
+    side's program, from 0); ``partial`` the part begun and not proven printed, if any, and what
+    the operator chose for it."""
+
+    side: str
+    start: int
+    parts: int
+    partial: int | None = None
+    choice: str | None = None
+
+
 @dataclass
 class _Run:
     """What the printer task knows of the job it is printing."""
@@ -178,6 +191,9 @@ class _Run:
     heaters: asyncio.Task[None] | None = None   # the idle-heater policy while waiting
     started: float = field(default_factory=time.time)
     stream: _Stream | None = None
+    resume: _Resume | None = None               # an interrupted print resumed (issue 16)
+    checked: asyncio.Event = field(default_factory=asyncio.Event)   # the operator checked the frame
+    keep_alignment: bool = False                # ... and it was not moved: the stored correction holds
 
     def check(self) -> None:
         """Raise ``StreamCancelled`` once a cancel or a stop was asked for."""
@@ -238,6 +254,31 @@ def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
     return state
 
 
+class _PartTracker:
+    """Records a streaming program's parts in the store as their lines are acknowledged."""
+
+    def __init__(self, store: JobStore, job_id: str, side: str, parts: list[Part], base: int) -> None:
+        self.store, self.job_id, self.side, self.parts, self.base = store, job_id, side, parts, base
+        self.barriers = frozenset(p.first_e for p in parts if p.first_e is not None)
+        self._next_start = self._next_done = 0
+
+    def acknowledged(self, count: int) -> None:
+        """The first ``count`` program lines are acknowledged (called before the sender sends more)."""
+        parts = self.parts
+        while self._next_start < len(parts) and (parts[self._next_start].first_e or 0) <= count:
+            part = parts[self._next_start]
+            if part.first_e is not None:
+                # not fsynced: it must be committed before the line goes out, and the printer waits
+                self.store.record_part(self.job_id, self.side, self.base + part.ordinal, "started",
+                                       part.first_e, durable=False)
+            self._next_start += 1
+        while self._next_done < len(parts) and parts[self._next_done].sync is not None \
+                and parts[self._next_done].sync < count:                           # type: ignore[operator]
+            part = parts[self._next_done]
+            self.store.record_part(self.job_id, self.side, self.base + part.ordinal, "done", part.sync)
+            self._next_done += 1
+
+
 def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[list[str], Timeline]:
     lines = text.splitlines()
     return check_program(lines, profile, source=source), program_timeline(lines, profile)
@@ -269,14 +310,21 @@ class RibbonService:
         self._head_sender: object = None # the link's sender the position was commanded through
         self._stopping = False
         self._background_tasks: set[asyncio.Future[Any]] = set()
+        self._resumes: dict[str, _Resume] = {}    # interrupted jobs resumed, waiting for the print task
+        self._cooling: asyncio.Task[None] | None = None
 
     # ------------------------------------------------------------------ life cycle
 
     def start(self) -> None:
         """Mark jobs the last daemon left holding the printer as interrupted; start the queues."""
-        for job in self.store.mark_interrupted("the daemon stopped while this job was running"):
+        interrupted = self.store.mark_interrupted("the daemon stopped while this job was running")
+        for job in interrupted:
             self._publish(job)
         self._remove_orphan_folders()
+        if any(j.state is JobState.INTERRUPTED and j.side is not None for j in interrupted):
+            # the last daemon died with a job on the printer: a board that does not reset when the
+            # port opens would still be hot over the fabric
+            self._cooling = asyncio.create_task(self._cool_after_interruption(), name="cool")
         for job in self.store.active():
             if job.state is JobState.SUBMITTED:
                 self._compile_queue.put_nowait(job.id)
@@ -342,6 +390,19 @@ class RibbonService:
         self._background_tasks.add(task)
         task.add_done_callback(self._background_tasks.discard)
 
+    async def _cool_after_interruption(self) -> None:
+        """Once the printer is connected: heaters and fan off, whatever the last daemon left on."""
+        while not self._connected():
+            if self._stopping:
+                return
+            await asyncio.sleep(0.1)
+        link = self._require_link()
+        with contextlib.suppress(LinkError, asyncio.TimeoutError):
+            async with self._manual:
+                for command in ("M104 S0", "M140 S0", "M107"):
+                    await link.send(command, timeout=10)
+            log.info("heaters off: the last daemon stopped with a job on the printer")
+
     async def _heaters_off_if_on(self) -> None:
         """No job on the printer, but heaters the operator turned on (``heat``): off before leaving."""
         link = self.link
@@ -376,6 +437,7 @@ class RibbonService:
                 link.cancel()
         run.flip.set()
         run.aligned.set()
+        run.checked.set()
         if run.heaters is not None:
             run.heaters.cancel()
 
@@ -850,11 +912,24 @@ class RibbonService:
                     "off at the worst mark. ") if fit else ""
             text = (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
                     f"re-seat the frame and align again (ribbonctl re-seat {j})")
+        elif s is JobState.AWAITING_CHECK:
+            plan = run.resume if run is not None and run.resume is not None else self._resumes.get(j)
+            side = plan.side if plan is not None else job.side or "front"
+            keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
+                "stored alignment" if job.side == "back" and job.correction else ""
+            text = (f"resuming: check the frame is seated, {side} side up, and nothing is in the way, then "
+                    f"run: ribbonctl frame-ok {j}" + (" (the registration marks are measured again"
+                                                     f"{keep})" if side == "back" else ""))
         elif s is JobState.DONE:
             text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
         else:
             why = f" ({job.error})" if job.error else ""
-            if self._has_program(job):
+            if s is JobState.INTERRUPTED and job.kind == "design" and self._has_program(job) and job.side:
+                text = (f"interrupted{why}; resume it where it was proven to stand: ribbonctl resume {j} "
+                        f"[--partial skip|reprint] (the ribbon begun and not proven printed: skipped by "
+                        f"default), print it again from the start: ribbonctl start {j}, or remove it: "
+                        f"ribbonctl delete {j}")
+            elif self._has_program(job):
                 text = f"{s.value}{why}; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
             else:
                 text = f"{s.value}{why}; nothing to print: submit the mesh again (ribbonctl delete {j} removes it)"
@@ -881,7 +956,8 @@ class RibbonService:
             run = self._run
             return run is not None and run.job_id == job.id and run.alignment is not None \
                 and run.alignment.current > 0
-        return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED)
+        return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED) or (
+            job.state is JobState.AWAITING_CHECK and job.stage == "check the frame")
 
     # ------------------------------------------------------------------ compiling
 
@@ -963,6 +1039,11 @@ class RibbonService:
                 job = self.job(job_id)
             except NotFound:
                 continue                                      # deleted while queued
+            resume = self._resumes.pop(job_id, None)
+            if resume is not None and job.state is JobState.AWAITING_CHECK:
+                self._run = run = _Run(job_id, resume=resume)
+                await self._run_print(run, job)
+                continue
             if job.state is not JobState.READY or not job.start_when_ready:
                 continue
             if self._stopping:
@@ -977,19 +1058,22 @@ class RibbonService:
                     continue
                 job = self.store.update(job_id, stage=None)
             self._run = run = _Run(job_id)
-            try:
-                await self._print(job)
-            except StreamCancelled:
-                await self._end_run_logged(run, None)
-            except Exception as exc:  # noqa: BLE001 - any fatal error of the print task: stop safely
-                log.exception("printing job %s", job_id)
-                kind = "printer" if isinstance(exc, (LinkError, OSError)) else "internal error"
-                await self._end_run_logged(run, f"{kind}: {exc}")
-            finally:
-                if run.heaters is not None:
-                    run.heaters.cancel()
-                self._run = None
-                run.done.set()
+            await self._run_print(run, job)
+
+    async def _run_print(self, run: _Run, job: JobRecord) -> None:
+        try:
+            await self._print(job)
+        except StreamCancelled:
+            await self._end_run_logged(run, None)
+        except Exception as exc:  # noqa: BLE001 - any fatal error of the print task: stop safely
+            log.exception("printing job %s", job.id)
+            kind = "printer" if isinstance(exc, (LinkError, OSError)) else "internal error"
+            await self._end_run_logged(run, f"{kind}: {exc}")
+        finally:
+            if run.heaters is not None:
+                run.heaters.cancel()
+            self._run = None
+            run.done.set()
 
     def _job_exists(self, job_id: str) -> bool:
         try:
@@ -1041,23 +1125,65 @@ class RibbonService:
         folder = read_design_folder(Path(job.design_dir or ""))
         design = folder.design
         has_back = any(r.side == "back" for r in design.ribbons or [])
-        front = (Path(job.design_dir or "") / "front.gcode").read_text(encoding="utf-8")
-        self._transition(job.id, JobState.HEATING, side="front", stage="heating")
-        await self._stream(job.id, front, "front", JobState.PRINTING_FRONT)
-        await link.send("M400", timeout=600)
-        self._publish(self.store.checkpoint(job.id, "front_done", self._acked))
-        run.check()
-        if not has_back:
-            self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-            return
+        resume = run.resume
+        if resume is not None:
+            await self._check_frame(job.id)
+        if resume is None or resume.side == "front":
+            front = (Path(job.design_dir or "") / "front.gcode").read_text(encoding="utf-8")
+            start = resume.start if resume is not None else 0
+            if start:
+                front = self._resumed_text(front, "front", start, resume)
+            self._transition(job.id, JobState.HEATING, side="front", stage="heating")
+            await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start)
+            await link.send("M400", timeout=600)
+            self._publish(self.store.checkpoint(job.id, "front_done", self._acked))
+            run.check()
+            if not has_back:
+                self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
+                return
         expected = expected_marks(design.registration_marks or [], self.profile.frame)
         if len(expected) < 2:
             raise ValueError(f"the design has {len(expected)} registration marks: the back side cannot be "
                              "aligned (at least 2 are needed)")
+        kept = resume is not None and resume.side == "back" and run.keep_alignment and job.correction
+        if kept:
+            correction = Correction.model_validate(job.correction)
+        else:
+            # a resumed back: the frame is back side up already (the operator checked it)
+            correction = await self._align(job.id, expected, flipped=resume is not None and resume.side == "back")
+        plan = SidePlan.load(self.job_dir(job.id) / "plans" / "back-plan.npz")
+        program = render_side(plan, self.profile, correction=correction)
+        corrected = self.job_dir(job.id) / "back-corrected.gcode"
+        tmp = corrected.with_suffix(".tmp")
+        tmp.write_text(program.text, encoding="utf-8")
+        os.replace(tmp, corrected)
+        start = resume.start if resume is not None and resume.side == "back" else 0
+        text = self._resumed_text(program.text, "back", start, resume) if start else program.text
+        fields: dict[str, Any] = dict(side="back", correction=correction.model_dump(mode="json"), error=None,
+                                      estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
+        if kept:
+            self._transition(job.id, JobState.HEATING, stage="heating", **fields)
+            await self._stream(job.id, text, "back", JobState.PRINTING_BACK, part_base=start)
+        else:
+            self._transition(job.id, JobState.PRINTING_BACK, stage="printing back", **fields)
+            await self._stream(job.id, text, "back", None, part_base=start)
+        await link.send("M400", timeout=600)
+        self._publish(self.store.checkpoint(job.id, "back_done", self._acked))
+        run.check()
+        self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
+
+    async def _align(self, job_id: str, expected: np.ndarray, *, flipped: bool) -> Correction:
+        """The flip (unless ``flipped``: the frame is turned already) and the alignment check over the
+        registration marks, again after a refused fit; the accepted correction."""
+        link = self._require_link()
+        run = self._run
+        assert run is not None
         while True:
-            await self._await_flip(job.id)
+            if not flipped:
+                await self._await_flip(job_id)
+            flipped = False
             run.alignment = _Alignment(expected=expected)
-            self._transition(job.id, JobState.ALIGNING, stage="aligning")
+            self._transition(job_id, JobState.ALIGNING, stage="aligning")
             # the front program ended with the motors off (M84) and the frame was handled: home again
             async with self._manual:
                 await link.send("G28", timeout=300)
@@ -1067,33 +1193,23 @@ class RibbonService:
             await run.aligned.wait()
             run.check()
             correction, refused = run.alignment.correction, run.alignment.refused
-            if refused is not None or correction is None:
-                run.flip.clear()
-                run.aligned.clear()
-                reseat = run.alignment.reseat
-                self._transition(job.id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
-                                 reason="the operator chose to re-seat the frame" if reseat
-                                 else f"alignment refused: {refused}")
-                continue
-            break
-        plan = SidePlan.load(self.job_dir(job.id) / "plans" / "back-plan.npz")
-        program = render_side(plan, self.profile, correction=correction)
-        corrected = self.job_dir(job.id) / "back-corrected.gcode"
-        tmp = corrected.with_suffix(".tmp")
-        tmp.write_text(program.text, encoding="utf-8")
-        os.replace(tmp, corrected)
-        self._transition(job.id, JobState.PRINTING_BACK, side="back", correction=correction.model_dump(mode="json"),
-                         stage="printing back", error=None,
-                         estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
-        await self._stream(job.id, program.text, "back", None)
-        await link.send("M400", timeout=600)
-        self._publish(self.store.checkpoint(job.id, "back_done", self._acked))
-        run.check()
-        self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
+            if refused is None and correction is not None:
+                return correction
+            run.flip.clear()
+            run.aligned.clear()
+            reseat = run.alignment.reseat
+            self._transition(job_id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
+                             reason="the operator chose to re-seat the frame" if reseat
+                             else f"alignment refused: {refused}")
 
     async def _stream(self, job_id: str, text: str, side: str, after_heating: JobState | None,
-                      plain: bool = False) -> None:
-        """Stream one program; switch from ``heating`` to ``after_heating`` where it starts printing."""
+                      plain: bool = False, part_base: int = 0) -> None:
+        """Stream one program; switch from ``heating`` to ``after_heating`` where it starts printing.
+
+        A design's program records its parts (numbered from ``part_base``: a resumed program starts
+        at a later part) in the store as they go: ``started`` before the first line that feeds
+        filament goes out (a barrier of the sender), ``done`` when the part's ``M400`` is
+        acknowledged: two writes a part, none a line."""
         link = self._require_link()
         run = self._run
         assert run is not None
@@ -1107,6 +1223,8 @@ class RibbonService:
         self._acked = -1
         self._head = None
         self._publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
+        parts = [] if plain else program_parts(lines)
+        track = _PartTracker(self.store, job_id, side, parts, part_base)
         last_write = 0.0
         switched = after_heating is None
         if switched:
@@ -1116,6 +1234,7 @@ class RibbonService:
             nonlocal last_write, switched
             now = time.monotonic()
             self._acked = stream.acked = p.acknowledged
+            track.acknowledged(p.acknowledged)
             if stream.printing_since is None and p.acknowledged >= first_part:
                 stream.printing_since = now
             if not switched and p.acknowledged >= first_part:
@@ -1131,7 +1250,7 @@ class RibbonService:
                                   "lines": p.total, **info})
 
         try:
-            await link.stream(commands, progress)
+            await link.stream(commands, progress, track.barriers)
         finally:
             rate = self._stream_rate(stream)
             if rate is not None and stream.acked >= len(commands) - 1:
@@ -1364,8 +1483,14 @@ class RibbonService:
         self._publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)
         return self.job(job_id)
 
-    async def resume(self, job_id: str) -> JobRecord:
+    async def resume(self, job_id: str, partial: str | None = None) -> JobRecord:
+        """Resume a paused print, or an interrupted one (``resume_interrupted``; ``partial``)."""
         job = self.job(job_id)
+        if job.state is JobState.INTERRUPTED:
+            return self.resume_interrupted(job_id, partial)
+        if partial is not None:
+            raise ValueError(f"partial={partial!r}: only an interrupted print has a partial part; "
+                             f"job {job_id} is {job.state.value}")
         run = self._run
         if job.state is JobState.PAUSED and run is not None and run.job_id == job_id and run.pause_snapshot is None:
             raise IllegalTransition(job.state, "resume", hint="the head is still being parked: resume in a "
@@ -1412,6 +1537,142 @@ class RibbonService:
             run.busy = False
         return job
 
+    # ------------------------------------------------------------------ resuming an interrupted print
+
+    def _side_program(self, job: JobRecord, side: str) -> list[str]:
+        """The lines of the program of ``side`` as last printed (the back: as corrected)."""
+        base = self.job_dir(job.id) / "back-corrected.gcode" if side == "back" else \
+            Path(job.design_dir or "") / "front.gcode"
+        if side == "back" and not base.is_file():
+            base = Path(job.design_dir or "") / "back.gcode"
+        return base.read_text(encoding="utf-8").splitlines()
+
+    def _resume_plan(self, job: JobRecord, partial: str | None) -> _Resume | None:
+        """Where the interrupted ``job`` goes on: the side it stood on, from the first part not
+        proven printed (a part begun and not proven: skipped or printed again, as ``partial`` says);
+        None: every part of the job was proven printed (or skipped)."""
+        if job.kind != "design" or not self._has_program(job):
+            raise ServiceError(f"cannot resume job {job.id}: only a compiled design is resumed at a part "
+                               f"boundary; print it again from the start: ribbonctl start {job.id}")
+        if partial is not None and partial not in ("skip", "reprint"):
+            raise ValueError(f"partial={partial!r}: 'skip' (leave the part begun as it is) or 'reprint'")
+        design = read_design_folder(Path(job.design_dir or "")).design
+        has_back = any(r.side == "back" for r in design.ribbons or [])
+        front_done = job.checkpoint in ("front_done", "flip")
+        side = "back" if job.side == "back" or front_done else "front"
+        if side == "back" and job.side != "back":
+            # the front is printed: align the back (a one-sided design is complete)
+            return _Resume(side="back", start=0, parts=0) if has_back else None
+        parts = program_parts(self._side_program(job, side))
+        unproven = [p.ordinal + 1 for p in parts if p.sync is None]
+        if unproven:
+            raise ServiceError(f"cannot resume job {job.id}: its {side} program has no sync point after "
+                               f"part(s) {unproven[:5]} (compiled by an older ribbond); start it again")
+        states = self.store.part_states(job.id, side)
+        first = next((p.ordinal for p in parts if states.get(p.ordinal) not in ("done", "skipped")), len(parts))
+        partial_at, choice = (first, partial or "skip") if states.get(first) == "started" else (None, None)
+        start = first + 1 if choice == "skip" else first
+        if start < len(parts):
+            return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
+        if side == "front" and has_back:                     # every front part proven: the back
+            return _Resume(side="back", start=0, parts=0, partial=partial_at, choice=choice)
+        return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
+
+    def resume_interrupted(self, job_id: str, partial: str | None = None) -> JobRecord:
+        """Resume an interrupted design print where it was proven to stand (issue 16).
+
+        The printer is homed and the heaters set, then the job waits in ``awaiting_check`` for the
+        operator to check the frame (``frame_ok``); then the side it stood on prints from the
+        first part not proven printed, and the rest of the job as usual. ``partial``: the part that
+        had begun and was not proven printed is ``skip``ped (the default: printing it again lays a
+        second bead over what was printed of it, the nozzle ploughing through it) or ``reprint``ed.
+
+        Raises
+        ------
+        IllegalTransition
+            the job is not interrupted.
+        ServiceError
+            not a design job, nothing left to print, the printer busy or not connected.
+        ValueError
+            ``partial`` is not ``skip`` or ``reprint``.
+        """
+        job = self.job(job_id)
+        if job.state is not JobState.INTERRUPTED:
+            raise IllegalTransition(job.state, "resume")
+        if self._run is not None or any(j.state is JobState.READY and j.start_when_ready for j in self.store.active()):
+            busy = self._run.job_id if self._run is not None else "queued jobs"
+            raise ServiceError(f"cannot resume job {job_id} now: the printer is busy ({busy}); resume it when "
+                               "it is free")
+        if not self._connected():
+            raise LinkError("the printer is not connected (or busy): resume when it is ready")
+        plan = self._resume_plan(job, partial)
+        if plan is None:
+            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed, "
+                                    "nothing is left to print", error=None, stage=None, start_when_ready=False)
+        if plan.partial is not None:
+            self.store.record_part(job_id, job.side or "front", plan.partial,
+                                   "skipped" if plan.choice == "skip" else "reprint")
+        if plan.start >= plan.parts > 0:                     # every part proven printed (or the last skipped)
+            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed or "
+                                    "skipped, nothing is left to print", error=None, stage=None,
+                                    start_when_ready=False)
+        where = (f"the {plan.side} from part {plan.start + 1} of {plan.parts}" if plan.parts
+                 else "the alignment of the back")
+        note = f"; part {plan.partial + 1} begun and not proven printed: {plan.choice}" \
+            if plan.partial is not None else ""
+        job = self._transition(job_id, JobState.AWAITING_CHECK, reason=f"resumed at {where}{note}",
+                               stage="homing", error=None, start_when_ready=False)
+        self._resumes[job_id] = plan
+        self._print_queue.put_nowait(job_id)
+        return job
+
+    def _resumed_text(self, text: str, side: str, start: int, resume: _Resume | None) -> str:
+        lines = text.splitlines()
+        cut = program_parts(lines)[start].begin
+        modal = modal_state(prepare_program(lines, f"{side}.gcode"), cut)
+        note = f"{side} from part {start + 1}" + (f" (part {resume.partial + 1}: {resume.choice})"
+                                                 if resume is not None and resume.partial is not None else "")
+        return "\n".join(resumed_program(lines, start, modal, self.profile, note)) + "\n"
+
+    async def _check_frame(self, job_id: str) -> None:
+        """Home, set the heaters (the idle policy applies while waiting), wait for ``frame_ok``."""
+        run = self._run
+        assert run is not None
+        link = self._require_link()
+        if self._cooling is not None:
+            await self._cooling                               # the heaters-off of the daemon's start first
+        t = self.profile.temperatures
+        async with self._manual:
+            await link.send("G28", timeout=300)
+            self._head = None
+            if t.bed > 0:
+                await link.send(f"M140 S{t.bed:.0f}")
+            await link.send(f"M104 S{t.nozzle:.0f}")
+        run.check()
+        self._publish(self.store.update(job_id, stage="check the frame"))
+        run.heaters = await self._wait_heaters(job_id, "awaiting the frame check")
+        try:
+            await run.checked.wait()
+        finally:
+            run.heaters.cancel()
+            run.heaters = None
+        run.check()
+
+    async def frame_ok(self, job_id: str, keep_alignment: bool = False) -> JobRecord:
+        """The operator checked the frame of a resumed print: go on (returns once it moved on).
+        ``keep_alignment``: the back was being printed and the frame was not moved: take the stored
+        correction instead of measuring the marks again."""
+        job = self.job(job_id)
+        run = self._run
+        if job.state is not JobState.AWAITING_CHECK or run is None or run.job_id != job_id or run.resume is None:
+            raise IllegalTransition(job.state, "frame-ok")
+        if keep_alignment and (run.resume.side != "back" or job.side != "back" or not job.correction):
+            raise ValueError("keep_alignment: there is no stored alignment of this print's back to keep "
+                             "(it is measured after the flip); leave it out")
+        run.keep_alignment = keep_alignment
+        run.checked.set()
+        return await self._wait_state(job_id, lambda s: s is not JobState.AWAITING_CHECK, 30)
+
     # ------------------------------------------------------------------ manual control
 
     def _manual_link(self, what: str) -> PrinterLink:
@@ -1421,7 +1682,7 @@ class RibbonService:
         if run is not None:
             job = self.job(run.job_id)
             if job.state.streams or job.state not in (JobState.PAUSED, JobState.AWAITING_FLIP, JobState.ALIGNING,
-                                                      JobState.FITTED):
+                                                      JobState.FITTED, JobState.AWAITING_CHECK):
                 hint = f"pause it first: ribbonctl pause {job.id}" if job.state in (
                     JobState.PRINTING_FRONT, JobState.PRINTING_BACK) else f"wait, or cancel it: ribbonctl cancel {job.id}"
                 raise ServiceError(f"cannot {what}: job {job.id} is {job.state.value} (a program is streaming "

@@ -28,7 +28,7 @@ from .jobs import JobState, check_transition
 
 #: The layout this code reads and writes (PRAGMA user_version). Bump it with a migration in
 #: ``_MIGRATIONS`` whenever the tables change.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 class JobRecord(BaseModel):
@@ -136,6 +136,17 @@ CREATE TABLE transitions (
     reason     TEXT
 );
 CREATE INDEX transitions_job ON transitions (job_id, seq);
+CREATE TABLE part_events (
+    seq        INTEGER PRIMARY KEY AUTOINCREMENT,
+    job_id     TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+    run        INTEGER NOT NULL CHECK (run >= 1),          -- the print run (len(runs) + 1 then)
+    side       TEXT NOT NULL CHECK (side IN ('front', 'back')),
+    part       INTEGER NOT NULL CHECK (part >= 0),         -- the part's place in the side's program
+    event      TEXT NOT NULL CHECK (event IN ('started', 'done', 'skipped', 'reprint')),
+    line       INTEGER,
+    at         REAL NOT NULL
+);
+CREATE INDEX part_events_job ON part_events (job_id, run, side, part, seq);
 """
 
 #: ``_MIGRATIONS[v]`` brings a database from version v to v + 1.
@@ -143,7 +154,22 @@ _MIGRATIONS: dict[int, str] = {
     # 2: plain G-code jobs and the history of print runs (issue 13)
     1: "ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'design'; ALTER TABLE jobs ADD COLUMN runs TEXT; "
        "ALTER TABLE jobs ADD COLUMN estimate_s TEXT",
+    # 3: the parts (ribbons, marks) of a print proven printed, for resuming an interrupted one (issue 16)
+    2: """CREATE TABLE part_events (
+    seq        INTEGER PRIMARY KEY AUTOINCREMENT,
+    job_id     TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+    run        INTEGER NOT NULL CHECK (run >= 1),          -- the print run (len(runs) + 1 then)
+    side       TEXT NOT NULL CHECK (side IN ('front', 'back')),
+    part       INTEGER NOT NULL CHECK (part >= 0),         -- the part's place in the side's program
+    event      TEXT NOT NULL CHECK (event IN ('started', 'done', 'skipped', 'reprint')),
+    line       INTEGER,
+    at         REAL NOT NULL
+);
+CREATE INDEX part_events_job ON part_events (job_id, run, side, part, seq)""",
 }
+
+#: What a part's events make of it (its last event decides).
+PART_EVENTS = ("started", "done", "skipped", "reprint")
 
 
 def _json(value: Any, where: str) -> str:
@@ -463,10 +489,59 @@ class JobStore:
             self._write(record)
         return record
 
+    def record_part(self, job_id: str, side: str, part: int, event: str, line: int | None = None,
+                    *, durable: bool = True) -> None:
+        """Record that part ``part`` (its place in the side's program, from 0) of the job's current
+        run ``started`` (its first extruding line is about to be sent), is ``done`` (the ``M400``
+        after it was acknowledged: proven executed), or was ``skipped`` / is to be reprinted
+        (``reprint``) by the operator's choice on resuming, committed. ``durable=False`` commits
+        without waiting for the disk (survives a kill of the daemon, not a power cut)."""
+        if event not in PART_EVENTS:
+            raise ValueError(f"job {job_id}: part event {event!r}: one of {', '.join(PART_EVENTS)}")
+        if side not in ("front", "back"):
+            raise ValueError(f"job {job_id}: side {side!r}: 'front' or 'back'")
+        if isinstance(part, bool) or not isinstance(part, int) or part < 0:
+            raise ValueError(f"job {job_id}: part {part!r}: must be an integer >= 0")
+        if not durable:
+            self._db.execute("PRAGMA synchronous = NORMAL")
+        try:
+            with self._transaction() as db:
+                row = self._row(job_id)
+                run = len(json.loads(row["runs"])) + 1 if row["runs"] else 1
+                db.execute("INSERT INTO part_events (job_id, run, side, part, event, line, at) "
+                           "VALUES (?, ?, ?, ?, ?, ?, ?)", (job_id, run, side, part, event, line, self._clock()))
+        finally:
+            if not durable:
+                self._db.execute("PRAGMA synchronous = FULL")
+
+    def part_states(self, job_id: str, side: str) -> dict[int, str]:
+        """Each part of ``side`` with an event in the job's current run: its last event
+        (``started``: begun and not proven done, i.e. possibly partial)."""
+        row = self._row(job_id)
+        run = len(json.loads(row["runs"])) + 1 if row["runs"] else 1
+        out: dict[int, str] = {}
+        for part, event in self._db.execute(
+                "SELECT part, event FROM part_events WHERE job_id = ? AND run = ? AND side = ? ORDER BY seq",
+                (job_id, run, side)):
+            out[int(part)] = str(event)
+        return out
+
+    def part_events(self, job_id: str) -> builtins.list[dict[str, Any]]:
+        """Every part event of the job, oldest first: run, side, part, event, line, at."""
+        self._row(job_id)
+        rows = self._db.execute("SELECT run, side, part, event, line, at FROM part_events WHERE job_id = ? "
+                                "ORDER BY seq", (job_id,))
+        return [dict(r) for r in rows]
+
+    def integrity(self) -> str:
+        """``PRAGMA integrity_check``'s answer (``ok`` for a sound database)."""
+        return "; ".join(str(r[0]) for r in self._db.execute("PRAGMA integrity_check"))
+
     def delete(self, job_id: str) -> None:
         """Remove the job and its transitions, committed (its files are the caller's)."""
         with self._transaction() as db:
             self._row(job_id)
+            db.execute("DELETE FROM part_events WHERE job_id = ?", (job_id,))
             db.execute("DELETE FROM transitions WHERE job_id = ?", (job_id,))
             db.execute("DELETE FROM jobs WHERE id = ?", (job_id,))
 

@@ -12,6 +12,11 @@ Conventions of every program: millimetres, absolute positioning (G90), **relativ
   the order does not change, since a rigid motion keeps every distance.
 - ``combined.gcode``: front, then an ``M0`` pause whose message says to flip the frame, then back.
 
+Every part (a ribbon, a registration mark) is a section that begins with its ``;TYPE:`` comment and
+ends retracted with an ``M400``: the daemon records a part as printed when that ``M400`` is
+acknowledged (Marlin answers it once the planner has drained), and resumes an interrupted print
+after the last part so proven (issue 16; ``ribbond.programs.program_parts``).
+
 Before anything is returned every XY is checked against the frame rectangle and every feed rate and
 temperature against the profile's maxima; a violation raises ``GcodeError`` naming it.
 """
@@ -347,6 +352,10 @@ def _body(w: _Writer, plan: SidePlan) -> None:
                 w.raw(f";LAYER:{int(lay_k)}")
             layer = int(lay_k)
             w.extrude(path, _z(prof, layer, passes.layer_height), passes.line_width, passes.layer_height, what)
+        # the part's sync point: retracted (no ooze while the host records it), then M400, whose ok
+        # comes once every move before it has executed: the proof a resumed print skips the part by
+        w.retract()
+        w.raw(f"M400 ; end of {what}")
 
 
 def _start(w: _Writer) -> None:

@@ -332,13 +332,15 @@ class PrinterLink:
         self,
         commands: Sequence[str],
         progress: Callable[[StreamProgress], None] | None = None,
+        barriers: frozenset[int] = frozenset(),
     ) -> StreamResult:
         """Stream prepared commands (see :func:`prepare_program`); returns when every line was
-        acknowledged, raises a :class:`LinkError` saying why otherwise."""
+        acknowledged, raises a :class:`LinkError` saying why otherwise. ``barriers``: see
+        ``Sender.stream``."""
         self._require(LinkState.READY)
         self._set_state(LinkState.STREAMING)
         try:
-            return await self.sender.stream(commands, progress)
+            return await self.sender.stream(commands, progress, barriers)
         finally:
             if self._state in (LinkState.STREAMING, LinkState.PAUSED):
                 self._set_state(LinkState.READY)

@@ -172,6 +172,7 @@ class _Program:
     next_index: int = 0
     acknowledged: int = 0
     cancelled: bool = False
+    barriers: frozenset[int] = frozenset()  # indices sent only once every line before is acknowledged
 
 
 class Sender:
@@ -298,15 +299,18 @@ class Sender:
         self,
         commands: Sequence[str],
         progress: Callable[[StreamProgress], None] | None = None,
+        barriers: frozenset[int] = frozenset(),
     ) -> asyncio.Future[StreamResult]:
         """Start streaming ``commands`` (already stripped of comments and blank lines); the future
-        completes when every one of them was acknowledged."""
+        completes when every one of them was acknowledged. Program line i in ``barriers`` goes out
+        only once every line before it is acknowledged and ``progress`` has been told so (the
+        host records something before the printer may act on line i)."""
         self._raise_if_failed()
         if self._program is not None:
             raise LinkError("a program is already streaming")
         loop = asyncio.get_running_loop()
         done: asyncio.Future[StreamResult] = loop.create_future()
-        self._program = _Program(commands, progress, done, time.monotonic())
+        self._program = _Program(commands, progress, done, time.monotonic(), barriers=frozenset(barriers))
         self._paused = False
         self._report_progress()
         if not commands:
@@ -543,6 +547,8 @@ class Sender:
         if program.next_index >= len(program.commands):
             return None
         index = program.next_index
+        if index in program.barriers and program.acknowledged < index:
+            return None
         return _Line(-1, program.commands[index], b"", program_index=index), False
 
     def _pump(self) -> None:

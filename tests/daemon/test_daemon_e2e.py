@@ -466,10 +466,11 @@ def test_daemon_killed_mid_print_and_restarted(tmp_path: Path, meshes: dict[str,
 
         # The new daemon reconnects to the printer that kept running.
         daemon.wait_printer()
-        # What the interrupted job allows: start again, cancel, delete; the ready job: start, cancel, delete.
+        # What the interrupted job allows: resume (issue 16), start again, cancel, delete; the ready
+        # job: start, cancel, delete.
         r = client.post(f"/jobs/{job}/pause")
         assert r.status_code == 409 and r.json()["state"] == "interrupted"
-        assert r.json()["allowed"] == ["start", "cancel", "delete"]
+        assert r.json()["allowed"] == ["resume", "start", "cancel", "delete"]
         r = client.post(f"/jobs/{other}/pause")
         assert r.status_code == 409
         assert r.json()["state"] == "ready" and r.json()["allowed"] == ["start", "cancel", "delete"]

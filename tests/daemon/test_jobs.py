@@ -38,7 +38,8 @@ def test_an_ended_job_can_only_be_started_again(state: JobState) -> None:
     """An ended run goes back to ready (a new run of the same design); interrupted can also be
     cancelled; nothing else."""
     assert state.terminal and "start" in COMMANDS[state] and "delete" in COMMANDS[state]
-    extra = {J.CANCELLED, J.SUBMITTED} if state is J.INTERRUPTED else set()   # (a compile made again)
+    # (a compile made again; a print resumed after the frame is checked)
+    extra = {J.CANCELLED, J.SUBMITTED, J.AWAITING_CHECK, J.DONE} if state is J.INTERRUPTED else set()
     for other in JobState:
         if other is J.READY or other in extra:
             check_transition(state, other)
@@ -54,7 +55,8 @@ def test_a_gcode_program_needs_no_compile() -> None:
 def test_every_command_names_a_possible_move() -> None:
     """Each state's commands lead somewhere the table allows (manual commands are not job commands)."""
     target = {"start": {J.READY, J.HEATING, J.SUBMITTED}, "cancel": {J.CANCELLED}, "pause": {J.PAUSED},
-              "resume": {J.PRINTING_FRONT, J.PRINTING_BACK}, "flip-done": {J.ALIGNING},
+              "resume": {J.PRINTING_FRONT, J.PRINTING_BACK, J.AWAITING_CHECK, J.DONE}, "flip-done": {J.ALIGNING},
+              "frame-ok": {J.HEATING, J.ALIGNING},
               "align": {J.PRINTING_BACK, J.AWAITING_FLIP, J.FITTED}, "accept": {J.PRINTING_BACK},
               "re-seat": {J.AWAITING_FLIP}}
     assert set(COMMANDS) == set(JobState)

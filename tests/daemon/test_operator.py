@@ -157,8 +157,8 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
         assert p < line < len(front)
         assert streamed[len(streamed) - (line - p):] == front[p:line]
         assert stopped["last_acked_line"] == line
-        assert stopped["next"]["commands"] == [f"ribbonctl start {job}", f"ribbonctl cancel {job}",
-                                               f"ribbonctl delete {job}"]
+        assert stopped["next"]["commands"] == [f"ribbonctl resume {job}", f"ribbonctl start {job}",
+                                               f"ribbonctl cancel {job}", f"ribbonctl delete {job}"]
 
         # a new run of the same design
         daemon.wait_printer()
