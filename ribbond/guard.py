@@ -113,10 +113,8 @@ class HostRule:
         object.__setattr__(self, "pinned", frozenset(pinned))
 
     def _own_names(self, local: str) -> set[str]:
-        own = {_address(local)}
-        listen = self.listen.strip().strip("[]").lower()
-        if listen not in ("", "0.0.0.0", "::"):
-            own.add(_address(listen))
+        # the listening address as configured, also 0.0.0.0 or :: (the daemon's api.url names it)
+        own = {_address(local), _address(self.listen.strip().strip("[]").lower().rstrip("."))}
         if is_loopback(self.listen) or is_loopback(local):
             own |= {"localhost", "127.0.0.1", "::1"}
         if not is_loopback(self.listen):
