@@ -105,8 +105,11 @@ class CalibrationRequest(BaseModel):
 
     # the spec's own bounds, so the document states them; its cross-field rules (increasing grids,
     # mu1 > ribbon_length) are the spec's to check (422)
-    thicknesses: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, description="mm, increasing")
-    spacings: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, description="mm, increasing")
+    # at most 16 of each: one request's plan stays bounded (16 x 16 x 2 coupons)
+    thicknesses: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, max_length=16,
+                                                                     description="mm, increasing")
+    spacings: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, max_length=16,
+                                                                  description="mm, increasing")
     sides: list[Literal["front", "back"]] | None = Field(None, min_length=1, max_length=2)
     ribbon_length: float | None = Field(None, gt=0)
     ribbon_width: float | None = Field(None, gt=0)
@@ -120,8 +123,14 @@ class CalibrationRequest(BaseModel):
     start: bool = False
 
 
+def _example_table() -> str:
+    """The shipped table's TOML as a daemon table named ``example``: the document's example body."""
+    text = (Path(__file__).parent / "design" / "tables" / "tpu95a-lycra-default.toml").read_text(encoding="utf-8")
+    return text.replace('name = "tpu95a-lycra-default"', 'name = "example"', 1)
+
+
 class TableRequest(BaseModel):
-    toml: str = Field(description="the text of a curvature table's TOML file")
+    toml: str = Field(description="the text of a curvature table's TOML file", examples=[_example_table()])
 
 
 class AlignRequest(BaseModel):
