@@ -201,14 +201,14 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
             raise ValueError("upload either a mesh (field 'mesh') or a G-code program (field 'gcode')")
         upload = mesh if mesh is not None else gcode
         assert upload is not None
-        params: Any = {}
-        if mesh is not None:
-            try:
-                params = json.loads(parameters)
-            except ValueError as exc:
-                raise ValueError(f"parameters: not valid JSON: {exc}") from None
-            if not isinstance(params, dict):
-                raise ValueError("parameters: expected a JSON object")
+        try:
+            params: Any = json.loads(parameters)
+        except ValueError as exc:
+            raise ValueError(f"parameters: not valid JSON: {exc}") from None
+        if not isinstance(params, dict):
+            raise ValueError("parameters: expected a JSON object")
+        if gcode is not None and params:           # said, not silently dropped
+            raise ValueError("parameters: a G-code program takes no design parameters (they are a mesh's)")
         uploads = Path(service.config.state_dir) / "uploads"
         uploads.mkdir(parents=True, exist_ok=True)
         fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
@@ -456,7 +456,9 @@ def _describe_upload(schema: dict[str, Any], components: dict[str, Any]) -> None
             "description": props[field]["description"]}
     props["parameters"] = {"$ref": "#/components/schemas/DesignParameters",
                            "description": "design parameters (a JSON object; with a mesh only)"}
-    body["oneOf"] = [{"required": ["mesh"]}, {"required": ["gcode"]}]
+    body["oneOf"] = [{"required": ["mesh"], "not": {"required": ["gcode"]}},
+                     {"required": ["gcode"], "not": {"required": ["mesh"]},
+                      "properties": {"parameters": {"maxProperties": 0}}}]
     content = schema["paths"]["/jobs"]["post"]["requestBody"]["content"]["multipart/form-data"]
     content["encoding"] = {
         "parameters": {"contentType": "application/json"},
