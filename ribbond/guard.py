@@ -26,7 +26,7 @@ import ipaddress
 import json
 import socket
 import urllib.parse
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -297,7 +297,3 @@ async def respond(send: Send, refusal: Refusal) -> None:
         await send({"type": "http.response.start", "status": refusal.status, "headers": headers})
         await send({"type": "http.response.body", "body": body})
 
-
-def host_rule(listen: str, allowed: Iterable[str]) -> HostRule:
-    """The ``Host`` rule of a daemon listening on ``listen`` with ``api.allowed_hosts`` ``allowed``."""
-    return HostRule(listen, tuple(allowed))

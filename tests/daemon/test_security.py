@@ -299,3 +299,17 @@ def test_an_upload_over_the_limit_is_413_through_ribbonctl(gated: Daemon, tmp_pa
     uploads = gated.state_dir / "uploads"
     assert not uploads.exists() or not any(uploads.iterdir())
     assert gated.client.get("/jobs").json() == []
+
+
+def test_allowed_hosts_entries_are_checked_when_the_file_is_read(tmp_path: Path) -> None:
+    from ribbond.config import load_config
+
+    good = tmp_path / "good.toml"
+    good.write_text('[api]\nallowed_hosts = ["printer.local", "printer.local:8080", "[fe80::1]:7125", "10.0.0.5"]\n')
+    assert load_config(good, environ={}).api.allowed_hosts == ["printer.local", "printer.local:8080",
+                                                               "[fe80::1]:7125", "10.0.0.5"]
+    for bad in ("http://printer.local", "printer.local:0", "printer.local:http", "fe80::1", "a b", ""):
+        path = tmp_path / "bad.toml"
+        path.write_text(f'[api]\nallowed_hosts = ["{bad}"]\n')
+        with pytest.raises(ValueError, match=r"api\.allowed_hosts"):
+            load_config(path, environ={})
