@@ -313,3 +313,25 @@ def test_allowed_hosts_entries_are_checked_when_the_file_is_read(tmp_path: Path)
         path.write_text(f'[api]\nallowed_hosts = ["{bad}"]\n')
         with pytest.raises(ValueError, match=r"api\.allowed_hosts"):
             load_config(path, environ={})
+
+
+def test_beyond_loopback_the_machine_name_passes_and_the_token_is_required(tmp_path: Path) -> None:
+    """Listening on all interfaces: a token is generated; the host's own name (and NAME.local)
+    passes the Host rule, and only then is the token asked for; a foreign name is still 421."""
+    daemon = Daemon(tmp_path / "state", no_printer(tmp_path))
+    daemon.config.write_text(daemon.config.read_text().replace('host = "127.0.0.1"', 'host = "0.0.0.0"'))
+    try:
+        daemon.start()
+        port = urllib.parse.urlsplit(daemon.url).port
+        token = (daemon.state_dir / "api-token").read_text().strip()
+        name = socket.gethostname()
+        for host in (f"{name}:{port}", f"{name}.local:{port}", f"127.0.0.1:{port}", f"0.0.0.0:{port}"):
+            r = httpx.get(f"http://127.0.0.1:{port}/jobs", headers={"Host": host})
+            assert r.status_code == 401, (host, r.text)
+            r = httpx.get(f"http://127.0.0.1:{port}/jobs", headers={"Host": host, "Authorization": f"Bearer {token}"})
+            assert r.status_code == 200, (host, r.text)
+        r = httpx.get(f"http://127.0.0.1:{port}/jobs", headers={"Host": f"attacker.example:{port}",
+                                                              "Authorization": f"Bearer {token}"})
+        assert r.status_code == 421
+    finally:
+        daemon.stop()
