@@ -17,7 +17,7 @@ import httpx
 import jsonschema_rs
 import pytest
 
-from .conftest import ROOT, Daemon, Sim, cancel_leftovers
+from .conftest import Daemon, Sim, cancel_leftovers
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -136,7 +136,8 @@ def test_schemathesis_finds_nothing(fuzzed: Daemon, document: dict[str, Any], tm
                "--seed", str(SEED), "--workers", "1", "--request-timeout", "30", "--no-color",
                "--header", f"Authorization: Bearer {TOKEN}", "--report", "junit", "--report-dir", str(tmp_path)]
     # --workers 1: hypothesis parses lambdas with ast, which CPython 3.11 does not do safely in threads
-    proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=280)
+    # cwd: schemathesis keeps a cache folder (.schemathesis) where it runs
+    proc = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=280)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-12000:]
     assert "Stateful" in out and "28 selected" in out, out[-4000:]
