@@ -1,33 +1,38 @@
 """The REST API: routes onto ``RibbonService`` methods, pydantic models in and out, no business logic.
 
-OpenAPI at ``/docs`` (Swagger UI served from the package: it works on a host without internet).
+OpenAPI at ``/docs`` (Swagger UI served from the package: it works on a host without internet); it
+documents every status a route answers with its body model (``ribbond.apierrors``) and links the
+operations of one job, table or calibration (``POST /jobs`` -> ``GET /jobs/{job_id}`` ...).
 Errors: a request the job's state does not allow is 409 with the state and the commands possible
 now; an unknown job or file 404; bad input 422; an upload over the limit 413; the printer not
-connected or halted 503. When a token is configured (always when listening beyond loopback), every
-route but the documentation needs ``Authorization: Bearer <token>``, compared in constant time.
+connected or halted 503. In front of every route, before any body is read, ``ribbond.guard``
+checks the Host header (421), the origin of state-changing requests (403) and, when a token is
+configured (always when listening beyond loopback), ``Authorization: Bearer <token>`` (401) on
+every path but the documentation and the dashboard's files.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import json
 import tempfile
 from pathlib import Path
+from enum import Enum
 from typing import Annotated, Any, Literal
 
-from fastapi import Depends, FastAPI, File, Form, HTTPException, Query, Request, Response, UploadFile
+from fastapi import FastAPI, File, Form, HTTPException, Path as PathParam, Query, Request, Response, UploadFile
 from fastapi.openapi.docs import get_swagger_ui_html
-from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, StreamingResponse
+from fastapi.responses import FileResponse, HTMLResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
 from swagger_ui_bundle import swagger_ui_path
 
-from .alignment import AlignmentRefused
-from .config import tokens_match
-from .jobs import IllegalTransition, JobState
-from .printer.errors import LinkError
-from .service import NotFound, RibbonService, ServiceError
+from . import apierrors
+from .apierrors import responses
+from .guard import Guard, HostRule, Policy
+from .jobs import JobState
+from .design.params import DesignParameters
+from .service import MAX_MANUAL_COMMANDS, NotFound, RibbonService
 from .store import JobRecord, Transition
 
 #: Files of a job that can be fetched.
@@ -36,7 +41,17 @@ JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "d
              "target.obj": "design", "flat.obj": "design", "deployed.obj": "design", "deployed.png": "design",
              "back-corrected.gcode": "job",
              "program.gcode": "job"}
+#: The media type of each kind of file served (named, so the OpenAPI document can list them).
+MEDIA_TYPES = {".png": "image/png", ".svg": "image/svg+xml", ".json": "application/json",
+               ".gcode": "text/x.gcode", ".obj": "model/obj", ".csv": "text/csv"}
 _CHUNK = 1 << 20
+#: A job file's name in a path: one of ``JOB_FILES`` (the document lists them).
+JobFile = Enum("JobFile", {name: name for name in JOB_FILES}, type=str)  # type: ignore[misc]
+#: A calibration's files (``RibbonService.calibration_file``).
+CalibrationFileName = Annotated[str, PathParam(pattern=r"^(plan\.json|coupons\.csv|sheet-[0-9]{1,3}\.(png|svg))$")]
+#: Ids and names in paths: longer ones cannot exist (job ids are 12 hex digits, table names at most
+#: 64 characters), and are refused without being echoed.
+Ident = Annotated[str, PathParam(max_length=64)]
 
 
 class NextStep(BaseModel):
@@ -76,86 +91,47 @@ class GotoRequest(BaseModel):
 
 
 class GcodeRequest(BaseModel):
-    commands: list[str] = Field(min_length=1, description="one G-code command or a short list")
+    commands: list[Annotated[str, Field(pattern=r"\S")]] = Field(
+        min_length=1, max_length=MAX_MANUAL_COMMANDS, description="one G-code command or a short list")
 
 
 class HeatRequest(BaseModel):
-    nozzle: float | None = Field(None, description="°C; default the profile's print temperature")
-    bed: float | None = Field(None, description="°C")
+    # the upper bounds are the profile's: written into the document by _refine_openapi
+    nozzle: float | None = Field(None, ge=0, description="°C; default the profile's print temperature")
+    bed: float | None = Field(None, ge=0, description="°C")
 
 
 class CalibrationRequest(BaseModel):
     """``POST /calibrations``: the plan's grid and ribbons (``ribbond.calibration.spec``), all optional."""
 
-    thicknesses: list[float] | None = None
-    spacings: list[float] | None = None
-    sides: list[str] | None = None
-    ribbon_length: float | None = None
-    ribbon_width: float | None = None
-    mu1: float | None = None
-    prestretch: float | None = None
-    base_table: str | None = None
+    # the spec's own bounds, so the document states them; its cross-field rules (increasing grids,
+    # mu1 > ribbon_length) are the spec's to check (422)
+    # at most 16 of each: one request's plan stays bounded (16 x 16 x 2 coupons)
+    thicknesses: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, max_length=16,
+                                                                     description="mm, increasing")
+    spacings: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, max_length=16,
+                                                                  description="mm, increasing")
+    sides: list[Literal["front", "back"]] | None = Field(None, min_length=1, max_length=2)
+    ribbon_length: float | None = Field(None, gt=0)
+    ribbon_width: float | None = Field(None, gt=0)
+    mu1: float | None = Field(None, gt=0)
+    prestretch: float | None = Field(None, gt=1.0)
+    base_table: str | None = Field(None, min_length=1, max_length=64)
     fabric: str | None = None
     material: str | None = None
-    min_coupon_width: float | None = None
-    printer_profile: str | None = None
+    min_coupon_width: float | None = Field(None, gt=0)
+    printer_profile: str | None = Field(None, min_length=1)
     start: bool = False
 
 
+def _example_table() -> str:
+    """The shipped table's TOML as a daemon table named ``example``: the document's example body."""
+    text = (Path(__file__).parent / "design" / "tables" / "tpu95a-lycra-default.toml").read_text(encoding="utf-8")
+    return text.replace('name = "tpu95a-lycra-default"', 'name = "example"', 1)
+
+
 class TableRequest(BaseModel):
-    toml: str = Field(description="the text of a curvature table's TOML file")
-
-
-class BodyLimit:
-    """ASGI middleware: a request body larger than ``limit`` bytes is answered 413 as soon as it
-    passes the limit, whether or not it announced its length (the multipart parser would otherwise
-    spool a chunked upload to disk whole before the route sees it)."""
-
-    def __init__(self, app: Any, limit: int) -> None:
-        self.app, self.limit = app, limit
-
-    async def __call__(self, scope: dict[str, Any], receive: Any, send: Any) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        headers = dict(scope.get("headers") or [])
-        length = headers.get(b"content-length", b"")
-        if length.isdigit() and int(length) > self.limit:
-            await self._refuse(send, int(length))
-            return
-        seen = 0
-        refused = False
-
-        async def counted() -> dict[str, Any]:
-            nonlocal seen, refused
-            message = await receive()
-            seen += len(message.get("body", b""))
-            if seen > self.limit:
-                refused = True
-                raise _TooLarge()
-            return message
-
-        try:
-            await self.app(scope, counted, send)
-        except _TooLarge:
-            await self._refuse(send, seen)
-        except Exception:
-            if not refused:
-                raise
-            await self._refuse(send, seen)
-
-    async def _refuse(self, send: Any, size: int) -> None:
-        body = json.dumps({"detail": f"upload of {size} bytes or more exceeds the limit of {self.limit} "
-                                     "bytes (limits.max_upload_mb)"}).encode()
-        with contextlib.suppress(Exception):
-            await send({"type": "http.response.start", "status": 413,
-                        "headers": [(b"content-type", b"application/json"), (b"connection", b"close"),
-                                    (b"content-length", str(len(body)).encode())]})
-            await send({"type": "http.response.body", "body": body})
-
-
-class _TooLarge(Exception):
-    pass
+    toml: str = Field(description="the text of a curvature table's TOML file", examples=[_example_table()])
 
 
 class ResumeRequest(BaseModel):
@@ -182,11 +158,40 @@ class AlignRequest(BaseModel):
                                             "instead of printing the back at once")
 
 
+def _links(target: str, operations: dict[str, str]) -> dict[str, Any]:
+    """OpenAPI links from a created resource to the operations on it (``operations``: link name ->
+    operationId), the path parameter taken from the response (``target``: ``param=$response...``)."""
+    param, expression = target.split("=", 1)
+    return {name: {"operationId": op, "parameters": {param: expression}} for name, op in operations.items()}
+
+
+_JOB_LINKS = {"GetJob": "job", "GetTransitions": "transitions", "GetJobFile": "job_file", "StartJob": "start",
+              "PauseJob": "pause", "ResumeJob": "resume", "CancelJob": "cancel", "FlipDone": "flip_done",
+              "AlignJob": "align", "DeleteJob": "delete"}
+
+
+#: One server-sent event: its type (``job``, ``printer``, ...) and its JSON data.
+_EVENT = {"type": "object", "required": ["data"],
+          "properties": {"event": {"type": "string"}, "data": {"type": "string", "description": "JSON"}}}
+
+
+def _file_content(suffixes: list[str]) -> dict[int | str, dict[str, Any]]:
+    def schema(suffix: str) -> dict[str, Any]:
+        return {"type": "object"} if suffix == ".json" else {"type": "string"}
+    return {200: {"description": "the file", "content": {MEDIA_TYPES[s]: {"schema": schema(s)} for s in suffixes}}}
+
+
+def _file(path: Path) -> FileResponse:
+    return FileResponse(path, media_type=MEDIA_TYPES.get(path.suffix.lower(), "application/octet-stream"))
+
+
 def create_app(service: RibbonService, token: str | None) -> FastAPI:
     """The FastAPI application over ``service``; ``token`` None means no authentication."""
-    app = FastAPI(title="ribbond", version="1", description=__doc__, docs_url=None, redoc_url=None)
+    app = FastAPI(title="ribbond", version="1", description=__doc__, docs_url=None, redoc_url=None,
+                  generate_unique_id_function=lambda route: route.name)
     limit = int(service.config.limits.max_upload_mb * 1024 * 1024)
     app.mount("/docs-assets", StaticFiles(directory=swagger_ui_path), name="docs-assets")
+    apierrors.install(app)
 
     @app.get("/docs", include_in_schema=False)
     async def docs() -> HTMLResponse:
@@ -198,61 +203,27 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     def status(record: JobRecord) -> JobStatus:
         return JobStatus.model_validate(service.status(record))
 
-    async def authorize(request: Request) -> None:
-        if token is None:
-            return
-        header = request.headers.get("authorization", "")
-        given = header[7:] if header.lower().startswith("bearer ") else None
-        if not tokens_match(given, token):
-            raise HTTPException(401, "missing or wrong API token (Authorization: Bearer <token>)",
-                                headers={"WWW-Authenticate": "Bearer"})
+    job_created = {201: {"links": _links("job_id=$response.body#/id", _JOB_LINKS)}}
 
-    auth = [Depends(authorize)]
-
-    @app.exception_handler(IllegalTransition)
-    async def _illegal(_: Request, exc: IllegalTransition) -> JSONResponse:
-        return JSONResponse(status_code=409, content={"detail": str(exc), "state": exc.current.value,
-                                                      "command": exc.command, "allowed": exc.allowed,
-                                                      "allowed_states": exc.allowed_states})
-
-    @app.exception_handler(NotFound)
-    async def _missing(_: Request, exc: NotFound) -> JSONResponse:
-        return JSONResponse(status_code=404, content={"detail": str(exc)})
-
-    @app.exception_handler(AlignmentRefused)
-    async def _refused(_: Request, exc: AlignmentRefused) -> JSONResponse:
-        return JSONResponse(status_code=409, content={"detail": str(exc), "refused": exc.which,
-                                                      "value": exc.value, "limit": exc.limit})
-
-    @app.exception_handler(ServiceError)
-    async def _conflict(_: Request, exc: ServiceError) -> JSONResponse:
-        return JSONResponse(status_code=409, content={"detail": str(exc)})
-
-    @app.exception_handler(LinkError)
-    async def _printer(_: Request, exc: LinkError) -> JSONResponse:
-        return JSONResponse(status_code=503, content={"detail": f"printer: {exc}"})
-
-    @app.exception_handler(ValueError)
-    async def _invalid(_: Request, exc: ValueError) -> JSONResponse:
-        return JSONResponse(status_code=422, content={"detail": str(exc)})
-
-    @app.post("/jobs", status_code=201, response_model=JobStatus, dependencies=auth)
+    @app.post("/jobs", status_code=201, response_model=JobStatus,
+              responses={**responses(409, mutating=True, body=True), **job_created})
     async def submit(mesh: Annotated[UploadFile | None, File(description="OBJ, PLY, STL or OFF: a design")] = None,
                      gcode: Annotated[UploadFile | None, File(description="a plain G-code program")] = None,
                      parameters: Annotated[str, Form(description="design parameters, JSON")] = "{}",
                      start: Annotated[bool, Form(description="print as soon as it is ready")] = False) -> JobStatus:
+        """Upload a mesh (a design is compiled from it) or a G-code program (checked against the profile)."""
         if (mesh is None) == (gcode is None):
             raise ValueError("upload either a mesh (field 'mesh') or a G-code program (field 'gcode')")
         upload = mesh if mesh is not None else gcode
         assert upload is not None
-        params: Any = {}
-        if mesh is not None:
-            try:
-                params = json.loads(parameters)
-            except ValueError as exc:
-                raise ValueError(f"parameters: not valid JSON: {exc}") from None
-            if not isinstance(params, dict):
-                raise ValueError("parameters: expected a JSON object")
+        try:
+            params: Any = json.loads(parameters)
+        except ValueError as exc:
+            raise ValueError(f"parameters: not valid JSON: {exc}") from None
+        if not isinstance(params, dict):
+            raise ValueError("parameters: expected a JSON object")
+        if gcode is not None and params:           # said, not silently dropped
+            raise ValueError("parameters: a G-code program takes no design parameters (they are a mesh's)")
         uploads = Path(service.config.state_dir) / "uploads"
         uploads.mkdir(parents=True, exist_ok=True)
         fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
@@ -271,145 +242,164 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         finally:
             tmp.unlink(missing_ok=True)
 
-    @app.post("/calibrations", status_code=201, dependencies=auth)
+    cal_links = {201: {"links": {
+        **_links("cal_id=$response.body#/calibration", {"GetCalibrationFile": "calibration_file"}),
+        **_links("job_id=$response.body#/jobs/0", {"GetFirstJob": "job", "StartFirstJob": "start"})}}}
+
+    @app.post("/calibrations", status_code=201,
+              responses={**responses(409, 503, mutating=True, body=True), **cal_links})
     async def calibrate(body: CalibrationRequest) -> dict[str, Any]:
         """A calibration plan for this printer: one ready two-sided job per sheet (issue 15)."""
         spec = body.model_dump(exclude_none=True, exclude={"start"})
         return await service.submit_calibration(spec, body.start)
 
-    @app.get("/calibrations/{cal_id}/files/{name}", dependencies=auth)
-    async def calibration_file(cal_id: str, name: str) -> FileResponse:
-        return FileResponse(service.calibration_file(cal_id, name))
+    @app.get("/calibrations/{cal_id}/files/{name}", response_class=FileResponse,
+             responses={**responses(404, 422), **_file_content([".json", ".csv", ".png", ".svg"])})
+    async def calibration_file(cal_id: Ident, name: CalibrationFileName) -> FileResponse:
+        return _file(service.calibration_file(cal_id, name))
 
-    @app.get("/tables", dependencies=auth)
+    @app.get("/tables", responses=responses())
     async def tables() -> list[dict[str, Any]]:
         """The curvature tables a design may name: shipped ones and the daemon's own."""
         return service.tables()
 
-    @app.get("/tables/{name}", dependencies=auth)
-    async def table(name: str) -> dict[str, Any]:
+    @app.get("/tables/{name}", responses=responses(404, 422))
+    async def table(name: Ident) -> dict[str, Any]:
         return service.table(name)
 
-    @app.post("/tables", status_code=201, dependencies=auth)
+    table_links = {201: {"links": _links("name=$response.body#/name", {"GetTable": "table",
+                                                                        "RemoveTable": "remove_table"})}}
+
+    @app.post("/tables", status_code=201, responses={**responses(409, mutating=True, body=True), **table_links})
     async def add_table(body: TableRequest) -> dict[str, Any]:
         """Add or replace a daemon table from the text of its TOML file (named by its ``name``)."""
         return service.add_table(body.toml)
 
-    @app.delete("/tables/{name}", status_code=204, dependencies=auth)
-    async def remove_table(name: str) -> Response:
+    @app.delete("/tables/{name}", status_code=204, response_class=Response,
+                responses=responses(404, 409, 422, mutating=True))
+    async def remove_table(name: Ident) -> Response:
         service.remove_table(name)
         return Response(status_code=204)
 
-    @app.get("/jobs", response_model=list[JobStatus], dependencies=auth)
+    @app.get("/jobs", response_model=list[JobStatus], responses=responses(422))
     async def jobs(response: Response,
                    state: Annotated[list[JobState] | None, Query(description="only jobs in these states")] = None,
                    limit: Annotated[int | None, Query(ge=0, le=1000, description="at most this many")] = None,
-                   offset: Annotated[int, Query(ge=0, description="skip the newest this many")] = 0) -> list[JobStatus]:
+                   offset: Annotated[int, Query(ge=0, le=2**31 - 1, description="skip the newest this many")] = 0) -> list[JobStatus]:
         """Jobs, newest first; ``X-Total-Count`` is the number matching the filter."""
         response.headers["X-Total-Count"] = str(service.store.count(state))
         return [status(j) for j in service.jobs(state, limit, offset)]
 
-    @app.get("/jobs/{job_id}", response_model=JobStatus, dependencies=auth)
-    async def job(job_id: str) -> JobStatus:
+    @app.get("/jobs/{job_id}", response_model=JobStatus, responses=responses(404, 422))
+    async def job(job_id: Ident) -> JobStatus:
         return status(service.job(job_id))
 
-    @app.delete("/jobs/{job_id}", status_code=204, dependencies=auth)
-    async def delete(job_id: str) -> Response:
+    @app.delete("/jobs/{job_id}", status_code=204, response_class=Response,
+                responses=responses(404, 409, 422, mutating=True))
+    async def delete(job_id: Ident) -> Response:
         service.delete(job_id)
         return Response(status_code=204)
 
-    @app.get("/jobs/{job_id}/transitions", response_model=list[Transition], dependencies=auth)
-    async def transitions(job_id: str) -> list[Transition]:
+    @app.get("/jobs/{job_id}/transitions", response_model=list[Transition], responses=responses(404, 422))
+    async def transitions(job_id: Ident) -> list[Transition]:
         service.job(job_id)
         return service.store.transitions(job_id)
 
-    @app.get("/jobs/{job_id}/files/{name}", dependencies=auth)
-    async def job_file(job_id: str, name: str) -> FileResponse:
+    @app.get("/jobs/{job_id}/files/{name}", response_class=FileResponse,
+             responses={**responses(404, 422), **_file_content([".png", ".svg", ".json", ".gcode", ".obj"])})
+    async def job_file(job_id: Ident, name: JobFile) -> FileResponse:
         record = service.job(job_id)
-        where = JOB_FILES.get(name)
-        if where is None:
-            raise NotFound(f"{name!r} is not a job file; files: {', '.join(JOB_FILES)}")
+        where = JOB_FILES[name.value]
         base = Path(record.design_dir) if where == "design" and record.design_dir else service.job_dir(job_id)
-        path = base / name
+        path = base / name.value
         if not path.is_file():
-            raise NotFound(f"job {job_id} has no {name} (yet)")
-        return FileResponse(path)
+            raise NotFound(f"job {job_id} has no {name.value} (yet)")
+        return _file(path)
 
-    @app.post("/jobs/{job_id}/start", response_model=JobStatus, dependencies=auth)
-    async def start(job_id: str) -> JobStatus:
+    job_action = responses(404, 409, 422, 503, mutating=True)
+
+    @app.post("/jobs/{job_id}/start", response_model=JobStatus, responses=job_action)
+    async def start(job_id: Ident) -> JobStatus:
         return status(service.start_job(job_id))
 
-    @app.post("/jobs/{job_id}/pause", response_model=JobStatus, dependencies=auth)
-    async def pause(job_id: str) -> JobStatus:
+    @app.post("/jobs/{job_id}/pause", response_model=JobStatus, responses=job_action)
+    async def pause(job_id: Ident) -> JobStatus:
         return status(await service.pause(job_id))
 
-    @app.post("/jobs/{job_id}/resume", response_model=JobStatus, dependencies=auth)
-    async def resume(job_id: str, body: ResumeRequest | None = None) -> JobStatus:
+    @app.post("/jobs/{job_id}/resume", response_model=JobStatus,
+              responses=responses(404, 409, 503, mutating=True, body=True))
+    async def resume(job_id: Ident, body: ResumeRequest | None = None) -> JobStatus:
         return status(await service.resume(job_id, body.partial if body is not None else None))
 
-    @app.post("/jobs/{job_id}/frame-ok", response_model=JobStatus, dependencies=auth)
-    async def frame_ok(job_id: str, body: FrameOkRequest | None = None) -> JobStatus:
+    @app.post("/jobs/{job_id}/frame-ok", response_model=JobStatus,
+              responses=responses(404, 409, 503, mutating=True, body=True))
+    async def frame_ok(job_id: Ident, body: FrameOkRequest | None = None) -> JobStatus:
         return status(await service.frame_ok(job_id, body.keep_alignment if body is not None else False))
 
-    @app.post("/jobs/{job_id}/cancel", response_model=JobStatus, dependencies=auth)
-    async def cancel(job_id: str) -> JobStatus:
+    @app.post("/jobs/{job_id}/cancel", response_model=JobStatus, responses=job_action)
+    async def cancel(job_id: Ident) -> JobStatus:
         return status(await service.cancel(job_id))
 
-    @app.post("/jobs/{job_id}/flip-done", response_model=JobStatus, dependencies=auth)
-    async def flip_done(job_id: str) -> JobStatus:
+    @app.post("/jobs/{job_id}/flip-done", response_model=JobStatus, responses=job_action)
+    async def flip_done(job_id: Ident) -> JobStatus:
         return status(await service.flip_done(job_id))
 
-    @app.post("/jobs/{job_id}/align", dependencies=auth)
-    async def align(job_id: str, body: AlignRequest) -> dict[str, Any]:
+    @app.post("/jobs/{job_id}/align", responses=responses(404, 409, 503, mutating=True, body=True))
+    async def align(job_id: Ident, body: AlignRequest) -> dict[str, Any]:
         return await service.align_mark(job_id, body.mark, body.jog, body.here, body.review)
 
-    @app.post("/jobs/{job_id}/accept", response_model=JobStatus, dependencies=auth)
-    async def accept(job_id: str) -> JobStatus:
+    @app.post("/jobs/{job_id}/accept", response_model=JobStatus, responses=job_action)
+    async def accept(job_id: Ident) -> JobStatus:
         return status(await service.accept_fit(job_id))
 
-    @app.post("/jobs/{job_id}/re-seat", response_model=JobStatus, dependencies=auth)
-    async def re_seat(job_id: str) -> JobStatus:
+    @app.post("/jobs/{job_id}/re-seat", response_model=JobStatus, responses=job_action)
+    async def re_seat(job_id: Ident) -> JobStatus:
         return status(await service.re_seat(job_id))
 
-    @app.post("/printer/home", dependencies=auth)
+    printer_action = responses(409, 422, 503, mutating=True)
+    printer_body = responses(409, 503, mutating=True, body=True)
+
+    @app.post("/printer/home", responses=printer_action)
     async def home() -> dict[str, Any]:
         return await service.home()
 
-    @app.post("/printer/jog", dependencies=auth)
+    @app.post("/printer/jog", responses=printer_body)
     async def jog(body: JogRequest) -> dict[str, Any]:
         return await service.jog(body.dx, body.dy, body.dz)
 
-    @app.post("/printer/goto", dependencies=auth)
+    @app.post("/printer/goto", responses=printer_body)
     async def goto(body: GotoRequest) -> dict[str, Any]:
         return await service.goto(body.x, body.y)
 
-    @app.post("/printer/gcode", dependencies=auth)
+    @app.post("/printer/gcode", responses=printer_body)
     async def gcode(body: GcodeRequest) -> dict[str, Any]:
         return await service.gcode(body.commands)
 
-    @app.post("/printer/heat", dependencies=auth)
+    @app.post("/printer/heat", responses=printer_body)
     async def heat(body: HeatRequest) -> dict[str, Any]:
         return await service.heat(body.nozzle, body.bed)
 
-    @app.post("/printer/cool", dependencies=auth)
+    @app.post("/printer/cool", responses=printer_action)
     async def cool() -> dict[str, Any]:
         return await service.cool()
 
-    @app.get("/printer", dependencies=auth)
+    @app.get("/printer", responses=responses(422, 503))
     async def printer(refresh: bool = False) -> dict[str, Any]:
         """Connection, firmware, temperatures, position; ``refresh=true`` asks the printer first."""
         return await service.printer_status(refresh)
 
-    @app.post("/printer/emergency-stop", dependencies=auth)
+    @app.post("/printer/emergency-stop", responses=printer_action)
     async def emergency_stop() -> dict[str, Any]:
         service.emergency_stop()
         return await service.printer_status()
 
-    @app.post("/printer/recover", dependencies=auth)
+    @app.post("/printer/recover", responses=printer_action)
     async def recover() -> dict[str, Any]:
         return await service.recover()
 
-    @app.get("/events", dependencies=auth)
+    @app.get("/events", response_class=StreamingResponse, responses={
+        **responses(), 200: {"description": "server-sent events, a keep-alive comment every 15 s",
+                             "content": {"text/event-stream": {"schema": _EVENT}}}})
     async def events(request: Request) -> StreamingResponse:
         queue = service.bus.subscribe()
 
@@ -438,6 +428,69 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     async def dashboard() -> FileResponse:
         return FileResponse(web / "index.html", headers={"Cache-Control": "no-cache"})
 
+    _refine_openapi(app, token is not None, service)
+    api = service.config.api
     # the file may take the whole limit; its multipart framing and form fields get 64 kB more
-    app.add_middleware(BodyLimit, limit=limit + 65536)
+    app.add_middleware(Guard, policy=Policy(token, HostRule(api.host, tuple(api.allowed_hosts)), limit + 65536))
     return app
+
+
+def _refine_openapi(app: FastAPI, bearer: bool, service: RibbonService) -> None:
+    """What FastAPI's generated document cannot say: the upload is one of ``mesh`` and ``gcode``,
+    each named with its suffix, ``parameters`` a JSON ``DesignParameters`` object; the profile's
+    bounds of ``heat`` and ``goto`` (the service checks them); and, with a token, the bearer scheme
+    on every operation (the gate enforces it)."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            schema = build()
+            components = schema.setdefault("components", {})
+            _describe_upload(schema, components.setdefault("schemas", {}))
+            _profile_bounds(components["schemas"], service)
+            if bearer:
+                components["securitySchemes"] = {"bearer": {"type": "http", "scheme": "bearer",
+                                                            "description": "the daemon's API token"}}
+                for ops in schema["paths"].values():
+                    for op in ops.values():
+                        op["security"] = [{"bearer": []}]
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
+def _profile_bounds(components: dict[str, Any], service: RibbonService) -> None:
+    t, (x0, y0, x1, y1) = service.profile.temperatures, service.profile.frame.bounds
+
+    def bound(model: str, field: str, low: float, high: float) -> None:
+        prop = components[model]["properties"][field]
+        number = next((s for s in prop.get("anyOf", []) if s.get("type") == "number"), prop)
+        number.update({"minimum": low, "maximum": high})
+
+    bound("HeatRequest", "nozzle", 0, t.nozzle_max)
+    bound("HeatRequest", "bed", 0, t.bed_max)
+    bound("GotoRequest", "x", x0, x1)
+    bound("GotoRequest", "y", y0, y1)
+
+
+def _describe_upload(schema: dict[str, Any], components: dict[str, Any]) -> None:
+    params = DesignParameters.model_json_schema(ref_template="#/components/schemas/{model}")
+    components.update(params.pop("$defs", {}))
+    components["DesignParameters"] = params
+    body = components["Body_submit"]
+    props = body["properties"]
+    for field in ("mesh", "gcode"):
+        props[field] = next(s for s in props[field]["anyOf"] if s.get("type") == "string") | {
+            "description": props[field]["description"]}
+    props["parameters"] = {"$ref": "#/components/schemas/DesignParameters",
+                           "description": "design parameters (a JSON object; with a mesh only)"}
+    body["oneOf"] = [{"required": ["mesh"], "not": {"required": ["gcode"]}},
+                     {"required": ["gcode"], "not": {"required": ["mesh"]},
+                      "properties": {"parameters": {"maxProperties": 0}}}]
+    content = schema["paths"]["/jobs"]["post"]["requestBody"]["content"]["multipart/form-data"]
+    content["encoding"] = {
+        "parameters": {"contentType": "application/json"},
+        **{field: {"headers": {"Content-Disposition": {"schema": {
+            "type": "string", "example": f'form-data; name="{field}"; filename="{name}"'}}}}
+           for field, name in (("mesh", "mesh.obj"), ("gcode", "program.gcode"))}}

@@ -19,6 +19,7 @@ import http.client
 import json
 import json as _json
 import os
+import select
 import sys
 import time
 import urllib.parse
@@ -82,11 +83,15 @@ class Client:
             body = json.dumps(json_body).encode()
             head["Content-Type"] = "application/json"
         conn = self._connection(timeout or self.timeout)
+        streamed = body is not None and not isinstance(body, (bytes, str))
         try:
-            conn.request(method, target, body=body, headers=head,
-                         encode_chunked=body is not None and not isinstance(body, (bytes, str)))
+            conn.request(method, target, body=_until_answered(conn, body) if streamed else body,
+                         headers=head, encode_chunked=streamed)
             return conn, conn.getresponse()
         except (OSError, http.client.HTTPException) as exc:
+            answer = _early_answer(conn) if body is not None else None
+            if answer is not None:
+                return conn, answer
             conn.close()
             raise ClientError(f"cannot reach ribbond at {self.url}: {exc}", 3) from None
 
@@ -164,6 +169,25 @@ class Client:
                     data = []
         finally:
             conn.close()
+
+
+def _until_answered(conn: http.client.HTTPConnection, body: Iterator[bytes]) -> Iterator[bytes]:
+    """``body``'s chunks until the daemon answers: an answer before the whole body is sent is a
+    refusal (401, 413, ...), read by ``getresponse`` rather than lost to a reset connection."""
+    for chunk in body:
+        sock = conn.sock
+        if sock is not None and select.select([sock], [], [], 0)[0]:
+            return
+        yield chunk
+
+
+def _early_answer(conn: http.client.HTTPConnection) -> http.client.HTTPResponse | None:
+    """The daemon's answer after sending the body failed (it refused the request and closed the
+    connection while the body was still being sent), or None when there is none."""
+    try:
+        return conn.getresponse()
+    except (OSError, http.client.HTTPException):
+        return None
 
 
 # --------------------------------------------------------------------------------------- output

@@ -12,6 +12,10 @@ directory under systemd, where a path relative to the working directory means no
 This module also decides how the API is protected (``resolve_token``, ``tokens_match``): on a
 loopback address only local users can connect, so a token is optional; on any other address one is
 required and, if none is configured, generated once and kept in a file only the daemon can read.
+Whatever the address, the API answers only requests whose ``Host`` names the daemon (its listening
+address, the loopback names on loopback, the machine's name beyond it, and ``api.allowed_hosts``,
+e.g. ``allowed_hosts = ["printer.local"]``) and refuses state-changing requests from another
+origin (``ribbond.guard``).
 """
 
 from __future__ import annotations
@@ -60,6 +64,10 @@ class ApiSettings(BaseModel):
     # repr=False: the configuration is logged at start, the token must not be.
     token: str | None = Field(None, repr=False, description="bearer token clients must send")
     token_file: Path | None = Field(None, description="token file; default <state_dir>/api-token")
+    # The Host check (ribbond.guard) refuses names it does not know: a DNS-rebinding page would
+    # otherwise reach the daemon from a browser on the host. Add the names clients use here.
+    allowed_hosts: list[str] = Field(default_factory=list, description="more names of the daemon a Host "
+                                     "header may give (e.g. printer.local, or printer.local:80 behind a proxy)")
 
     @field_validator("token")
     @classmethod
@@ -67,6 +75,15 @@ class ApiSettings(BaseModel):
         # An empty token would let anyone in while looking configured: refuse it outright.
         if value is not None and not value.strip():
             raise ValueError("the token is empty; remove the key to have one generated, or set a real token")
+        return value
+
+    @field_validator("allowed_hosts")
+    @classmethod
+    def _hosts_valid(cls, value: list[str]) -> list[str]:
+        from .guard import split_host          # here: guard imports this module
+
+        for entry in value:
+            split_host(entry)                  # ValueError names the entry
         return value
 
 

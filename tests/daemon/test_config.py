@@ -84,7 +84,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
         printer_profile="generic-marlin",
         state_dir=tmp_path / "state",
         api=ApiSettings(host="0.0.0.0", port=8125, token="s3cret-token",
-                        token_file=tmp_path / "secrets" / "token"),
+                        token_file=tmp_path / "secrets" / "token", allowed_hosts=["printer.local", "[::1]:8125"]),
         limits=Limits(max_upload_mb=12.5, max_faces=1000, max_jobs=3),
         flip=FlipPolicy(heaters="off", lower_to=150.0, off_after_s=60.0),
         log_level="debug",
