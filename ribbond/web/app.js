@@ -13,7 +13,7 @@ const STAGES = ["load", "curvature", "flatten", "stripes", "ribbons", "gcode", "
 const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", heating: "heating",
   printing_front: "printing front", awaiting_flip: "flip the frame", aligning: "aligning", fitted: "check the fit",
   printing_back: "printing back", paused: "paused", done: "done", cancelled: "cancelled", failed: "failed",
-  interrupted: "interrupted" };
+  interrupted: "interrupted", awaiting_check: "check the frame" };
 
 const state = {
   printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [], live: false,
@@ -388,7 +388,8 @@ function progressText(j) {
 
 const ACTIONS = {
   start: (j) => (ENDED.has(j.state) ? "Print again" : ["submitted", "compiling"].includes(j.state) ? "Print when compiled" : "Print"),
-  pause: () => "Pause", resume: () => "Resume", cancel: () => "Cancel", delete: () => "Delete",
+  pause: () => "Pause", resume: (j) => (j.state === "interrupted" ? "Resume where it stopped" : "Resume"),
+  "frame-ok": () => "Frame is checked", cancel: () => "Cancel", delete: () => "Delete",
 };
 
 function renderActions(j) {
@@ -468,7 +469,15 @@ function nextText(j) {
     case "aligning": return "Align the back side on the registration marks (below).";
     case "fitted": return "Check the alignment's fit (below): accept it, or re-seat the frame.";
     case "done": return "Done. Print it again, or delete it.";
-    case "cancelled": case "failed": case "interrupted":
+    case "awaiting_check":
+      return j.stage === "check the frame"
+        ? "Resuming: check that the frame is seated, the right side up and nothing is in the way, then press “Frame is checked” (the back side's marks are measured again)."
+        : "Resuming: the printer is homing and heating…";
+    case "interrupted":
+      if (commandsOf(j).includes("resume"))
+        return "Interrupted. Resume where the print was proven to stand (a ribbon begun and not proven printed is skipped), print it again from the start, or delete it.";
+      // falls through
+    case "cancelled": case "failed":
       return commandsOf(j).includes("start") ? "Print it again, or delete it." : "Nothing to print: submit the mesh again.";
     default: return text;
   }
