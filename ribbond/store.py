@@ -100,6 +100,19 @@ MUTABLE_FIELDS = frozenset(JobRecord.model_fields) - {"id", "state", "created", 
 _JSON_FIELDS = frozenset({"parameters", "correction", "runs", "estimate_s"})
 _COLUMNS = tuple(JobRecord.model_fields)
 
+#: The parts of a print proven printed (schema 3), for resuming an interrupted one.
+_PART_EVENTS = """CREATE TABLE part_events (
+    seq        INTEGER PRIMARY KEY AUTOINCREMENT,
+    job_id     TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+    run        INTEGER NOT NULL CHECK (run >= 1),          -- the print run (len(runs) + 1 then)
+    side       TEXT NOT NULL CHECK (side IN ('front', 'back')),
+    part       INTEGER NOT NULL CHECK (part >= 0),         -- the part's place in the side's program
+    event      TEXT NOT NULL CHECK (event IN ('started', 'done', 'skipped', 'reprint')),
+    line       INTEGER,
+    at         REAL NOT NULL
+);
+CREATE INDEX part_events_job ON part_events (job_id, run, side, part, seq)"""
+
 _SCHEMA = """
 CREATE TABLE jobs (
     seq              INTEGER PRIMARY KEY AUTOINCREMENT,  -- creation order
@@ -136,18 +149,7 @@ CREATE TABLE transitions (
     reason     TEXT
 );
 CREATE INDEX transitions_job ON transitions (job_id, seq);
-CREATE TABLE part_events (
-    seq        INTEGER PRIMARY KEY AUTOINCREMENT,
-    job_id     TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
-    run        INTEGER NOT NULL CHECK (run >= 1),          -- the print run (len(runs) + 1 then)
-    side       TEXT NOT NULL CHECK (side IN ('front', 'back')),
-    part       INTEGER NOT NULL CHECK (part >= 0),         -- the part's place in the side's program
-    event      TEXT NOT NULL CHECK (event IN ('started', 'done', 'skipped', 'reprint')),
-    line       INTEGER,
-    at         REAL NOT NULL
-);
-CREATE INDEX part_events_job ON part_events (job_id, run, side, part, seq);
-"""
+""" + _PART_EVENTS + ";\n"
 
 #: ``_MIGRATIONS[v]`` brings a database from version v to v + 1.
 _MIGRATIONS: dict[int, str] = {
@@ -155,17 +157,7 @@ _MIGRATIONS: dict[int, str] = {
     1: "ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'design'; ALTER TABLE jobs ADD COLUMN runs TEXT; "
        "ALTER TABLE jobs ADD COLUMN estimate_s TEXT",
     # 3: the parts (ribbons, marks) of a print proven printed, for resuming an interrupted one (issue 16)
-    2: """CREATE TABLE part_events (
-    seq        INTEGER PRIMARY KEY AUTOINCREMENT,
-    job_id     TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
-    run        INTEGER NOT NULL CHECK (run >= 1),          -- the print run (len(runs) + 1 then)
-    side       TEXT NOT NULL CHECK (side IN ('front', 'back')),
-    part       INTEGER NOT NULL CHECK (part >= 0),         -- the part's place in the side's program
-    event      TEXT NOT NULL CHECK (event IN ('started', 'done', 'skipped', 'reprint')),
-    line       INTEGER,
-    at         REAL NOT NULL
-);
-CREATE INDEX part_events_job ON part_events (job_id, run, side, part, seq)""",
+    2: _PART_EVENTS,
 }
 
 #: What a part's events make of it (its last event decides).
