@@ -20,7 +20,7 @@ import httpx
 import pytest
 
 from ribbond.jobs import JobState
-from ribbond.printer import PrinterLink, Timeouts
+from ribbond.printer import Capabilities, PrinterLink, Timeouts
 from ribbond.store import SCHEMA_VERSION, JobStore
 from sim import FaultConfig
 
@@ -169,7 +169,9 @@ async def test_a_barrier_line_goes_out_only_after_every_line_before_it_is_acknow
     has not been sent (so what the host records at that moment precedes it). Without barriers the
     window does send past k early (the check can fail); with them every line still runs once, in order."""
     sim = make_sim(faults)
-    link = PrinterLink(sim.port, sim.config.baud, timeouts=Timeouts(default_s=0.5, probes=4), boot_wait_s=1.0)
+    # the window of the simulated board (128 bytes), so that it can run past a barrier
+    link = PrinterLink(sim.port, sim.config.baud, timeouts=Timeouts(default_s=0.5, probes=4), boot_wait_s=1.0,
+                       capabilities=Capabilities(rx_buffer_bytes=sim.config.rx_buffer - 1))
     await link.connect()
     program = moves(400)
     barriers = frozenset(range(20, 400, 37))
