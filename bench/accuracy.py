@@ -8,7 +8,12 @@ vertices of each field. Then whole designs of the torus patch and the saddles: t
 centerlines carried back onto the target (length-weighted) against the exact k1, and the report's
 spacing errors (across: gap to the next centerline against the harmonic mean of μ2 over it).
 
-    python bench/accuracy.py [--quick]
+    python bench/accuracy.py [--quick] [--ribbons-only] [--integrability W ...]
+
+``--integrability`` runs the designs once per weight given ([solver]
+spacing_integrability_weight; default: the settings' own), and the ribbon table also gives the
+flattening's σ1 and σ2 ranges (2nd–98th percentile) against the bounds, the share of faces outside
+them, and the median angle of the stretch direction off k1 (Table 1's column; 0 where Eq. 3 is 0).
 
 Goals: field median ≤ 1°, p95 ≤ 5° (≤ 3° median on the bump, with its large umbilic regions); no
 more singular vertices than the KCPS13 field plus a few; ribbons ≤ 2° median, ≤ 8° p95, across
@@ -79,10 +84,11 @@ def field_table(quick: bool) -> None:
         print(row, flush=True)
 
 
-def ribbon_table() -> None:
+def ribbon_table(weights: list[float | None]) -> None:
     from ribbond.design.folder import read_design_folder
     from ribbond.design.mesh_io import write_obj
-    from ribbond.design.params import DesignParameters
+    from ribbond.design.params import DesignParameters, SolverSettings
+    from ribbond.design.report import BAD_TOLERANCE, bounds_deviation
     from ribbond.design.pipeline import design_mesh, write_design
 
     cases = [
@@ -95,14 +101,24 @@ def ribbon_table() -> None:
         ("saddle κ 1/30, 1/60", S.saddle(100.0, 1 / 30, 1 / 60, rings=24),
          lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
     ]
-    print(f"\n{'design (size: the frame)':<26} {'ribbons':>7} {'front':>5} | {'vs exact k1: median':>19} {'p95':>5} | "
-          f"{'report: median':>14} {'p95':>5} | {'across median':>13} {'p95':>5} | {'along median':>12} {'p95':>5}")
+    params = DesignParameters()
+    (lo1, hi1), (lo2, hi2) = params.bounds
+    print(f"\n{'design (size: the frame)':<26} {'weight':>6} {'ribbons':>7} {'front':>5} | {'vs exact k1: median':>19} "
+          f"{'p95':>5} | {'report: median':>14} {'p95':>5} | {'across median':>13} {'p95':>5} | {'along median':>12} "
+          f"{'p95':>5} | σ1 in [{lo1:g}, {hi1:g}] {'out':>4} | σ2 in [{lo2:g}, {hi2:.3f}] {'out':>4} | {'stretch dir off k1 median °':>7}")
     with tempfile.TemporaryDirectory() as tmp:
-        for name, (V, F), exact in cases:
+        for (name, (V, F), exact), weight in ((c, w) for c in cases for w in weights):
             d = Path(tmp) / f"design{len(list(Path(tmp).iterdir()))}"
             d.mkdir()
             write_obj(d / "m.obj", V, F)
-            result = design_mesh(d / "m.obj", DesignParameters(), predict=False)
+            solver = SolverSettings() if weight is None else SolverSettings(spacing_integrability_weight=weight)
+            result = design_mesh(d / "m.obj", params, solver, predict=False)
+            fl = result.flattening
+            s1, s2 = fl.sigma[:, 0], fl.sigma[:, 1]
+            out1 = 100 * np.mean(bounds_deviation(s1, lo1, hi1) > BAD_TOLERANCE)
+            out2 = 100 * np.mean(bounds_deviation(s2, lo2, hi2) > BAD_TOLERANCE)
+            # Table 1's column: the stretch direction off k1 (0 where Eq. 3's energy is zero)
+            residual = float(np.degrees(np.median(fl.deviation)))
             folder = read_design_folder(write_design(result, d / "design"))
             Vt = folder.target_V
             c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
@@ -113,19 +129,26 @@ def ribbon_table() -> None:
             rep = folder.design.report
             rr = rep.ribbons
             front = sum(r.side == "front" for r in folder.design.ribbons)
-            print(f"{name:<26} {len(folder.design.ribbons):>7} {front:>5} | {weighted_quantile(dev, w, .5):>19.2f} "
+            w_used = solver.spacing_integrability_weight
+            print(f"{name:<26} {w_used:>6g} {len(folder.design.ribbons):>7} {front:>5} | {weighted_quantile(dev, w, .5):>19.2f} "
                   f"{weighted_quantile(dev, w, .95):>5.2f} | {rep.ribbon_k1_deviation_deg.median:>14.2f} "
                   f"{rep.ribbon_k1_deviation_deg.p95:>5.2f} | {rr.spacing_error_across_pct.median:>12.1f}% "
                   f"{rr.spacing_error_across_pct.p95:>4.1f}% | {rr.spacing_error_along_pct.median:>11.1f}% "
-                  f"{rr.spacing_error_along_pct.p95:>4.1f}%", flush=True)
+                  f"{rr.spacing_error_along_pct.p95:>4.1f}% | {np.percentile(s1, 2):>6.3f}–{np.percentile(s1, 98):<6.3f} "
+                  f"{out1:>3.1f}% | {np.percentile(s2, 2):>7.3f}–{np.percentile(s2, 98):<7.3f} {out2:>3.1f}% | "
+                  f"{residual:>7.3f}", flush=True)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="two resolutions instead of three")
+    ap.add_argument("--ribbons-only", action="store_true", help="skip the line-field table")
+    ap.add_argument("--integrability", type=float, nargs="+", default=None, metavar="W",
+                    help="[solver] spacing_integrability_weight values to run the designs with")
     args = ap.parse_args()
-    field_table(args.quick)
-    ribbon_table()
+    if not args.ribbons_only:
+        field_table(args.quick)
+    ribbon_table(args.integrability or [None])
     return 0
 
 

@@ -65,7 +65,8 @@ def optimal_rotation(P00: np.ndarray, P01: np.ndarray, P10: np.ndarray,
 
 
 def local_step(JRt: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], sigma1: np.ndarray,
-               sigma2: np.ndarray, bounds: np.ndarray, passes: int = 2
+               sigma2: np.ndarray, bounds: np.ndarray, passes: int = 2,
+               sigma2_step: Callable[[np.ndarray], np.ndarray] | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The local step: R by Eq. 7, then Σ by Eq. 5, ``passes`` times (§4.3: twice).
 
@@ -75,6 +76,8 @@ def local_step(JRt: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], sigma
         from the frame of k1.
     sigma1, sigma2 : (m,) current stretches (used by the first R).
     bounds : (2, 2) [[σ1min, σ1max], [σ2min, σ2max]].
+    sigma2_step : when given, maps the unclamped σ̂2 (m,) to the σ2 to clamp (the coupled step of
+        ``RowCountCoupling``); None: σ2 = σ̂2 clamped, face by face (Eq. 5).
 
     Returns
     -------
@@ -87,8 +90,98 @@ def local_step(JRt: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], sigma
     for _ in range(passes):
         cos, sin = optimal_rotation(A * sigma1, B * sigma2, C * sigma1, D * sigma2)  # P = J R_θᵀ Σ
         sigma1 = np.clip(cos * A + sin * C, bounds[0, 0], bounds[0, 1])
-        sigma2 = np.clip(cos * D - sin * B, bounds[1, 0], bounds[1, 1])
+        hat2 = cos * D - sin * B
+        sigma2 = np.clip(hat2 if sigma2_step is None else sigma2_step(hat2), bounds[1, 0], bounds[1, 1])
     return cos, sin, sigma1, sigma2
+
+
+def row_curl_operator(F: np.ndarray, frames: FaceFrames, k1_angle: np.ndarray,
+                      n_vertices: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The discrete curl of per-face tangent fields g_f k2_f at the interior vertices.
+
+    Row v of C holds, for each face f around v, ⟨k2_f, e⟩ with e the edge of f opposite v
+    (counter-clockwise): (C g)_v is half the circulation ∮ g k2 · dl around v's star, ≈ A_v curl(g k2).
+    k2 (k1 turned by +90° in the face frame) is a line field; each face's k2 is signed to agree
+    with its vertex's mean line (the principal axis of Σ A_f k2 k2ᵀ). Boundary vertices (no closed
+    star) and vertices whose faces disagree by more than 45° with that line (a singularity) get
+    empty rows.
+
+    Returns
+    -------
+    C : (n, m) sparse; vertex_area : (n,) a third of the adjacent faces' areas.
+    """
+    m = len(F)
+    k2 = frames.to_world(np.column_stack([-np.sin(k1_angle), np.cos(k1_angle)]))   # (m, 3)
+    tensor = np.einsum("f,fi,fj->fij", frames.area, k2, k2).reshape(m, 9)
+    T = np.column_stack([np.bincount(F.ravel(), weights=np.repeat(tensor[:, c], 3), minlength=n_vertices)
+                         for c in range(9)]).reshape(-1, 3, 3)
+    axis = np.linalg.eigh(T)[1][:, :, -1]                                          # (n, 3)
+    agree = np.einsum("fkc,fc->fk", axis[F], k2)                                   # (m, 3)
+    X = frames.X
+    opposite = np.roll(X, -2, axis=1) - np.roll(X, -1, axis=1)                     # e opposite corner k
+    k2_local = np.column_stack([-np.sin(k1_angle), np.cos(k1_angle)])
+    # half the circulation: the weak (FEM) curl ∫ g k2 · ∇⊥φ_v ≈ A_v curl
+    vals = 0.5 * np.sign(agree) * np.einsum("fkc,fc->fk", opposite, k2_local)
+    he = np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
+    key = np.minimum(he[:, 0], he[:, 1]) * n_vertices + np.maximum(he[:, 0], he[:, 1])
+    uniq, inverse, count = np.unique(key, return_inverse=True, return_counts=True)
+    on_boundary = np.zeros(n_vertices, dtype=bool)
+    on_boundary[he[count[inverse] == 1].ravel()] = True
+    worst = np.full(n_vertices, np.inf)
+    np.minimum.at(worst, F.ravel(), np.abs(agree).ravel())
+    keep = ~on_boundary & (worst > np.cos(np.pi / 4))
+    rows, cols = F.ravel(), np.repeat(np.arange(m), 3)
+    sel = keep[rows]
+    C = sp.csr_matrix((vals.ravel()[sel], (rows[sel], cols[sel])), shape=(n_vertices, m))
+    vertex_area = np.bincount(F.ravel(), weights=np.repeat(frames.area / 3.0, 3), minlength=n_vertices)
+    return C, vertex_area
+
+
+class RowCountCoupling:
+    """The σ2-step with Eq. 10's rows made countable along k1 (``spacing_integrability_weight``).
+
+    θ's frequency on the flat surface is ω = (π / μ2) n̄, n̄ ⟂ the ribbon direction J k1. Where
+    J = R Σ R_θ (Eq. 3 at zero), ω pulled back to the target is (π σ2 / μ2) k2♭, and by Eq. 10
+    σ2 / μ2 = (s − σ2) / (w_r (s − 1)): linear in σ2. A phase with that gradient exists (rows both
+    along k1 and spaced by Eq. 10) only where curl((s − σ2) k2) = 0: the number of rows between
+    two neighbouring k1 lines stays constant along them. This adds to Eq. 3
+
+        E_c = β Σ_v (C (s − σ2))_v² / A_v,   β = weight · (target area),
+
+    (the squared curl, integrated; the area makes ``weight`` independent of the size), and the
+    σ2 part of the local step becomes the linear solve of Σ_f A_f (σ2 − σ̂2)² + E_c (one matrix,
+    factorized once here), then Eq. 5's clamp to the bounds, so the term never moves σ2 outside them.
+    """
+
+    def __init__(self, F: np.ndarray, frames: FaceFrames, k1_angle: np.ndarray, n_vertices: int,
+                 prestretch: float, weight: float) -> None:
+        if not weight > 0:
+            raise ValueError(f"spacing_integrability_weight = {weight}: the coupling needs a weight > 0")
+        if not prestretch > 1:
+            raise ValueError(f"prestretch = {prestretch}: must be > 1 (Eq. 10)")
+        C, vertex_area = row_curl_operator(F, frames, k1_angle, n_vertices)
+        inv_area = np.where(vertex_area > 0, 1.0 / np.maximum(vertex_area, 1e-300), 0.0)
+        self.beta = float(weight * frames.area.sum())
+        self.C = C
+        self.H = (self.beta * (C.T @ sp.diags(inv_area) @ C)).tocsc()              # (m, m)
+        self._inv_area = inv_area
+        self.area = frames.area
+        self.prestretch = float(prestretch)
+        self._Hs = self.H @ np.full(len(F), self.prestretch)
+        self._factor = SymmetricFactor(sp.diags(self.area) + self.H)
+
+    def energy(self, sigma2: np.ndarray) -> float:
+        """E_c at the stretches ``sigma2`` (m,)."""
+        c = self.C @ (self.prestretch - sigma2)
+        return float(self.beta * (c * c) @ self._inv_area)
+
+    def gradient(self, sigma2: np.ndarray) -> np.ndarray:
+        """∂E_c / ∂σ2 (m,)."""
+        return -2.0 * (self.H @ (self.prestretch - sigma2))
+
+    def step(self, hat2: np.ndarray) -> np.ndarray:
+        """argmin over σ2 of Σ_f A_f (σ2 − σ̂2)² + E_c(σ2), before the clamp."""
+        return self._factor.solve(self.area * hat2 + self._Hs)
 
 
 @dataclass
@@ -139,11 +232,13 @@ class BoundedFlattener:
     bounds : ((σ1min, σ1max), (σ2min, σ2max)).
     settings : solver settings (tolerance, cap, Anderson window, SLIM iterations).
     frames : the faces' isometric frames, if already computed.
+    prestretch : the fabric's s (Eq. 10); used only by ``settings.spacing_integrability_weight``.
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, k1_angle: np.ndarray,
                  bounds: tuple[tuple[float, float], tuple[float, float]],
-                 settings: SolverSettings | None = None, frames: FaceFrames | None = None) -> None:
+                 settings: SolverSettings | None = None, frames: FaceFrames | None = None,
+                 prestretch: float = 1.6) -> None:
         self.V = np.ascontiguousarray(V, dtype=np.float64)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
         self.settings = settings or SolverSettings()
@@ -154,6 +249,7 @@ class BoundedFlattener:
             raise ValueError(f"k1_angle has shape {np.shape(k1_angle)}, expected ({len(F)},)")
         self.frames = frames or face_frames(self.V, self.F)
         self.k1_angle = np.asarray(k1_angle, dtype=np.float64)
+        self.prestretch = float(prestretch)
         self._ct, self._st = np.cos(self.k1_angle), np.sin(self.k1_angle)
         n, m = len(self.V), len(self.F)
         self.G = gradient_operator(self.F, self.frames, n)
@@ -166,6 +262,10 @@ class BoundedFlattener:
         self._factor = SymmetricFactor(L[: n - 1, : n - 1])
         self.area = self.frames.area
         self._m = m
+        self.coupling: RowCountCoupling | None = None
+        if self.settings.spacing_integrability_weight > 0:
+            self.coupling = RowCountCoupling(self.F, self.frames, self.k1_angle, n, prestretch,
+                                             self.settings.spacing_integrability_weight)
 
     # -- the pieces of one iteration ---------------------------------------------------------
 
@@ -187,9 +287,12 @@ class BoundedFlattener:
         m, ct, st = self._m, self._ct, self._st
         a, b, c, d = g[:m, 0], g[m:, 0], g[:m, 1], g[m:, 1]        # J = [[a, b], [c, d]]
         JRt = (a * ct + b * st, b * ct - a * st, c * ct + d * st, d * ct - c * st)
+        # the coupling acts with the design's bounds only (not in the fixed-Σ first phase)
+        coupled = self.coupling if bounds is None else None
         cos, sin, sigma1, sigma2 = local_step(JRt, sigma1, sigma2,
                                               self.bounds if bounds is None else bounds,
-                                              self.settings.local_passes)
+                                              self.settings.local_passes,
+                                              None if coupled is None else coupled.step)
         cs1, ss1, cs2, ss2 = cos * sigma1, sin * sigma1, cos * sigma2, sin * sigma2
         targets = np.empty((2 * m, 2))
         targets[:m, 0] = cs1 * ct + ss2 * st                       # M00
@@ -198,7 +301,10 @@ class BoundedFlattener:
         targets[m:, 1] = ss1 * st + cs2 * ct                       # M11
         r = g - targets
         density = r[:m, 0] ** 2 + r[m:, 0] ** 2 + r[:m, 1] ** 2 + r[m:, 1] ** 2
-        return targets, sigma1, sigma2, float(self.area @ density)
+        energy = float(self.area @ density)
+        if coupled is not None:
+            energy += coupled.energy(sigma2)
+        return targets, sigma1, sigma2, energy
 
     def global_step(self, targets: np.ndarray, pinned_at: np.ndarray) -> np.ndarray:
         """Solve Eq. 9 for the flat positions (n, 2) with the pinned vertex at ``pinned_at``."""
@@ -270,7 +376,8 @@ class BoundedFlattener:
         direction = self.frames.to_world(np.column_stack([self._ct, self._st]))[birth_face]
         local = coarse_frames.to_local(direction)
         coarse = BoundedFlattener(U, G, np.arctan2(local[:, 1], local[:, 0]), self.bounds,
-                                  st.model_copy(update={"coarse_faces": 0}), frames=coarse_frames)
+                                  st.model_copy(update={"coarse_faces": 0}), frames=coarse_frames,
+                                  prestretch=self.prestretch)
         uv_coarse = coarse.solve().uv
         _, face, closest = igl.point_mesh_squared_distance(V, U, G)
         corners = G[face]

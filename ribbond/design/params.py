@@ -118,6 +118,10 @@ class SolverSettings(BaseModel):
     mid_bounds_iterations: int = Field(
         500, ge=0, description="cap on the first phase, which aims every face at the middle of "
         "the bounds before the bounded iteration (the most uniform flattening); 0 turns it off")
+    spacing_integrability_weight: float = Field(
+        0.0, ge=0, description="the flattening also penalizes the curl of (s − σ2) k2, so that the rows "
+        "Eq. 10 asks for can be counted along k1 (θ's frequency integrable), this much against Eq. 3 "
+        "(per unit target area); σ2 stays within its bounds; 0: Eq. 3 alone")
     stripe_edge_fraction: float = Field(
         0.15, gt=0, le=1, description="the stripe patterns are computed on a triangulation of the flat "
         "surface with edges of this share of the shortest stripe period")

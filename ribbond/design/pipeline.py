@@ -185,7 +185,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     # -- flattening -------------------------------------------------------------------------------
     progress.stage_started("flatten", "bounded directional flattening")
     t = time.perf_counter()
-    flattener = BoundedFlattener(V, F, field.angle, params.bounds, solver, frames=frames)
+    flattener = BoundedFlattener(V, F, field.angle, params.bounds, solver, frames=frames,
+                                 prestretch=params.prestretch)
     flat = flattener.solve(boundary=target.boundary,
                            progress=lambda i, dsig, e: progress.iteration("flatten", i, dsig, e))
     if flat.folded.any():

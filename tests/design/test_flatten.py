@@ -5,8 +5,8 @@ import pytest
 
 from ribbond.design import surfaces
 from ribbond.design.curvature import face_curvature
-from ribbond.design.flatten import (BoundedFlattener, local_step, optimal_rotation,
-                                    principal_stretches)
+from ribbond.design.flatten import (BoundedFlattener, RowCountCoupling, local_step, optimal_rotation,
+                                    principal_stretches, row_curl_operator)
 from ribbond.design.frames import face_frames
 from ribbond.design.line_field import curvature_line_field
 from ribbond.design.params import DesignParameters, SolverSettings
@@ -153,3 +153,83 @@ def test_coarse_to_fine_start_flattens_within_the_bounds():
     assert bad_pct(res) == (0.0, 0.0)
     # The same minimum of Eq. 3 as from the fine mesh's own start: (nearly) zero.
     assert res.energy / fr.area.sum() < 1e-6
+
+
+def _torus_with_exact_k1(nu, nv, R=50.0, r=20.0):
+    V, F = surfaces.torus_patch(R, r, u_deg=(0, 60), v_deg=(-30, 30), nu=nu, nv=nv)
+    fr = face_frames(V, F)
+    local = fr.to_local(surfaces.torus_curvature(V[F].mean(axis=1), R, r).direction1)
+    return V, F, fr, np.arctan2(local[:, 1], local[:, 0])
+
+
+def test_row_curl_operator_is_the_curl_on_the_torus():
+    # k2 runs along the parallels, |k2♭| = ρ dθ with ρ = R + r cos v: curl(k2) = −sin v / ρ
+    # (d(ρ dθ) = −r sin v dv ∧ dθ over the area form r ρ dv ∧ dθ), and (1/ρ) k2♭ = dθ is closed.
+    R, r = 50.0, 20.0
+    V, F, fr, angle = _torus_with_exact_k1(40, 20, R, r)
+    C, vertex_area = row_curl_operator(F, fr, angle, len(V))
+    interior = np.asarray(abs(C).sum(axis=1)).ravel() > 0
+    boundary_count = 2 * (40 + 1) + 2 * (20 - 1)
+    assert interior.sum() == len(V) - boundary_count       # only the boundary is left out
+    v = np.arctan2(V[:, 2], np.hypot(V[:, 0], V[:, 1]) - R)[interior]
+    exact = np.sin(v) / (R + r * np.cos(v))
+    curl = (C @ np.ones(len(F)))[interior] / vertex_area[interior]
+    # each vertex signs its own k2, so the sign of a row is its own choice
+    assert np.allclose(np.abs(curl), np.abs(exact), atol=1e-3 * np.abs(exact).max())
+    rho = np.hypot(*V[F].mean(axis=1)[:, :2].T)
+    closed = (C @ (1.0 / rho))[interior] / vertex_area[interior]
+    assert np.abs(closed).max() < 1e-3 * np.abs(exact).max() / R
+
+
+def test_coupled_sigma2_step_minimizes_with_the_fd_checked_gradient():
+    V, F, fr, angle = _torus_with_exact_k1(16, 8)
+    s = 1.6
+    coupling = RowCountCoupling(F, fr, angle, len(V), s, weight=5.0)
+    rng = np.random.default_rng(7)
+    sigma2 = rng.uniform(1.3, 1.5, len(F))
+    direction = rng.normal(size=len(F))
+    h = 1e-6
+    fd = (coupling.energy(sigma2 + h * direction) - coupling.energy(sigma2 - h * direction)) / (2 * h)
+    assert np.isclose(coupling.gradient(sigma2) @ direction, fd, rtol=1e-6)
+    # the step is the stationary point of Σ A (σ2 − σ̂2)² + E_c
+    hat = rng.uniform(1.3, 1.5, len(F))
+    step = coupling.step(hat)
+    total_grad = 2 * fr.area * (step - hat) + coupling.gradient(step)
+    assert np.abs(total_grad).max() < 1e-8 * np.abs(2 * fr.area * (hat - s)).max()
+    # a σ2 with curl((s − σ2) k2) = 0, s − σ2 ∝ 1/ρ, costs nothing
+    rho = np.hypot(*V[F].mean(axis=1)[:, :2].T)
+    assert coupling.energy(s - 14.0 / rho) < 1e-4 * coupling.energy(np.full(len(F), 1.4))   # O(h²) left
+
+
+def _row_count_spread(V, F, sigma2, s=1.6, nu=40):
+    """Per meridian (a column of faces at one u), the relative spread of the rows across it per
+    unit angle, (s − σ2) ρ (Eq. 10: σ2 / μ2 = (s − σ2) / (w_r (s − 1))): 0 when they can be counted."""
+    c = V[F].mean(axis=1)
+    u = np.arctan2(c[:, 1], c[:, 0])
+    column = np.clip(((u - u.min()) / np.ptp(u) * nu).astype(int), 0, nu - 1)
+    count = (s - sigma2) * np.hypot(c[:, 0], c[:, 1])
+    mean = np.bincount(column, count) / np.bincount(column)
+    spread = np.sqrt(np.bincount(column, (count - mean[column]) ** 2) / np.bincount(column))
+    return float(np.median(spread / mean))
+
+
+def test_integrability_weight_makes_the_rows_countable_along_k1():
+    V, F = surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30), nu=40, nv=20)
+    _, _, _, plain = flatten(V, F)
+    _, _, _, coupled = flatten(V, F, spacing_integrability_weight=1e-3)
+    assert coupled.converged and not coupled.folded.any()
+    before, after = _row_count_spread(V, F, plain.sigma[:, 1]), _row_count_spread(V, F, coupled.sigma[:, 1])
+    assert after < before / 1.5
+    # σ2 stays within its bounds (the clamp); σ1 takes the torus's Gauss curvature instead,
+    # within 1 % of its bounds (Eq. 3 is no longer exactly zero there)
+    (lo1, hi1), (lo2, hi2) = BOUNDS
+    assert bad_pct(coupled)[1] == 0.0
+    assert lo1 * 0.99 < coupled.sigma[:, 0].min() and coupled.sigma[:, 0].max() < hi1 * 1.01
+
+
+def test_integrability_weight_is_refused_below_zero():
+    with pytest.raises(ValueError):
+        SolverSettings(spacing_integrability_weight=-1.0)
+    V, F, fr, angle = _torus_with_exact_k1(6, 3)
+    with pytest.raises(ValueError, match="weight"):
+        RowCountCoupling(F, fr, angle, len(V), 1.6, weight=0.0)
