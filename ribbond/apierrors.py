@@ -168,7 +168,10 @@ def install(app: FastAPI) -> None:
         if isinstance(exc, ValidationError):        # a model checked in the service: its fields
             items = _items(exc.errors(include_url=False, include_input=False))
             return _json(422, {"detail": bounded(f"{exc.title}: {_summary(items)}"), "errors": items})
-        return _json(422, {"detail": bounded(str(exc)), "errors": []})
+        # a refusal that knows its fields (design parameters) lists them; others name them in words
+        fields = getattr(exc, "errors", None)
+        items = _items(fields) if isinstance(fields, list) else []
+        return _json(422, {"detail": bounded(str(exc)), "errors": items})
 
 
 def _methods(app: FastAPI, request: Request) -> set[str]:

@@ -218,6 +218,17 @@ def _problem(err: Any, section: str | None) -> str:
     return f"{shown}: {err['msg'].removeprefix('Value error, ')}"
 
 
+class ParameterError(ValueError):
+    """Design parameters refused: the message names each field as the user wrote it; ``errors``
+    lists them as ``{loc, msg, type}`` (loc in the user's layout, e.g. ``["solver", "tolerance"]``)."""
+
+    def __init__(self, exc: ValidationError, section: str | None) -> None:
+        problems = exc.errors(include_url=False)
+        super().__init__("; ".join(_problem(err, section) for err in problems))
+        self.errors = [{"loc": ([section] if section else []) + list(err["loc"]), "msg": _problem(err, section),
+                        "type": err["type"]} for err in problems]
+
+
 def settings_from_dict(data: dict[str, Any]) -> DesignSettings:
     """``DesignSettings`` from the ``--params`` layout: design parameters at the top level and an
     optional ``solver`` table.
@@ -237,15 +248,15 @@ def settings_from_dict(data: dict[str, Any]) -> DesignSettings:
     try:
         parameters = DesignParameters(**data)
     except ValidationError as exc:
-        raise ValueError("; ".join(_problem(err, None) for err in exc.errors())) from None
+        raise ParameterError(exc, None) from None
     try:
         settings = SolverSettings(**solver)
     except ValidationError as exc:
-        raise ValueError("; ".join(_problem(err, "solver") for err in exc.errors())) from None
+        raise ParameterError(exc, "solver") from None
     try:
         return DesignSettings(parameters=parameters, solver=settings)
     except ValidationError as exc:
-        raise ValueError("; ".join(_problem(err, None) for err in exc.errors())) from None
+        raise ParameterError(exc, None) from None
 
 
 def check_printable(params: DesignParameters, frame_size: tuple[float, float], nozzle_diameter: float) -> None:

@@ -6,6 +6,7 @@ A simulated printer (``python -m sim`` on a real pty, driven through its control
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -237,15 +238,22 @@ def shared_sim() -> Iterator[Sim]:
         sim.stop()
 
 
-@pytest.fixture(scope="module")
-def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
-    daemon = Daemon(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port)
+@contextlib.contextmanager
+def running(state_dir: Path, port: str, **options: Any) -> Iterator[Daemon]:
+    """A daemon on the printer at ``port``, started and connected (its client ready), stopped after."""
+    daemon = Daemon(state_dir, port, **options)
     try:
         daemon.start()
         daemon.wait_printer()
         yield daemon
     finally:
         daemon.stop()
+
+
+@pytest.fixture(scope="module")
+def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
+    with running(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port) as daemon:
+        yield daemon
 
 
 @pytest.fixture

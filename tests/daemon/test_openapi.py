@@ -17,7 +17,7 @@ import httpx
 import jsonschema_rs
 import pytest
 
-from .conftest import Daemon, Sim, cancel_leftovers
+from .conftest import Daemon, Sim, cancel_leftovers, running
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -32,14 +32,9 @@ SAFE = {"get", "head", "options"}
 @pytest.fixture(scope="module")
 def fuzzed(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
     """A daemon with a token on the simulator; small limits keep generated uploads cheap."""
-    daemon = Daemon(tmp_path_factory.mktemp("ribbond-openapi"), shared_sim.port, api=f'token = "{TOKEN}"',
-                    extra="[limits]\nmax_upload_mb = 1\nmax_faces = 2000\nmax_jobs = 20\n", token=TOKEN)
-    try:
-        daemon.start()
-        daemon.wait_printer()
+    with running(tmp_path_factory.mktemp("ribbond-openapi"), shared_sim.port, api=f'token = "{TOKEN}"',
+                 extra="[limits]\nmax_upload_mb = 1\nmax_faces = 2000\nmax_jobs = 20\n", token=TOKEN) as daemon:
         yield daemon
-    finally:
-        daemon.stop()
 
 
 @pytest.fixture(scope="module")
