@@ -72,3 +72,24 @@ def test_bad_start_is_refused():
         newton(E, np.full((len(UV), 3), np.nan))
     with pytest.raises(ValueError, match="hessian"):
         newton(E, np.column_stack([UV, np.zeros(len(UV))]), hessian="bfgs")
+
+
+def test_factor_in_a_given_order_solves_and_tells_definiteness():
+    """The LDLᵀ in an order found once (the Newton loop's reuse) solves like the first one, and an
+    indefinite matrix in that order is reported as not positive definite."""
+    import scipy.sparse as sp
+
+    from ribbond.deploy.solver import _Factor
+
+    rng = np.random.default_rng(2)
+    n = 40
+    L = sp.random(n, n, density=0.1, random_state=3) + sp.identity(n)
+    A = (L @ L.T + sp.identity(n)).tocsc()
+    b = rng.standard_normal(n)
+    first = _Factor(A)
+    assert first.positive_definite
+    again = _Factor((2.0 * A).tocsc(), first.order)
+    assert again.positive_definite
+    np.testing.assert_allclose((2.0 * A) @ again.solve(b), b, atol=1e-10)
+    shifted = (A - 1.5 * sp.identity(n) * abs(A).max()).tocsc()
+    assert not _Factor(shifted, first.order).positive_definite
