@@ -74,9 +74,9 @@ def test_bad_start_is_refused():
         newton(E, np.column_stack([UV, np.zeros(len(UV))]), hessian="bfgs")
 
 
-def test_factor_in_a_given_order_solves_and_tells_definiteness():
-    """The LDLᵀ in an order found once (the Newton loop's reuse) solves like the first one, and an
-    indefinite matrix in that order is reported as not positive definite."""
+def test_factor_reused_on_its_pattern_solves_and_tells_definiteness():
+    """The Cholesky analysed once (Newton's reuse) solves each matrix of that pattern, tells an
+    indefinite one, and still solves after such a failure."""
     import scipy.sparse as sp
 
     from ribbond.deploy.solver import _Factor
@@ -85,11 +85,14 @@ def test_factor_in_a_given_order_solves_and_tells_definiteness():
     n = 40
     L = sp.random(n, n, density=0.1, random_state=3) + sp.identity(n)
     A = (L @ L.T + sp.identity(n)).tocsc()
+    A.sort_indices()
     b = rng.standard_normal(n)
-    first = _Factor(A)
-    assert first.positive_definite
-    again = _Factor((2.0 * A).tocsc(), first.order)
-    assert again.positive_definite
-    np.testing.assert_allclose((2.0 * A) @ again.solve(b), b, atol=1e-10)
-    shifted = (A - 1.5 * sp.identity(n) * abs(A).max()).tocsc()
-    assert not _Factor(shifted, first.order).positive_definite
+    fac = _Factor(A)
+    assert fac.factor(A)
+    np.testing.assert_allclose(A @ fac.solve(b), b, atol=1e-10)
+    shifted = A.copy()
+    shifted.data[A.indices == np.repeat(np.arange(n), np.diff(A.indptr))] -= 1.5 * abs(A).max()
+    assert np.linalg.eigvalsh(shifted.toarray()).min() < 0
+    assert not fac.factor(shifted)
+    assert fac.factor(2.0 * A)
+    np.testing.assert_allclose((2.0 * A) @ fac.solve(b), b, atol=1e-10)
