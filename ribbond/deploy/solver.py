@@ -151,7 +151,8 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
     hessian : ``"regularized"``: the exact Hessian plus μ × its mean diagonal, μ from the last one
         that worked, raised ×30 up to 1e-3 until positive definite, lowered after three successes
         (Levenberg; μ starts at 1e-9), else the positive semidefinite approximation (near a stable equilibrium
-        it is Newton's method, quadratic); ``"projected"``: the positive semidefinite one always
+        it is Newton's method, quadratic); while even 1e-3 fails and the positive semidefinite one
+        is used, the exact one is tried again only every third iteration; ``"projected"``: the positive semidefinite one always
         (converges only linearly where the sheet is under compression, whose negative curvature it
         discards).
     """
