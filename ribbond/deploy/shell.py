@@ -317,6 +317,7 @@ class BendingQuadratic:
     H: sp.csr_matrix
     g: np.ndarray
     c: float
+    face_H: np.ndarray | None = None     # (m, 3, 3) per face over its edges (H = Σ_f scatter(face_H))
 
     def value(self, s: np.ndarray) -> float:
         return float(0.5 * s @ (self.H @ s) + self.g @ s + self.c)
@@ -367,7 +368,7 @@ def bending_quadratic(topo: ShellTopology, abar: np.ndarray, bbar: np.ndarray, c
     cols = np.tile(fe, (1, 3)).ravel()
     Hs = sp.csr_matrix((H.ravel(), (rows, cols)), shape=(topo.n_edges, topo.n_edges))
     gs = np.bincount(fe.ravel(), weights=g.ravel(), minlength=topo.n_edges)
-    return BendingQuadratic(H=Hs, g=gs, c=float(c.sum()))
+    return BendingQuadratic(H=Hs, g=gs, c=float(c.sum()), face_H=H)
 
 
 # -- the whole energy ---------------------------------------------------------------------------------
@@ -404,10 +405,7 @@ class ShellEnergy:
         hd = 3 * self.topo.hinge[:, :, None] + np.arange(3)
         self._hdof = hd.reshape(-1, 12)
         self._hedge = self.topo.hinge_edge
-        self._frows = np.repeat(self._fdof, 9, axis=1).ravel()
-        self._fcols = np.tile(self._fdof, (1, 9)).ravel()
-        self._rows = np.concatenate([self._frows, np.repeat(self._hdof, 12, axis=1).ravel()])
-        self._cols = np.concatenate([self._fcols, np.tile(self._hdof, (1, 12)).ravel()])
+        self._face_neighbourhoods()
 
     def _edge_values(self, s_h: np.ndarray) -> np.ndarray:
         s = np.zeros(self.topo.n_edges)
@@ -446,10 +444,17 @@ class ShellEnergy:
         second derivatives. So −H⁻¹∇E is a descent direction even where the sheet is compressed.
         """
         grad, exact, psd = self.gradient_and_hessians(X)
-        return grad, (psd() if project else exact())
+        return grad, (psd() if project else exact()).tocsr()
 
-    def gradient_and_hessians(self, X: np.ndarray):
-        """(∇E, exact(), psd()): the gradient and two functions assembling each Hessian on demand."""
+    def gradient_and_hessians(self, X: np.ndarray, free: np.ndarray | None = None):
+        """(∇E, exact(), psd()): the gradient (3n,) and two functions assembling each Hessian on demand,
+        on the rows and columns ``free`` (sorted dof indices; default all) as CSC with sorted indices.
+
+        The Hessian's sparsity is fixed, so each is one ``bincount`` of the element blocks into the
+        data of a pattern made once per ``free`` set (no COO conversion, sort or slicing per call).
+        The bending's Gauss–Newton term Jᵀ H_s J is summed per face over its three hinges:
+        J_fᵀ H_f J_f on the face and its three neighbours' opposite vertices (18 dofs).
+        """
         _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3)
         GN_e, Wa = parts
         s_h, gs, hs = hinge_tan(X, self.topo.hinge, derivatives=2)
@@ -457,27 +462,96 @@ class ShellEnergy:
         n3 = 3 * self.n
         grad = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=n3)
         grad += np.bincount(self._hdof.ravel(), weights=(lam[:, None] * gs).ravel(), minlength=n3)
-        h = len(s_h)
-        J = sp.csr_matrix((gs.ravel(), (np.repeat(np.arange(h), 12), self._hdof.ravel())), shape=(h, n3))
-        Hb = self.bending.H[self._hedge][:, self._hedge]
-        gauss_newton = (J.T @ (Hb @ J)).tocsr()
+        pattern = self._pattern(free)
+        Jf = np.zeros((len(self.F), 3, 6, 3))
+        Jf[self._nb_face[:, None], self._nb_edge[:, None], self._nb_loc] = gs[self._nb_hinge].reshape(-1, 4, 3)
+        Jf = Jf.reshape(-1, 3, 18)
+        gauss_newton = np.swapaxes(Jf, 1, 2) @ self.bending.face_H @ Jf
 
-        def assemble(He: np.ndarray, Hh: np.ndarray | None) -> sp.csr_matrix:
-            Hx = E_TO_X.T @ He @ E_TO_X
-            if Hh is None:
-                H = sp.csr_matrix((Hx.ravel(), (self._frows, self._fcols)), shape=(n3, n3))
-            else:
-                H = sp.csr_matrix((np.concatenate([Hx.ravel(), Hh.ravel()]), (self._rows, self._cols)),
-                                  shape=(n3, n3))
-            return (H + gauss_newton).tocsr()
+        def exact() -> sp.csc_matrix:
+            He = E_TO_X.T @ (GN_e + _stress_term(Wa)) @ E_TO_X
+            return pattern.assemble((He, lam[:, None, None] * hs, gauss_newton))
 
-        def exact() -> sp.csr_matrix:
-            return assemble(GN_e + _stress_term(Wa), lam[:, None, None] * hs)
-
-        def psd() -> sp.csr_matrix:
-            return assemble(GN_e + _stress_term(Wa, positive=True), None)
+        def psd() -> sp.csc_matrix:
+            He = E_TO_X.T @ (GN_e + _stress_term(Wa, positive=True)) @ E_TO_X
+            return pattern.assemble((He, None, gauss_newton))
 
         return grad, exact, psd
+
+    def _pattern(self, free: np.ndarray | None) -> "HessianPattern":
+        key = None if free is None else np.asarray(free, dtype=np.int64)
+        cached = getattr(self, "_cached_pattern", None)
+        if cached is not None and (cached.free is None if key is None
+                                   else cached.free is not None and np.array_equal(cached.free, key)):
+            return cached
+        blocks = [(self._fdof, 9), (self._hdof, 12), (self._nb_dof, 18)]
+        self._cached_pattern = HessianPattern(blocks, 3 * self.n, key)
+        return self._cached_pattern
+
+    def _face_neighbourhoods(self) -> None:
+        """Per face its three vertices and, across each edge, the opposite vertex (itself on the
+        boundary): the 18 dofs a face's bending Gauss–Newton block touches, and where each of its
+        hinges' four vertices sits among them."""
+        F, topo = self.F, self.topo
+        m = len(F)
+        hinge_of_edge = np.full(topo.n_edges, -1, dtype=np.int64)
+        hinge_of_edge[topo.hinge_edge] = np.arange(len(topo.hinge))
+        hid = hinge_of_edge[topo.face_edge]                                 # (m, 3), −1 on the boundary
+        hv = topo.hinge[np.maximum(hid, 0)]                                 # (m, 3, 4)
+        opp = np.where(hv[:, :, 0] == F, hv[:, :, 3], hv[:, :, 0])
+        nb = np.concatenate([F, np.where(hid >= 0, opp, F)], axis=1)        # (m, 6)
+        self._nb_dof = (3 * nb[:, :, None] + np.arange(3)).reshape(m, 18)
+        f_idx, e_idx = np.nonzero(hid >= 0)
+        loc = np.argmax(hv[f_idx, e_idx][:, :, None] == nb[f_idx][:, None, :], axis=2)   # (k, 4)
+        self._nb_face, self._nb_edge, self._nb_loc, self._nb_hinge = f_idx, e_idx, loc, hid[f_idx, e_idx]
+
+
+class HessianPattern:
+    """The fixed sparsity of a sum of dense element blocks, restricted to the dofs ``free``.
+
+    Parameters
+    ----------
+    blocks : per group (dofs (k, d), d): element k's block sits at rows and columns dofs[k].
+    n : the number of dofs; free : sorted dofs kept (None: all).
+    """
+
+    def __init__(self, blocks: list[tuple[np.ndarray, int]], n: int, free: np.ndarray | None) -> None:
+        self.free = free
+        index = np.arange(n) if free is None else np.full(n, -1, dtype=np.int64)
+        if free is not None:
+            index[free] = np.arange(len(free))
+        nf = n if free is None else len(free)
+        keys = []
+        for dofs, d in blocks:
+            r = index[np.repeat(dofs, d, axis=1).ravel()]
+            c = index[np.tile(dofs, (1, d)).ravel()]
+            keys.append(np.where((r >= 0) & (c >= 0), c * nf + r, -1))      # column-major: CSC order
+        allk = np.concatenate(keys)
+        uniq, inv = np.unique(allk[allk >= 0], return_inverse=True)
+        self.nnz = len(uniq)
+        slots, start = [], 0
+        for k in keys:
+            sl = np.full(len(k), self.nnz, dtype=np.int64)                  # the pinned: a spare slot
+            ok = k >= 0
+            sl[ok] = inv[start:start + int(ok.sum())]
+            start += int(ok.sum())
+            slots.append(sl)
+        self.slots = slots
+        self.indices = (uniq % nf).astype(np.int32)
+        cols = uniq // nf
+        self.indptr = np.searchsorted(cols, np.arange(nf + 1)).astype(np.int32)
+        self.diagonal = np.flatnonzero(self.indices == cols)
+        self.shape = (nf, nf)
+
+    def assemble(self, values: tuple[np.ndarray | None, ...]) -> sp.csc_matrix:
+        """The matrix with the element blocks ``values`` (one (k, d, d) array or None per group)."""
+        data = np.zeros(self.nnz + 1)
+        for sl, v in zip(self.slots, values):
+            if v is not None:
+                data += np.bincount(sl, weights=v.ravel(), minlength=self.nnz + 1)
+        H = sp.csc_matrix((data[:-1], self.indices, self.indptr), shape=self.shape)
+        H.has_sorted_indices = True
+        return H
 
 
 def _stress_term(Wa: np.ndarray, positive: bool = False) -> np.ndarray:

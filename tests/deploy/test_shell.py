@@ -169,3 +169,23 @@ def test_cylinder_at_its_rest_curvature_has_no_bending_energy():
     assert bending(R, R) < 1e-3 * flat_energy
     assert bending(R, 0.8 * R) > 0.02 * flat_energy
     assert bending(R, 1.25 * R) > 0.02 * flat_energy
+
+
+def test_hessian_on_the_free_dofs_is_the_full_one_restricted():
+    """The fixed-pattern assembly on a subset of dofs (the solver's pinned ones left out) gives the
+    rows and columns of the full Hessian (itself checked by finite differences above), in CSC order."""
+    X, F, rng = _mesh(6)
+    abar, bbar = _random_forms(X[:, 1:3], F, rng)
+    E = ShellEnergy(F, abar, bbar, rng.random(len(F)) + 0.5, rng.random(len(F)) + 0.5, 0.3)
+    free = np.setdiff1d(np.arange(X.size), [0, 1, 2, 7, 8, 20])
+    g_all, exact_all, psd_all = E.gradient_and_hessians(X)
+    g, exact, psd = E.gradient_and_hessians(X, free)
+    np.testing.assert_array_equal(g, g_all)
+    for sub, full in ((exact, exact_all), (psd, psd_all)):
+        A, B = sub(), full()
+        assert A.format == "csc" and A.shape == (len(free), len(free))
+        np.testing.assert_allclose(A.toarray(), B.toarray()[np.ix_(free, free)], atol=1e-12 * abs(B).max())
+        C = A.copy()
+        C.sort_indices()
+        np.testing.assert_array_equal(C.indices, A.indices)
+    assert E.gradient_and_hessians(X, free.copy())[1]().nnz == exact().nnz     # same pattern reused

@@ -72,3 +72,27 @@ def test_bad_start_is_refused():
         newton(E, np.full((len(UV), 3), np.nan))
     with pytest.raises(ValueError, match="hessian"):
         newton(E, np.column_stack([UV, np.zeros(len(UV))]), hessian="bfgs")
+
+
+def test_factor_reused_on_its_pattern_solves_and_tells_definiteness():
+    """The Cholesky analysed once (Newton's reuse) solves each matrix of that pattern, tells an
+    indefinite one, and still solves after such a failure."""
+    import scipy.sparse as sp
+
+    from ribbond.deploy.solver import _Factor
+
+    rng = np.random.default_rng(2)
+    n = 40
+    L = sp.random(n, n, density=0.1, random_state=3) + sp.identity(n)
+    A = (L @ L.T + sp.identity(n)).tocsc()
+    A.sort_indices()
+    b = rng.standard_normal(n)
+    fac = _Factor(A)
+    assert fac.factor(A)
+    np.testing.assert_allclose(A @ fac.solve(b), b, atol=1e-10)
+    shifted = A.copy()
+    shifted.data[A.indices == np.repeat(np.arange(n), np.diff(A.indptr))] -= 1.5 * abs(A).max()
+    assert np.linalg.eigvalsh(shifted.toarray()).min() < 0
+    assert not fac.factor(shifted)
+    assert fac.factor(2.0 * A)
+    np.testing.assert_allclose((2.0 * A) @ fac.solve(b), b, atol=1e-10)
