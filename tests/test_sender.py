@@ -353,3 +353,16 @@ async def test_nudges_can_be_turned_off() -> None:
 
 def test_the_default_window_is_safe_for_a_64_byte_receive_buffer() -> None:
     assert Capabilities().rx_buffer_bytes == 63
+
+
+async def test_no_nudge_behind_a_command_expected_to_be_silent() -> None:
+    # Homing (or a heating wait, a dwell) is silent by nature, and the firmware reads no serial
+    # meanwhile: newlines would only pile up in its receive buffer.
+    sender, wire = make(timeouts=Timeouts(nudge_s=0.1, default_s=5))
+    sender.start()
+    done = sender.stream(["G28"])
+    await asyncio.sleep(0.35)
+    assert wire.nudges == 0
+    feed(sender, "ok")
+    assert (await asyncio.wait_for(done, 1)).lines == 1
+    sender.stop(StreamCancelled("test over"))

@@ -651,7 +651,10 @@ class Sender:
             silent = time.monotonic() - self._last_heard
             if self._hold is not None:
                 continue
-            self._maybe_nudge(silent)
+            if limit == self.timeouts.default_s:
+                # (not behind a heating wait, homing or a dwell: silence is expected there, and the
+                # newlines would pile up in a receive buffer the firmware is not reading)
+                self._maybe_nudge(silent)
             if silent < limit:
                 continue
             if self._probes_outstanding >= self.timeouts.probes:
