@@ -167,7 +167,8 @@ def _links(target: str, operations: dict[str, str]) -> dict[str, Any]:
 
 _JOB_LINKS = {"GetJob": "job", "GetTransitions": "transitions", "GetJobFile": "job_file", "StartJob": "start",
               "PauseJob": "pause", "ResumeJob": "resume", "CancelJob": "cancel", "FlipDone": "flip_done",
-              "AlignJob": "align", "DeleteJob": "delete"}
+              "AlignJob": "align", "AcceptFit": "accept", "ReSeat": "re_seat", "FrameOk": "frame_ok",
+              "DeleteJob": "delete"}
 
 
 #: One server-sent event: its type (``job``, ``printer``, ...) and its JSON data.

@@ -1488,9 +1488,9 @@ class RibbonService:
         job = self.job(job_id)
         if job.state is JobState.INTERRUPTED:
             return self.resume_interrupted(job_id, partial)
-        if partial is not None:
-            raise ValueError(f"partial={partial!r}: only an interrupted print has a partial part; "
-                             f"job {job_id} is {job.state.value}")
+        if partial is not None:  # a request the job's state does not allow: 409, as other verbs
+            raise IllegalTransition(job.state, "resume", command=f"resume with partial={partial!r}",
+                                    hint="only an interrupted print has a partial part")
         run = self._run
         if job.state is JobState.PAUSED and run is not None and run.job_id == job_id and run.pause_snapshot is None:
             raise IllegalTransition(job.state, "resume", hint="the head is still being parked: resume in a "

@@ -197,9 +197,17 @@ def _bounds_text(model: type[BaseModel] | None, field: str) -> str:
 _MODELS: dict[str, type[BaseModel]] = {"": DesignParameters, "size": SizeSpec, "solver": SolverSettings}
 
 
+NAME_SHOWN = 64
+
+
+def _cut(name: str) -> str:
+    return name if len(name) <= NAME_SHOWN else name[:NAME_SHOWN] + "…"
+
+
 def _problem(err: Any, section: str | None) -> str:
     """One pydantic error as ``field = value: what is wrong``, in the user's own field names."""
-    loc = [str(p) for p in err["loc"] if not isinstance(p, int)]
+    # (a key the user sent may be anything: a field name is shown cut to NAME_SHOWN characters)
+    loc = [_cut(str(p)) for p in err["loc"] if not isinstance(p, int)]
     index = "".join(f"[{p}]" for p in err["loc"] if isinstance(p, int))   # an element of a bounds pair
     field = ".".join(([section] if section else []) + loc) + index
     kind = err["type"]
