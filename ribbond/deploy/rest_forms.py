@@ -154,11 +154,12 @@ class LayoutRaster:
 
     Attributes
     ----------
-    samples : centerline samples at pixel / 2; image : the coverage raster;
+    samples : centerline samples at pixel / 2; tree : their ``cKDTree``; image : the coverage raster;
     ribbon_width : w_r, mm; pixel : the requested raster size, mm (``image.pixel`` may be larger).
     """
 
     samples: RibbonSamples
+    tree: cKDTree
     image: CoverageImage
     ribbon_width: float
     pixel: float
@@ -174,18 +175,20 @@ def layout_raster(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
         raise ValueError(f"ribbon_width must be > 0, got {ribbon_width!r}")
     pixel = float(pixel if pixel is not None else ribbon_width / 6.0)
     samples = ribbon_samples(ribbons, pixel / _SAMPLES_PER_PIXEL)
-    image = coverage_image(samples, ribbon_width, _outline(np.asarray(uv, dtype=float), F), pixel)
-    return LayoutRaster(samples=samples, image=image, ribbon_width=float(ribbon_width), pixel=pixel)
+    tree = cKDTree(samples.xy)                         # for the raster and the nearest centerline
+    image = coverage_image(samples, ribbon_width, _outline(np.asarray(uv, dtype=float), F), pixel, tree)
+    return LayoutRaster(samples=samples, tree=tree, image=image, ribbon_width=float(ribbon_width),
+                        pixel=pixel)
 
 
-def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geometry, pixel: float
-                   ) -> CoverageImage:
+def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geometry, pixel: float,
+                   tree: cKDTree | None = None) -> CoverageImage:
     """Rasterize the ribbons (centerline buffered by width/2, flat ends) and the flat domain.
 
     Parameters
     ----------
     samples : centerline samples at ≤ pixel / 2; width : ribbon width w_r, mm;
-    outline : the flat domain; pixel : pixel size, mm.
+    outline : the flat domain; pixel : pixel size, mm; tree : ``cKDTree(samples.xy)`` if made already.
     """
     lo = np.asarray(outline.bounds[:2]) - 2 * pixel
     hi = np.asarray(outline.bounds[2:]) + 2 * pixel
@@ -198,11 +201,12 @@ def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geomet
     inside = shapely.contains_xy(outline, P[:, 0], P[:, 1]).astype(float)
     covered = np.zeros(len(P))
     if len(samples.xy):
-        tree = cKDTree(samples.xy)
-        dist, idx = tree.query(P, distance_upper_bound=0.5 * width + pixel, workers=-1)
+        tree = tree if tree is not None else cKDTree(samples.xy)
+        into = np.flatnonzero(inside)                  # outside the domain the coverage is 0 anyway
+        dist, idx = tree.query(P[into], distance_upper_bound=0.5 * width + pixel, workers=-1)
         hit = np.isfinite(dist)
         i = idx[hit]
-        offset = P[hit] - samples.xy[i]
+        offset = P[into[hit]] - samples.xy[i]
         tan = samples.tangent[i]
         # anti-aliased: a ramp one pixel wide at the sides and at the flat ends, so that a band of
         # width w covers exactly w whatever the pixel grid
@@ -210,7 +214,7 @@ def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geomet
         along = samples.end[i] * np.einsum("kc,kc->k", offset, tan)          # > 0 beyond an end
         side = np.clip((0.5 * width - perp) / pixel + 0.5, 0.0, 1.0)
         ends = np.where(samples.end[i] != 0, np.clip(0.5 - along / pixel, 0.0, 1.0), 1.0)
-        covered[np.flatnonzero(hit)] = side * ends
+        covered[into[hit]] = side * ends
     return CoverageImage(covered=(covered * inside).reshape(ny, nx), inside=inside.reshape(ny, nx),
                          origin=lo, pixel=float(pixel))
 
@@ -310,8 +314,7 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     n = np.column_stack([-d[:, 1], d[:, 0]])
 
     # the nearest centerline point and its ribbon's windows
-    fine = cKDTree(samples.xy)
-    _, i0 = fine.query(centroid, workers=-1)
+    _, i0 = raster.tree.query(centroid, workers=-1)
     c0 = samples.xy[i0]
     mu1_w, mu2_w = mu[samples.ribbon[i0], 0], mu[samples.ribbon[i0], 1]
 
