@@ -180,9 +180,9 @@ def hinge_tan(X: np.ndarray, hinge: np.ndarray, derivatives: int = 0
     -------
     s (h,), gradient (h, 12) or None, Hessian (h, 12, 12) or None, over (v0, v1, v2, v3) xyz.
     """
-    if derivatives == 0:
-        return _HingeGeometry(X, hinge).s, None, None
     hg = _HingeGeometry(X, hinge)
+    if derivatives == 0:
+        return hg.s, None, None
     grad = hg.gradient()
     return hg.s, grad, (hg.hessian() if derivatives == 2 else None)
 
@@ -206,7 +206,7 @@ class _HingeGeometry:
         self.s = P / self.D
         self._grad: np.ndarray | None = None
 
-    def _pull(self, gf: np.ndarray, gg: np.ndarray, ge: np.ndarray | None) -> np.ndarray:
+    def _pull(self, gf: np.ndarray, gg: np.ndarray, ge: np.ndarray) -> np.ndarray:
         """uᵀ-gradient (∂/∂N_f, ∂/∂N_g, ∂/∂e) pulled back to (v0, v1, v2, v3): λᵀ[w]× = (λ × w)ᵀ."""
         w = self.w
         c = np.cross(np.stack([gf, gf, gf, gg, gg, gg], 1), w)                      # (h, 6, 3)
@@ -215,9 +215,8 @@ class _HingeGeometry:
         out[:, 3:6] = c[:, 1] + c[:, 4]
         out[:, 6:9] = c[:, 2] + c[:, 3]
         out[:, 9:12] = c[:, 5]
-        if ge is not None:
-            out[:, 3:6] -= ge
-            out[:, 6:9] += ge
+        out[:, 3:6] -= ge
+        out[:, 6:9] += ge
         return out
 
     def gradient(self) -> np.ndarray:
@@ -290,7 +289,8 @@ class _HingeGeometry:
 # -- stretching -------------------------------------------------------------------------------------
 
 def stretch_energy(X: np.ndarray, F: np.ndarray, abar: np.ndarray, coef: np.ndarray, nu: float,
-                   derivatives: int = 0) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+                   derivatives: int = 0, forms: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """St.Venant–Kirchhoff membrane energy per face, c [(1 − ν) tr(M²) + ν tr(M)²], M = ā⁻¹a − I.
 
     Parameters
@@ -300,6 +300,7 @@ def stretch_energy(X: np.ndarray, F: np.ndarray, abar: np.ndarray, coef: np.ndar
     coef : (m,) c = A D_s / (8 (1 − ν²)).
     nu : Poisson's ratio.
     derivatives : 0, 1 or 2 (3: the Hessian's two parts, Jᵀ∇²W J (m, 6, 6) and ∇W (m, 3)).
+    forms : ``quadratic_form(ā⁻¹)`` if made already (it depends on ā only).
 
     Returns
     -------
@@ -309,8 +310,7 @@ def stretch_energy(X: np.ndarray, F: np.ndarray, abar: np.ndarray, coef: np.ndar
     x0, x1, x2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
     e1, e2 = x1 - x0, x2 - x0
     a = np.stack([_dot(e1, e1), _dot(e1, e2), _dot(e2, e2)], -1)
-    P = _inverse_2x2(abar)
-    Q, l = quadratic_form(P)
+    Q, l = forms if forms is not None else quadratic_form(_inverse_2x2(abar))
     tr = _dot(l, a) - 2.0
     tr2 = np.einsum("ki,kij,kj->k", a, Q, a) - 2 * _dot(l, a) + 2.0
     W = coef * ((1 - nu) * tr2 + nu * tr ** 2)
@@ -447,6 +447,7 @@ class ShellEnergy:
         self.n = int(self.F.max()) + 1
         self.abar = np.asarray(abar, dtype=float)
         self.stretch_coef = np.asarray(stretch_coef, dtype=float)
+        self._stretch_forms = quadratic_form(_inverse_2x2(self.abar))      # fixed: once, not per call
         self.nu = float(nu)
         self.bending = bending_quadratic(self.topo, self.abar, np.asarray(bbar, dtype=float),
                                          np.asarray(bend_coef, dtype=float), self.nu)
@@ -464,19 +465,20 @@ class ShellEnergy:
 
     def energy(self, X: np.ndarray) -> float:
         """E(X) (a float): stretching plus bending."""
-        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu)
+        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, forms=self._stretch_forms)
         s_h, _, _ = hinge_tan(X, self.topo.hinge)
         return float(W.sum()) + self.bending.value(self._edge_values(s_h))
 
     def parts(self, X: np.ndarray) -> tuple[float, float]:
         """(stretching, bending) energies."""
-        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu)
+        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, forms=self._stretch_forms)
         s_h, _, _ = hinge_tan(X, self.topo.hinge)
         return float(W.sum()), self.bending.value(self._edge_values(s_h))
 
     def gradient(self, X: np.ndarray) -> np.ndarray:
         """∇E (3n,), xyz interleaved per vertex."""
-        _, g, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=1)
+        _, g, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=1,
+                                 forms=self._stretch_forms)
         s_h, gs, _ = hinge_tan(X, self.topo.hinge, derivatives=1)
         lam = (self.bending.H @ self._edge_values(s_h) + self.bending.g)[self._hedge]
         out = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=3 * self.n)
@@ -505,7 +507,8 @@ class ShellEnergy:
         The bending's Gauss–Newton term Jᵀ H_s J is summed per face over its three hinges:
         J_fᵀ H_f J_f on the face and its three neighbours' opposite vertices (18 dofs).
         """
-        _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3)
+        _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3,
+                                     forms=self._stretch_forms)
         GN_e, Wa = parts
         hinges = _HingeGeometry(X, self.topo.hinge)
         s_h, gs = hinges.s, hinges.gradient()
