@@ -38,14 +38,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from scipy.ndimage import map_coordinates
 from scipy.spatial import cKDTree
 
 from ribbond.design.format import Ribbon
 from ribbond.design.thickness import CurvatureTable, table_curvature
 
-__all__ = ["RibbonSamples", "Coverage", "RestForms", "ribbon_samples", "coverage_image", "face_coverage",
-           "rest_forms", "contraction"]
+__all__ = ["RibbonSamples", "Coverage", "RestForms", "LayoutRaster", "ribbon_samples", "coverage_image",
+           "layout_raster", "face_coverage", "rest_forms", "contraction"]
 
 #: Samples of a ribbon's centerline per pixel of the coverage image.
 _SAMPLES_PER_PIXEL = 2.0
@@ -116,21 +115,80 @@ class CoverageImage:
     pixel: float
 
     def sample(self, image: np.ndarray, xy: np.ndarray) -> np.ndarray:
-        """Bilinear values of ``image`` at points xy (..., 2); 0 outside the raster."""
-        ij = (xy - self.origin) / self.pixel
-        flat = ij.reshape(-1, 2)
-        out = map_coordinates(image, [flat[:, 1], flat[:, 0]], order=1, mode="constant", cval=0.0)
-        return out.reshape(xy.shape[:-1])
+        """Bilinear values of ``image`` at points xy (..., 2); 0 outside the raster (what
+        ``scipy.ndimage.map_coordinates(order=1, mode="constant")`` gives, by direct gathers: 1.5× faster)."""
+        ny, nx = image.shape
+        x = ((xy[..., 0] - self.origin[0]) / self.pixel).ravel()
+        y = ((xy[..., 1] - self.origin[1]) / self.pixel).ravel()
+        out = (x >= 0) & (x <= nx - 1) & (y >= 0) & (y <= ny - 1)
+        np.clip(x, 0, nx - 1, out=x)
+        np.clip(y, 0, ny - 1, out=y)
+        i = np.minimum(x.astype(np.intp), nx - 2)
+        j = np.minimum(y.astype(np.intp), ny - 2)
+        x -= i                                                       # the fractions
+        y -= j
+        flat = image.ravel()
+        k = j * nx
+        k += i
+        a, b = flat[k], flat[k + 1]
+        k += nx
+        c, d = flat[k], flat[k + 1]
+        b -= a
+        b *= x
+        a += b                                                       # along x on row j
+        d -= c
+        d *= x
+        c += d                                                       # along x on row j + 1
+        c -= a
+        c *= y
+        v = a + c
+        v[~out] = 0.0
+        return v.reshape(xy.shape[:-1])
 
 
-def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geometry, pixel: float
-                   ) -> CoverageImage:
+@dataclass(frozen=True)
+class LayoutRaster:
+    """The layout rasterized once over a flat domain: the centerline samples and the coverage image.
+    Neither depends on the mesh the coverage is then measured on, so the coarse copy and the
+    reference mesh of a prediction (both remeshes of one flat domain) share it.
+
+    Attributes
+    ----------
+    samples : centerline samples at pixel / 2; tree : their ``cKDTree``; image : the coverage raster;
+    ribbon_width : w_r, mm; pixel : the requested raster size, mm (``image.pixel`` may be larger).
+    """
+
+    samples: RibbonSamples
+    tree: cKDTree
+    image: CoverageImage
+    ribbon_width: float
+    pixel: float
+
+
+def layout_raster(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribbon_width: float, *,
+                  pixel: float | None = None) -> LayoutRaster:
+    """Rasterize ``ribbons`` (w_r = ``ribbon_width``) over the flat domain of uv (n, 2), F (m, 3).
+
+    pixel : raster size, mm (default w_r / 6).
+    """
+    if not ribbon_width > 0:
+        raise ValueError(f"ribbon_width must be > 0, got {ribbon_width!r}")
+    pixel = float(pixel if pixel is not None else ribbon_width / 6.0)
+    samples = ribbon_samples(ribbons, pixel / _SAMPLES_PER_PIXEL)
+    tree = cKDTree(samples.xy)                         # for the raster and the nearest centerline
+    image = coverage_image(samples, ribbon_width, _outline(np.asarray(uv, dtype=float), F), pixel, tree)
+    return LayoutRaster(samples=samples, tree=tree, image=image, ribbon_width=float(ribbon_width),
+                        pixel=pixel)
+
+
+def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geometry, pixel: float,
+                   tree: cKDTree | None = None) -> CoverageImage:
     """Rasterize the ribbons (centerline buffered by width/2, flat ends) and the flat domain.
 
     Parameters
     ----------
     samples : centerline samples at ≤ pixel / 2; width : ribbon width w_r, mm;
-    outline : the flat domain; pixel : pixel size, mm.
+    outline : the flat domain; pixel : pixel size, mm; tree : ``cKDTree(samples.xy)`` if made already.
     """
     lo = np.asarray(outline.bounds[:2]) - 2 * pixel
     hi = np.asarray(outline.bounds[2:]) + 2 * pixel
@@ -143,11 +201,12 @@ def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geomet
     inside = shapely.contains_xy(outline, P[:, 0], P[:, 1]).astype(float)
     covered = np.zeros(len(P))
     if len(samples.xy):
-        tree = cKDTree(samples.xy)
-        dist, idx = tree.query(P, distance_upper_bound=0.5 * width + pixel, workers=-1)
+        tree = tree if tree is not None else cKDTree(samples.xy)
+        into = np.flatnonzero(inside)                  # outside the domain the coverage is 0 anyway
+        dist, idx = tree.query(P[into], distance_upper_bound=0.5 * width + pixel, workers=-1)
         hit = np.isfinite(dist)
         i = idx[hit]
-        offset = P[hit] - samples.xy[i]
+        offset = P[into[hit]] - samples.xy[i]
         tan = samples.tangent[i]
         # anti-aliased: a ramp one pixel wide at the sides and at the flat ends, so that a band of
         # width w covers exactly w whatever the pixel grid
@@ -155,7 +214,7 @@ def coverage_image(samples: RibbonSamples, width: float, outline: shapely.Geomet
         along = samples.end[i] * np.einsum("kc,kc->k", offset, tan)          # > 0 beyond an end
         side = np.clip((0.5 * width - perp) / pixel + 0.5, 0.0, 1.0)
         ends = np.where(samples.end[i] != 0, np.clip(0.5 - along / pixel, 0.0, 1.0), 1.0)
-        covered[np.flatnonzero(hit)] = side * ends
+        covered[into[hit]] = side * ends
     return CoverageImage(covered=(covered * inside).reshape(ny, nx), inside=inside.reshape(ny, nx),
                          origin=lo, pixel=float(pixel))
 
@@ -196,7 +255,7 @@ def _windows(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribbon_width: float,
                   table: CurvatureTable, *, pixel: float | None = None,
-                  n_along: int = 96, n_across: int = 48) -> Coverage:
+                  n_along: int = 96, n_across: int = 48, raster: LayoutRaster | None = None) -> Coverage:
     """Per-face coverage, direction, thickness and rest curvature measured from the layout.
 
     Parameters
@@ -206,6 +265,8 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     ribbon_width : w_r, mm; table : the curvature table (κ by side, τ, μ2).
     pixel : raster size, mm (default w_r / 6).
     n_along, n_across : samples of the two measuring lines.
+    raster : ``layout_raster`` of these ribbons made once for the flat domain (default: made here
+        for the domain of uv, F); it fixes the pixel.
     """
     uv = np.asarray(uv, dtype=float)
     F = np.asarray(F, dtype=np.int64)
@@ -220,10 +281,12 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
                         bare=np.ones(m, dtype=bool))
     if not ribbons:
         return bare_cov
-    pixel = float(pixel if pixel is not None else ribbon_width / 6.0)
-    samples = ribbon_samples(ribbons, pixel / _SAMPLES_PER_PIXEL)
-    outline = _outline(uv, F)
-    image = coverage_image(samples, ribbon_width, outline, pixel)
+    if raster is None:
+        raster = layout_raster(uv, F, ribbons, ribbon_width, pixel=pixel)
+    elif raster.ribbon_width != ribbon_width or (pixel is not None and pixel != raster.pixel):
+        raise ValueError(f"the raster was made for w_r = {raster.ribbon_width} mm, pixel {raster.pixel} mm, "
+                         f"not w_r = {ribbon_width} mm, pixel {pixel} mm")
+    samples, image, pixel = raster.samples, raster.image, raster.pixel
 
     thick = np.array([r.thickness for r in ribbons])
     sign = np.array([1.0 if r.side == "front" else -1.0 for r in ribbons])
@@ -251,8 +314,7 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     n = np.column_stack([-d[:, 1], d[:, 0]])
 
     # the nearest centerline point and its ribbon's windows
-    fine = cKDTree(samples.xy)
-    _, i0 = fine.query(centroid, workers=-1)
+    _, i0 = raster.tree.query(centroid, workers=-1)
     c0 = samples.xy[i0]
     mu1_w, mu2_w = mu[samples.ribbon[i0], 0], mu[samples.ribbon[i0], 1]
 

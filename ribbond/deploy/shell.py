@@ -48,12 +48,13 @@ __all__ = ["ShellTopology", "shell_topology", "hinge_tan", "stretch_energy", "Be
 
 # -- small vectorized helpers ------------------------------------------------------------------------
 
-def _cross_matrix(v: np.ndarray) -> np.ndarray:
-    """[v]× (k, 3, 3) with [v]× w = v × w, for v (k, 3)."""
-    z = np.zeros(len(v))
-    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1),
-                     np.stack([v[:, 2], z, -v[:, 0]], -1),
-                     np.stack([-v[:, 1], v[:, 0], z], -1)], 1)
+def _cross_matrices(v: np.ndarray) -> np.ndarray:
+    """[v]× (..., 3, 3) with [v]× w = v × w, for v (..., 3)."""
+    out = np.zeros(v.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
 
 
 def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -158,6 +159,11 @@ def shell_topology(F: np.ndarray) -> ShellTopology:
 
 # -- the hinge quantity s = tan(θ/2) ---------------------------------------------------------------
 
+#: Where the cross-matrix blocks of ∂u/∂x sit in J (9, 12), u = (N_f, N_g, e): (row block, column block)
+#: of N_f = (v1 − v0) × (v2 − v0) and N_g = (v1 − v2) × (v3 − v2) in (v0, v1, v2, v3).
+_J_BLOCKS = ((0, 0), (0, 1), (0, 2), (1, 2), (1, 1), (1, 3))
+
+
 def hinge_tan(X: np.ndarray, hinge: np.ndarray, derivatives: int = 0
               ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """s = tan(θ/2) of each hinge, θ the signed dihedral angle (> 0 where the surface bulges toward +n).
@@ -174,73 +180,117 @@ def hinge_tan(X: np.ndarray, hinge: np.ndarray, derivatives: int = 0
     -------
     s (h,), gradient (h, 12) or None, Hessian (h, 12, 12) or None, over (v0, v1, v2, v3) xyz.
     """
-    v0, v1, v2, v3 = (X[hinge[:, k]] for k in range(4))
-    Nf = np.cross(v1 - v0, v2 - v0)
-    Ng = np.cross(v1 - v2, v3 - v2)
-    e = v2 - v1
-    nf = np.linalg.norm(Nf, axis=1)
-    ng = np.linalg.norm(Ng, axis=1)
-    L = np.linalg.norm(e, axis=1)
-    P = _dot(np.cross(Nf, Ng), e)
-    Qv = nf * ng + _dot(Nf, Ng)
-    D = L * Qv
-    s = P / D
+    hg = _HingeGeometry(X, hinge)
     if derivatives == 0:
-        return s, None, None
-    h = len(hinge)
-    # gradients in u = (N_f, N_g, e)
-    gP = np.concatenate([np.cross(Ng, e), np.cross(e, Nf), np.cross(Nf, Ng)], 1)
-    Nfh, Ngh, eh = Nf / nf[:, None], Ng / ng[:, None], e / L[:, None]
-    gQ = np.concatenate([ng[:, None] * Nfh + Ng, nf[:, None] * Ngh + Nf, np.zeros((h, 3))], 1)
-    gL = np.concatenate([np.zeros((h, 6)), eh], 1)
-    gD = Qv[:, None] * gL + L[:, None] * gQ
-    gT = gP / D[:, None] - (P / D ** 2)[:, None] * gD
-    # Jacobian of u in x (h, 9, 12): N_f(v0, v1, v2), N_g(v2, v1, v3), e = v2 − v1
-    J = np.zeros((h, 9, 12))
-    J[:, 0:3, 0:3] = _cross_matrix(v2 - v1)
-    J[:, 0:3, 3:6] = -_cross_matrix(v2 - v0)
-    J[:, 0:3, 6:9] = _cross_matrix(v1 - v0)
-    J[:, 3:6, 6:9] = _cross_matrix(v3 - v1)
-    J[:, 3:6, 3:6] = -_cross_matrix(v3 - v2)
-    J[:, 3:6, 9:12] = _cross_matrix(v1 - v2)
-    eye = np.broadcast_to(np.eye(3), (h, 3, 3))
-    J[:, 6:9, 6:9] = eye
-    J[:, 6:9, 3:6] = -eye
-    grad = (gT[:, None, :] @ J)[:, 0, :]
-    if derivatives == 1:
-        return s, grad, None
-    # Hessians in u
-    HP = np.zeros((h, 9, 9))
-    Ce, CNf, CNg = _cross_matrix(e), _cross_matrix(Nf), _cross_matrix(Ng)
-    HP[:, 0:3, 3:6], HP[:, 3:6, 0:3] = -Ce, Ce
-    HP[:, 0:3, 6:9], HP[:, 6:9, 0:3] = CNg, -CNg
-    HP[:, 3:6, 6:9], HP[:, 6:9, 3:6] = -CNf, CNf
-    HQ = np.zeros((h, 9, 9))
-    HQ[:, 0:3, 0:3] = (ng / nf)[:, None, None] * (eye - _outer(Nfh, Nfh))
-    HQ[:, 3:6, 3:6] = (nf / ng)[:, None, None] * (eye - _outer(Ngh, Ngh))
-    HQ[:, 0:3, 3:6] = _outer(Nfh, Ngh) + eye
-    HQ[:, 3:6, 0:3] = np.swapaxes(HQ[:, 0:3, 3:6], 1, 2)
-    HL = np.zeros((h, 9, 9))
-    HL[:, 6:9, 6:9] = (eye - _outer(eh, eh)) / L[:, None, None]
-    HD = (Qv[:, None, None] * HL + L[:, None, None] * HQ + _outer(gL, gQ) + _outer(gQ, gL))
-    HT = (HP / D[:, None, None]
-          - (_outer(gP, gD) + _outer(gD, gP)) / (D ** 2)[:, None, None]
-          + (2 * P / D ** 3)[:, None, None] * _outer(gD, gD)
-          - (P / D ** 2)[:, None, None] * HD)
-    hess = np.swapaxes(J, 1, 2) @ HT @ J
-    # second derivatives of N_f, N_g contracted with ∂T/∂N (λ · ((b − a) × (c − a)) blocks)
-    for lam, (ia, ib, ic) in ((gT[:, 0:3], (0, 1, 2)), (gT[:, 3:6], (2, 1, 3))):
-        Xl = _cross_matrix(lam)
-        for (i, j, sign) in ((ia, ib, -1.0), (ia, ic, 1.0), (ib, ic, -1.0)):
-            hess[:, 3 * i:3 * i + 3, 3 * j:3 * j + 3] += sign * Xl
-            hess[:, 3 * j:3 * j + 3, 3 * i:3 * i + 3] -= sign * Xl
-    return s, grad, hess
+        return hg.s, None, None
+    grad = hg.gradient()
+    return hg.s, grad, (hg.hessian() if derivatives == 2 else None)
+
+
+class _HingeGeometry:
+    """The hinges' shared quantities at one X, so that the gradient and (on demand, later in the same
+    Newton iteration) the Hessian reuse them instead of recomputing from X."""
+
+    def __init__(self, X: np.ndarray, hinge: np.ndarray) -> None:
+        v0, v1, v2, v3 = (X[hinge[:, k]] for k in range(4))
+        self._v = (v0, v1, v2, v3)
+        self.Nf = np.cross(v1 - v0, v2 - v0)
+        self.Ng = np.cross(v1 - v2, v3 - v2)
+        self.e = v2 - v1
+        self.nf = np.linalg.norm(self.Nf, axis=1)
+        self.ng = np.linalg.norm(self.Ng, axis=1)
+        self.L = np.linalg.norm(self.e, axis=1)
+        P = _dot(np.cross(self.Nf, self.Ng), self.e)
+        self.Qv = self.nf * self.ng + _dot(self.Nf, self.Ng)
+        self.D = self.L * self.Qv
+        self.s = P / self.D
+        self._grad: np.ndarray | None = None
+
+    def _pull(self, gf: np.ndarray, gg: np.ndarray, ge: np.ndarray) -> np.ndarray:
+        """uᵀ-gradient (∂/∂N_f, ∂/∂N_g, ∂/∂e) pulled back to (v0, v1, v2, v3): λᵀ[w]× = (λ × w)ᵀ."""
+        w = self.w
+        c = np.cross(np.stack([gf, gf, gf, gg, gg, gg], 1), w)                      # (h, 6, 3)
+        out = np.empty((len(gf), 12))
+        out[:, 0:3] = c[:, 0]
+        out[:, 3:6] = c[:, 1] + c[:, 4]
+        out[:, 6:9] = c[:, 2] + c[:, 3]
+        out[:, 9:12] = c[:, 5]
+        out[:, 3:6] -= ge
+        out[:, 6:9] += ge
+        return out
+
+    def gradient(self) -> np.ndarray:
+        """∂s/∂x (h, 12)."""
+        v0, v1, v2, v3 = self._v
+        # the arguments of ∂u/∂x's cross-matrix blocks at _J_BLOCKS (signs folded in: −[a]× = [−a]×)
+        self.w = np.stack([v2 - v1, v0 - v2, v1 - v0, v3 - v1, v2 - v3, v1 - v2], 1)   # (h, 6, 3)
+        Nf, Ng, e, D = self.Nf, self.Ng, self.e, self.D
+        self.Nfh, self.Ngh, self.eh = Nf / self.nf[:, None], Ng / self.ng[:, None], e / self.L[:, None]
+        self.gQf = self.ng[:, None] * self.Nfh + Ng
+        self.gQg = self.nf[:, None] * self.Ngh + Nf
+        # ∂s/∂u = ∂P/∂u / D − s/D ∂D/∂u, ∂D/∂u = Q ∂L/∂u + L ∂Q/∂u
+        sD, LsD = self.s / D, (self.s / D * self.L)[:, None]
+        self.gT = (np.cross(Ng, e) / D[:, None] - LsD * self.gQf,
+                   np.cross(e, Nf) / D[:, None] - LsD * self.gQg,
+                   np.cross(Nf, Ng) / D[:, None] - (sD * self.Qv)[:, None] * self.eh)
+        self._grad = self._pull(*self.gT)
+        return self._grad
+
+    def hessian(self) -> np.ndarray:
+        """∂²s/∂x² (h, 12, 12). With b = ∂D/∂u / D and c = s/D, ∂²s/∂u² = ∂²P/D − c (Q ∂²L + L ∂²Q)
+        − (∂s bᵀ + b ∂sᵀ) − c (∂L ∂Qᵀ + ∂Q ∂Lᵀ) (the terms in s/D² and 2s/D³ of the quotient rule
+        cancel), pulled back as Jᵀ M J, plus the second derivatives of N_f, N_g contracted with ∂s/∂N."""
+        if self._grad is None:
+            self.gradient()
+        h = len(self.s)
+        D, L, Qv, nf, ng = self.D, self.L, self.Qv, self.nf, self.ng
+        c = self.s / D
+        eye = np.eye(3)
+        J = np.zeros((h, 9, 12))
+        J5 = J.reshape(h, 3, 3, 4, 3)                                 # (u block, 3, x block, 3)
+        for k, blk in enumerate(np.moveaxis(_cross_matrices(self.w), 1, 0)):
+            J5[:, _J_BLOCKS[k][0], :, _J_BLOCKS[k][1], :] = blk
+        J[:, 6:9, 6:9] = eye
+        J[:, 6:9, 3:6] = -eye
+        C = _cross_matrices(np.stack([self.e, self.Nf, self.Ng], 1) / D[:, None, None])
+        cL = (c * L)[:, None, None]
+        M = np.empty((h, 9, 9))
+        M[:, 0:3, 0:3] = -(cL * (ng / nf)[:, None, None]) * (eye - _outer(self.Nfh, self.Nfh))
+        M[:, 3:6, 3:6] = -(cL * (nf / ng)[:, None, None]) * (eye - _outer(self.Ngh, self.Ngh))
+        M[:, 0:3, 3:6] = -C[:, 0] - cL * (_outer(self.Nfh, self.Ngh) + eye)
+        M[:, 3:6, 0:3] = np.swapaxes(M[:, 0:3, 3:6], 1, 2)
+        M[:, 0:3, 6:9] = C[:, 2]
+        M[:, 6:9, 0:3] = -C[:, 2]
+        M[:, 3:6, 6:9] = -C[:, 1]
+        M[:, 6:9, 3:6] = C[:, 1]
+        M[:, 6:9, 6:9] = -(c * Qv / L)[:, None, None] * (eye - _outer(self.eh, self.eh))
+        # the rank-two parts: R = [∂s, ∂L]ᵀ [b, c ∂Q], M −= R + Rᵀ
+        U = np.zeros((h, 2, 9))
+        V = np.zeros((h, 2, 9))
+        U[:, 0, 0:3], U[:, 0, 3:6], U[:, 0, 6:9] = self.gT
+        U[:, 1, 6:9] = self.eh
+        LD = (L / D)[:, None]
+        V[:, 0, 0:3], V[:, 0, 3:6], V[:, 0, 6:9] = LD * self.gQf, LD * self.gQg, (Qv / D)[:, None] * self.eh
+        V[:, 1, 0:3], V[:, 1, 3:6] = c[:, None] * self.gQf, c[:, None] * self.gQg
+        R = np.swapaxes(U, 1, 2) @ V
+        M -= R
+        M -= np.swapaxes(R, 1, 2)
+        hess = np.swapaxes(J, 1, 2) @ M @ J
+        # second derivatives of N_f (v0, v1, v2) and N_g (v2, v1, v3) contracted with ∂s/∂N
+        X = _cross_matrices(np.stack(self.gT[:2], 1))
+        Xf, Xg = X[:, 0], X[:, 1]
+        h5 = hess.reshape(h, 4, 3, 4, 3)
+        for i, j, blk in ((0, 1, -Xf), (0, 2, Xf), (1, 2, Xg - Xf), (2, 3, Xg), (1, 3, -Xg)):
+            h5[:, i, :, j, :] += blk
+            h5[:, j, :, i, :] -= blk
+        return hess
 
 
 # -- stretching -------------------------------------------------------------------------------------
 
 def stretch_energy(X: np.ndarray, F: np.ndarray, abar: np.ndarray, coef: np.ndarray, nu: float,
-                   derivatives: int = 0) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+                   derivatives: int = 0, forms: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """St.Venant–Kirchhoff membrane energy per face, c [(1 − ν) tr(M²) + ν tr(M)²], M = ā⁻¹a − I.
 
     Parameters
@@ -250,6 +300,7 @@ def stretch_energy(X: np.ndarray, F: np.ndarray, abar: np.ndarray, coef: np.ndar
     coef : (m,) c = A D_s / (8 (1 − ν²)).
     nu : Poisson's ratio.
     derivatives : 0, 1 or 2 (3: the Hessian's two parts, Jᵀ∇²W J (m, 6, 6) and ∇W (m, 3)).
+    forms : ``quadratic_form(ā⁻¹)`` if made already (it depends on ā only).
 
     Returns
     -------
@@ -259,8 +310,7 @@ def stretch_energy(X: np.ndarray, F: np.ndarray, abar: np.ndarray, coef: np.ndar
     x0, x1, x2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
     e1, e2 = x1 - x0, x2 - x0
     a = np.stack([_dot(e1, e1), _dot(e1, e2), _dot(e2, e2)], -1)
-    P = _inverse_2x2(abar)
-    Q, l = quadratic_form(P)
+    Q, l = forms if forms is not None else quadratic_form(_inverse_2x2(abar))
     tr = _dot(l, a) - 2.0
     tr2 = np.einsum("ki,kij,kj->k", a, Q, a) - 2 * _dot(l, a) + 2.0
     W = coef * ((1 - nu) * tr2 + nu * tr ** 2)
@@ -397,6 +447,7 @@ class ShellEnergy:
         self.n = int(self.F.max()) + 1
         self.abar = np.asarray(abar, dtype=float)
         self.stretch_coef = np.asarray(stretch_coef, dtype=float)
+        self._stretch_forms = quadratic_form(_inverse_2x2(self.abar))      # fixed: once, not per call
         self.nu = float(nu)
         self.bending = bending_quadratic(self.topo, self.abar, np.asarray(bbar, dtype=float),
                                          np.asarray(bend_coef, dtype=float), self.nu)
@@ -414,19 +465,20 @@ class ShellEnergy:
 
     def energy(self, X: np.ndarray) -> float:
         """E(X) (a float): stretching plus bending."""
-        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu)
+        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, forms=self._stretch_forms)
         s_h, _, _ = hinge_tan(X, self.topo.hinge)
         return float(W.sum()) + self.bending.value(self._edge_values(s_h))
 
     def parts(self, X: np.ndarray) -> tuple[float, float]:
         """(stretching, bending) energies."""
-        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu)
+        W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, forms=self._stretch_forms)
         s_h, _, _ = hinge_tan(X, self.topo.hinge)
         return float(W.sum()), self.bending.value(self._edge_values(s_h))
 
     def gradient(self, X: np.ndarray) -> np.ndarray:
         """∇E (3n,), xyz interleaved per vertex."""
-        _, g, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=1)
+        _, g, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=1,
+                                 forms=self._stretch_forms)
         s_h, gs, _ = hinge_tan(X, self.topo.hinge, derivatives=1)
         lam = (self.bending.H @ self._edge_values(s_h) + self.bending.g)[self._hedge]
         out = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=3 * self.n)
@@ -455,9 +507,11 @@ class ShellEnergy:
         The bending's Gauss–Newton term Jᵀ H_s J is summed per face over its three hinges:
         J_fᵀ H_f J_f on the face and its three neighbours' opposite vertices (18 dofs).
         """
-        _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3)
+        _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3,
+                                     forms=self._stretch_forms)
         GN_e, Wa = parts
-        s_h, gs, hs = hinge_tan(X, self.topo.hinge, derivatives=2)
+        hinges = _HingeGeometry(X, self.topo.hinge)
+        s_h, gs = hinges.s, hinges.gradient()
         lam = (self.bending.H @ self._edge_values(s_h) + self.bending.g)[self._hedge]
         n3 = 3 * self.n
         grad = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=n3)
@@ -470,7 +524,9 @@ class ShellEnergy:
 
         def exact() -> sp.csc_matrix:
             He = E_TO_X.T @ (GN_e + _stress_term(Wa)) @ E_TO_X
-            return pattern.assemble((He, lam[:, None, None] * hs, gauss_newton))
+            hs = hinges.hessian()                      # the hinges' second derivatives: only here
+            hs *= lam[:, None, None]
+            return pattern.assemble((He, hs, gauss_newton))
 
         def psd() -> sp.csc_matrix:
             He = E_TO_X.T @ (GN_e + _stress_term(Wa, positive=True)) @ E_TO_X

@@ -6,7 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ribbond.deploy.rest_forms import contraction, face_coverage, rest_forms, ribbon_samples
+from scipy.ndimage import map_coordinates
+
+from ribbond.deploy import rest_forms as rf
+from ribbond.deploy.rest_forms import (CoverageImage, contraction, face_coverage, layout_raster, rest_forms,
+                                       ribbon_samples)
 from ribbond.design import surfaces
 from ribbond.design.thickness import load_curvature_table, table_curvature
 
@@ -104,3 +108,44 @@ def test_bad_input_is_refused():
         face_coverage(uv, F, [], 0.0, TABLE)
     with pytest.raises(ValueError, match="uv"):
         face_coverage(uv[:, :1], F, [], 1.5, TABLE)
+
+
+def test_bilinear_sampling_is_map_coordinates_constant_mode():
+    rng = np.random.default_rng(3)
+    img = rng.random((7, 9))                                   # non-zero up to the edges
+    ci = CoverageImage(covered=img, inside=img, origin=np.array([-3.0, 2.0]), pixel=0.5)
+    xy = np.column_stack([rng.uniform(-5.0, 3.0, 4000), rng.uniform(0.0, 7.0, 4000)]).reshape(40, 100, 2)
+    ij = (xy - ci.origin) / ci.pixel
+    expected = map_coordinates(img, [ij[..., 1].ravel(), ij[..., 0].ravel()], order=1, mode="constant",
+                               cval=0.0).reshape(40, 100)
+    assert (expected == 0).any() and (expected > 0).any()      # points outside and inside the raster
+    np.testing.assert_allclose(ci.sample(img, xy), expected, rtol=0, atol=1e-14)
+
+
+def _map_coordinates_sample(self, image, xy):
+    """The sampler face_coverage used before (scipy's), to compare the whole coverage against."""
+    ij = (xy - self.origin) / self.pixel
+    flat = ij.reshape(-1, 2)
+    out = map_coordinates(image, [flat[:, 1], flat[:, 0]], order=1, mode="constant", cval=0.0)
+    return out.reshape(xy.shape[:-1])
+
+
+def test_coverage_equals_the_map_coordinates_one_and_a_shared_raster_its_own(monkeypatch):
+    uv, F = _sheet()
+    rib = staggered_pattern((120.0, 80.0), 22.9, 6.0, 15.0, 0.6)
+    new = face_coverage(uv, F, rib, 1.5, TABLE)
+    # a raster made once on a finer mesh of the same rectangle (same outline: same grid and domain)
+    fine_uv, fine_F = _sheet(80, 52)
+    raster = layout_raster(fine_uv, fine_F, rib, 1.5)
+    shared = face_coverage(uv, F, rib, 1.5, TABLE, raster=raster)
+    with monkeypatch.context() as mp:
+        mp.setattr(rf.CoverageImage, "sample", _map_coordinates_sample)
+        before = face_coverage(uv, F, rib, 1.5, TABLE)
+    assert not before.bare.all()
+    for got in (new, shared):
+        np.testing.assert_array_equal(got.bare, before.bare)
+        for name in ("direction", "f_along", "f_across", "kappa", "thickness", "mu2"):
+            np.testing.assert_allclose(getattr(got, name), getattr(before, name), rtol=1e-12, atol=1e-14,
+                                       err_msg=name)
+    with pytest.raises(ValueError, match="raster was made for"):
+        face_coverage(uv, F, rib, 2.0, TABLE, raster=raster)
