@@ -24,19 +24,25 @@ test: $(STAMP) verify-unit browser
 # systemd-analyze verify on a copy of the unit whose ExecStart points into the venv (verify checks
 # that the program exists; /usr/local/bin/ribbond does not on a build machine). Fails on errors and
 # on any message about our unit; messages about other units on the machine are shown, not fatal.
+# $(call need,TARGET,TEST,PACKAGE): when the shell test TEST fails, install Debian's PACKAGE (as
+# root, with apt-get), else say how; fail if TEST still fails afterwards.
+define need
+	@if ! $(2); then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "$(1): $(3) missing, installing it"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(3) >/dev/null || exit 1; \
+	  else \
+	    echo "$(1): $(3) not found; install it (Debian/Ubuntu: sudo apt-get install $(3)) or run as root" >&2; \
+	    exit 1; \
+	  fi; \
+	  $(2) || { echo "$(1): $(3) still missing after installing it" >&2; exit 1; }; \
+	fi
+endef
+
 UNIT            := systemd/ribbond.service
 SYSTEMD_ANALYZE ?= systemd-analyze
 verify-unit: $(STAMP)
-	@if ! command -v $(SYSTEMD_ANALYZE) >/dev/null 2>&1; then \
-	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
-	    echo "verify-unit: systemd-analyze missing, installing systemd"; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq systemd >/dev/null || exit 1; \
-	  else \
-	    echo "verify-unit: systemd-analyze not found; install systemd (Debian/Ubuntu: sudo apt-get install systemd) or run as root" >&2; \
-	    exit 1; \
-	  fi; \
-	  command -v $(SYSTEMD_ANALYZE) >/dev/null 2>&1 || { echo "verify-unit: $(SYSTEMD_ANALYZE) still not found after installing systemd" >&2; exit 1; }; \
-	fi
+	$(call need,verify-unit,command -v $(SYSTEMD_ANALYZE) >/dev/null 2>&1,systemd)
 	@venv='$(abspath $(VENV))'; \
 	if [ -x "$$venv/bin/ribbond" ]; then exe="$$venv/bin/ribbond"; else exe="$$venv/bin/python -m ribbond"; fi; \
 	tmp=$$(mktemp -d) && trap 'rm -rf "$$tmp"' EXIT && \
@@ -63,16 +69,7 @@ verify-unit: $(STAMP)
 # extra); `playwright install` is never run: browsers are not downloaded. Installed as root when missing.
 CHROMIUM ?= /usr/bin/chromium
 browser:
-	@if [ ! -x $(CHROMIUM) ]; then \
-	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
-	    echo "browser: $(CHROMIUM) missing, installing chromium"; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null || exit 1; \
-	  else \
-	    echo "browser: $(CHROMIUM) not found; install chromium (Debian/Ubuntu: sudo apt-get install chromium) or run as root" >&2; \
-	    exit 1; \
-	  fi; \
-	  test -x $(CHROMIUM) || { echo "browser: $(CHROMIUM) still missing after installing chromium" >&2; exit 1; }; \
-	fi
+	$(call need,browser,test -x $(CHROMIUM),chromium)
 
 bench: $(STAMP)
 	$(PY) bench/stream.py

@@ -7,7 +7,8 @@ It is a go-back-N sender over Marlin's line-number protocol:
 * A line goes out only while the printer can take it: no more lines in flight than its command
   queue has slots (learned from the free counts ADVANCED_OK reports, Marlin's default of 4
   otherwise), so that no line waits in its receive buffer, and no more unacknowledged bytes than
-  ``Capabilities.rx_buffer_bytes``, counting every byte as if it were still in that buffer. Ping-pong
+  the byte window (``Capabilities.rx_buffer_bytes``, shrunk by ``window.WindowGovernor`` when a
+  trial proves the board's buffer smaller), counting every byte as if it were still in that buffer. Ping-pong
   (one line in flight) is the fallback and an option.
 * ``Resend: N`` rewinds to N, once. The sender first holds: every request that arrives meanwhile
   comes from the stale lines sent after N (each is rejected, or cut by the buffer flush the error
