@@ -341,6 +341,27 @@ async def test_a_silent_printer_is_nudged_with_one_bare_newline_per_silence() ->
     sender.stop(StreamCancelled("test over"))
 
 
+async def test_a_nudge_takes_a_byte_of_the_window_until_the_line_before_it_is_acknowledged() -> None:
+    # The newline waits in the receive buffer behind the last line sent: a window filled to the byte
+    # would then overflow a buffer of exactly that size by one.
+    moves = ["G1 X10 Y10 F3000", "G1 X20 Y10 F3000", "G1 X30 Y10 F3000"]
+    sizes = [len(codec.encode(n, c)) for n, c in enumerate(moves)]
+    assert sizes[0] == sizes[2], "the test needs line 2 to need exactly the room line 0 frees"
+    sender, wire = make(rx=sizes[0] + sizes[1], timeouts=Timeouts(nudge_s=0.05, default_s=5))
+    sender.start()
+    done = sender.stream(moves)
+    assert wire.numbers() == [0, 1]
+    await asyncio.sleep(0.15)
+    assert wire.nudges == 1
+    feed(sender, "ok")
+    assert wire.numbers() == [0, 1], "line 2 would overflow by the nudge's byte"
+    feed(sender, "ok")
+    assert wire.numbers() == [0, 1, 2], "read with line 1: its byte is free again"
+    feed(sender, "ok")
+    assert (await asyncio.wait_for(done, 1)).lines == 3
+    sender.stop(StreamCancelled("test over"))
+
+
 async def test_nudges_can_be_turned_off() -> None:
     sender, wire = make(timeouts=Timeouts(nudge_s=0, default_s=5))
     sender.start()

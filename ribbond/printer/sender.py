@@ -73,8 +73,10 @@ class Timeouts(BaseModel):
     resend_settle_s: float = Field(default=0.04, ge=0)
     #: Silence after which a bare newline goes out, once: if noise turned the last line's newline
     #: into another byte, the printer waits for the rest of that line and would answer nothing
-    #: until the probe. An empty line is ignored by the firmware otherwise. 0 disables it.
-    nudge_s: float = Field(default=0.3, ge=0)
+    #: until the probe. An empty line is ignored by the firmware otherwise, so a nudge in a silence
+    #: that had another cause (a long move) costs one byte: far below what streaming answers take
+    #: to come back (a few ms at 250000 baud), 30 ms is already a stall. 0 disables it.
+    nudge_s: float = Field(default=0.03, ge=0)
 
     def for_command(self, command: str) -> float | None:
         """Seconds of silence allowed while ``command`` is the oldest unacknowledged one; None
@@ -151,6 +153,8 @@ class StreamResult:
     #: The byte window at the end (smaller than configured after an overflow verdict).
     window_bytes: int = 0
     window_verdict: str = "none"
+    #: Bare newlines sent after silences (the sender's lifetime, as resends and probes).
+    nudges: int = 0
 
 
 @dataclass(eq=False)
@@ -231,6 +235,7 @@ class Sender:
         self._refused: int | None = None  # the line the last line-check Error refused
         self._last_heard = time.monotonic()
         self._nudged_at = -1.0  # the _last_heard of the silence already nudged
+        self._nudge_behind: int | None = None  # a nudge's byte waits behind this line in the buffer
         self._probes_outstanding = 0
         self._watchdog: asyncio.Task[None] | None = None
         # Statistics for reports and benchmarks.
@@ -284,6 +289,7 @@ class Sender:
         self._cursor = 0
         self._acked_through = -1
         self._resend_ok_due = False
+        self._nudge_behind = None  # numbers restart: an old nudge's line would never be acknowledged
         return self.send(_LINE_NUMBER_RESET)
 
     def send(self, command: str) -> asyncio.Future[Answer]:
@@ -418,6 +424,8 @@ class Sender:
                 program_lines += 1
         while self._inflight and self._inflight[0].number <= number:
             self._inflight_bytes -= len(self._inflight.popleft().data)
+        if self._nudge_behind is not None and self._nudge_behind <= number:
+            self._nudge_behind = None  # read (and ignored) right after that line
         if self._pending_resend is not None and self._pending_resend <= number:
             self._pending_resend = None
 
@@ -457,6 +465,8 @@ class Sender:
             return
         # Lines from `number` on are not in the printer: flushed with its receive buffer, or still
         # on the way, where each will be refused. They will be sent again.
+        if self._nudge_behind is not None and self._nudge_behind >= number:
+            self._nudge_behind = None  # flushed or read with them
         for line in self._inflight:
             if line.number >= number:
                 self._inflight_bytes -= len(line.data)
@@ -536,7 +546,9 @@ class Sender:
         # left waiting in the receive buffer could be cut in two by the flush after an error.
         if len(self._inflight) >= self.capabilities.queue_slots:
             return False
-        return self._inflight_bytes + size <= self.window.window
+        # a nudge's newline still in the receive buffer takes a byte of it
+        nudge = 1 if self._nudge_behind is not None else 0
+        return self._inflight_bytes + nudge + size <= self.window.window
 
     def _next_fresh(self) -> tuple[_Line, bool] | None:
         """The next command not yet numbered, and whether it is a single (not a program line)."""
@@ -637,13 +649,17 @@ class Sender:
                 probes=self.probes,
                 window_bytes=self.window.window,
                 window_verdict=self.window.verdict.value,
+                nudges=self.nudges,
             ))
 
     # ------------------------------------------------------------------ silence
 
     async def _watch(self) -> None:
+        # look often enough to nudge on time; the probe's timeouts are seconds
+        nudge = self.timeouts.nudge_s
+        tick = min(0.05, nudge / 3) if nudge > 0 else 0.05
         while self._failure is None:
-            await asyncio.sleep(0.05)
+            await asyncio.sleep(tick)
             if not self._inflight:
                 continue
             limit = self.timeouts.for_command(self._inflight[0].command)
@@ -672,6 +688,7 @@ class Sender:
             return
         self._nudged_at = self._last_heard
         self.nudges += 1
+        self._nudge_behind = self._cursor - 1
         self._write(b"\n")
 
     def _probe(self) -> None:
