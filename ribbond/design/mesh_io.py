@@ -405,7 +405,13 @@ def _parse_obj(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
     if not data.strip():
         raise MeshError("empty", f"{name}: the file is empty")
     _decode_check(data, name)
-    data = _COMMENT.sub(b"", _strip_bom(data))  # comments end at the line end: line numbers hold
+    data = _strip_bom(data)
+    if b"#" in data:
+        data = _COMMENT.sub(b"", data)  # comments end at the line end: line numbers hold
+    plain = _parse_plain_obj(data)
+    if plain is not None:
+        _check_max_faces(name, len(plain[1]), max_faces, "")
+        return plain
     records = _OBJ_RECORD.findall(data)
     if not records:
         raise MeshError("empty", f"{name}: no vertex ('v') or face ('f') lines")
@@ -488,6 +494,35 @@ def _parse_obj(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
                                      f"but the file has {nv} vertices")
     F, _ = _fan(idx, counts)
     return V, F
+
+
+def _parse_plain_obj(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+    """The common file, in bulk: only ``v x y z`` and ``f a b c`` lines with positive vertex
+    numbers that exist. None for anything else (quads, ``vn``/``vt``/``o`` lines, ``i/j/k``
+    corners, relative or bad numbers): the general parser reads those and names the bad line.
+
+    Every record has four tokens exactly when the tokens are four per record start and every fourth
+    token is a record's ``v`` or ``f`` (a shorter or longer record shifts the ones after it onto
+    numbers, which are never ``v`` or ``f``).
+    """
+    tokens = data.split()
+    # records start a line with "v " or "f " (others: the general parser)
+    starts = (data.count(b"\nv ") + data.count(b"\nf ") + (data[:2] in (b"v ", b"f ")))
+    if not tokens or len(tokens) != 4 * starts:
+        return None
+    table = np.array(tokens).reshape(-1, 4)
+    kind = table[:, 0]
+    is_v = kind == b"v"
+    if not np.all(is_v | (kind == b"f")):
+        return None
+    try:
+        V = table[is_v, 1:].astype(np.float64)
+        idx = table[~is_v, 1:].astype(np.int64)
+    except (ValueError, OverflowError):
+        return None
+    if idx.size and (idx.min() < 1 or idx.max() > len(V)):
+        return None
+    return V, idx - 1
 
 
 # ---------------------------------------------------------------------------------------------

@@ -200,6 +200,35 @@ def test_obj_corner_forms_comments_and_ignored_statements(tmp_path: Path) -> Non
     np.testing.assert_array_equal(F2, F)
 
 
+def test_a_plain_obj_read_in_bulk_equals_the_general_parser(tmp_path: Path) -> None:
+    V, F, _ = grid(6)
+    V = V + np.random.default_rng(3).normal(scale=0.01, size=V.shape)
+    write_obj(tmp_path / "plain.obj", V, F, header="plain")
+    data = (tmp_path / "plain.obj").read_bytes()
+    assert mesh_io._parse_plain_obj(data.split(b"\n", 1)[1]) is not None, "the bulk path reads it"
+    # one ignored statement sends the same file through the general parser
+    (tmp_path / "general.obj").write_bytes(b"o grid\n" + data)
+    assert mesh_io._parse_plain_obj(b"o grid\n" + data) is None
+    Vp, Fp = read_mesh(tmp_path / "plain.obj")
+    Vg, Fg = read_mesh(tmp_path / "general.obj")
+    np.testing.assert_array_equal(Vp, Vg)
+    np.testing.assert_array_equal(Fp, Fg)
+    np.testing.assert_array_equal(Fp, F)
+
+
+@pytest.mark.parametrize("text", [
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n",          # a quad
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1/1 2/2 3/3\n",               # corners with texture numbers
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nf -3 -2 -1\n",                  # relative numbers
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 4\n",                     # a vertex that does not exist
+    "v 0 0 0 1\nv 1 0 0\nv 1 1 0 1\nf 1 2 3\n",                 # w coordinates (a record of 5, one of 3)
+    "v 0 0 0\nvn 0 0 1\nv 1 0 0\nv 1 1 0\nf 1 2 3\n",           # another statement
+    "v 0 0 x\nv 1 0 0\nv 1 1 0\nf 1 2 3\n",                     # a bad number
+])
+def test_anything_but_a_plain_obj_goes_to_the_general_parser(text: str) -> None:
+    assert mesh_io._parse_plain_obj(text.encode()) is None
+
+
 def test_obj_crlf_and_uppercase_extension(tmp_path: Path) -> None:
     V, F, _ = grid(2)
     (tmp_path / "GRID.OBJ").write_bytes(obj_text(V, F).replace("\n", "\r\n").encode())
