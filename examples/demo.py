@@ -71,8 +71,10 @@ def main() -> int:
     state = Path(tempfile.mkdtemp(prefix="ribbond-demo-"))
     sim = SimProcess(["--time-scale", str(TIME_SCALE), "--baud", "250000"], cwd=ROOT).start()
     config = state / "ribbond.toml"
+    # the simulated board has Marlin's standard 128-byte receive buffer, and its owner says so: the
+    # default window (63, safe for 64-byte boards) keeps one line in flight and starves the planner
     config.write_text(f'state_dir = "{state}"\n[serial]\nport = "{sim.port}"\nbaud = 250000\n'
-                      '[api]\nport = 0\n', encoding="utf-8")
+                      'rx_buffer = 127\n[api]\nport = 0\n', encoding="utf-8")
     log = (OUT / "ribbond.log").open("w")
     daemon = subprocess.Popen([sys.executable, "-m", "ribbond", "--config", str(config)], cwd=ROOT,
                               stderr=log, env={**os.environ, "PYTHONUNBUFFERED": "1"})
