@@ -551,12 +551,14 @@ class ShellEnergy:
         grad, exact, psd = self.gradient_and_hessians(X)
         return grad, (psd() if project else exact()).tocsr()
 
-    def gradient_and_hessians(self, X: np.ndarray, free: np.ndarray | None = None):
+    def gradient_and_hessians(self, X: np.ndarray, free: np.ndarray | None = None, lower: bool = False):
         """(∇E, exact(), psd()): the gradient (3n,) and two functions assembling each Hessian on demand,
-        on the rows and columns ``free`` (sorted dof indices; default all) as CSC with sorted indices.
+        on the rows and columns ``free`` (sorted dof indices; default all) as CSC with sorted indices;
+        with ``lower``, only its lower triangle (what the solver's Cholesky factorization reads).
 
-        The Hessian's sparsity is fixed, so each is one ``bincount`` of the element blocks into the
-        data of a pattern made once per ``free`` set (no COO conversion, sort or slicing per call).
+        The Hessian's sparsity is fixed, so each is one sparse product per group of element blocks
+        into the data of a pattern made once per ``free`` set (no COO conversion, sort or slicing per
+        call; ``HessianPattern``).
         The bending's Gauss–Newton term Jᵀ H_s J is summed per face over its three hinges:
         J_fᵀ H_f J_f on the face and its three neighbours' opposite vertices (18 dofs).
         """
@@ -569,7 +571,7 @@ class ShellEnergy:
         n3 = 3 * self.n
         grad = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=n3)
         grad += np.bincount(self._hdof.ravel(), weights=(lam[:, None] * gs).ravel(), minlength=n3)
-        pattern = self._pattern(free)
+        pattern = self._pattern(free, lower)
         Jf = np.zeros((len(self.F), 3, 6, 3))
         Jf[self._nb_face[:, None], self._nb_edge[:, None], self._nb_loc] = gs[self._nb_hinge].reshape(-1, 4, 3)
         Jf = Jf.reshape(-1, 3, 18)
@@ -586,15 +588,16 @@ class ShellEnergy:
 
         return grad, exact, psd
 
-    def _pattern(self, free: np.ndarray | None) -> "HessianPattern":
+    def _pattern(self, free: np.ndarray | None, lower: bool = False) -> "HessianPattern":
         key = None if free is None else np.asarray(free, dtype=np.int64)
         cached = getattr(self, "_cached_pattern", None)
-        if cached is not None and (cached.free is None if key is None
-                                   else cached.free is not None and np.array_equal(cached.free, key)):
+        if cached is not None and cached.lower == lower and (
+                cached.free is None if key is None else cached.free is not None and np.array_equal(cached.free, key)):
             return cached
-        blocks = [(self._fdof, 9), (self._hdof, 12), (self._nb_dof, 18)]
+        blocks = [self.F, self.topo.hinge, self._nb_vertices]
         # the hinges' blocks come batch-last (12, 12, h) from _HingeGeometry.hessian
-        self._cached_pattern = HessianPattern(blocks, 3 * self.n, key, batch_last=(False, True, False))
+        self._cached_pattern = HessianPattern(blocks, 3 * self.n, key, batch_last=(False, True, False),
+                                              lower=lower)
         return self._cached_pattern
 
     def _face_neighbourhoods(self) -> None:
@@ -609,62 +612,85 @@ class ShellEnergy:
         hv = topo.hinge[np.maximum(hid, 0)]                                 # (m, 3, 4)
         opp = np.where(hv[:, :, 0] == F, hv[:, :, 3], hv[:, :, 0])
         nb = np.concatenate([F, np.where(hid >= 0, opp, F)], axis=1)        # (m, 6)
-        self._nb_dof = (3 * nb[:, :, None] + np.arange(3)).reshape(m, 18)
+        self._nb_vertices = nb
         f_idx, e_idx = np.nonzero(hid >= 0)
         loc = np.argmax(hv[f_idx, e_idx][:, :, None] == nb[f_idx][:, None, :], axis=2)   # (k, 4)
         self._nb_face, self._nb_edge, self._nb_loc, self._nb_hinge = f_idx, e_idx, loc, hid[f_idx, e_idx]
 
 
 class HessianPattern:
-    """The fixed sparsity of a sum of dense element blocks, restricted to the dofs ``free``.
+    """The fixed sparsity of a sum of dense element blocks over vertices (three dofs each, xyz
+    interleaved), restricted to the dofs ``free``, and the sparse maps that sum the blocks into it.
 
     Parameters
     ----------
-    blocks : per group (dofs (k, d), d): element k's block sits at rows and columns dofs[k].
-    n : the number of dofs; free : sorted dofs kept (None: all).
-    batch_last : per group, its values come as (d, d, k) rather than (k, d, d) (default: none).
+    blocks : per group the vertices (k, v) of each element: element k's block (3v × 3v) sits at the
+        dofs of vertices[k].
+    n : the number of dofs (3 × vertices); free : sorted dofs kept (None: all).
+    batch_last : per group, its values come as (3v, 3v, k) rather than (k, 3v, 3v) (default: none).
+    lower : only the lower triangle (row ≥ column), all a Cholesky factorization reads: half the sums.
+
+    The pattern is made per vertex pair (3 × 3 dense blocks, one ``unique`` over the pairs, not over
+    every dof pair); ``assemble`` is one sparse matrix-vector product per group (each slot sums its
+    contributions in the order of the values, as a ``bincount`` would: the same sums).
     """
 
-    def __init__(self, blocks: list[tuple[np.ndarray, int]], n: int, free: np.ndarray | None,
-                 batch_last: tuple[bool, ...] | None = None) -> None:
-        self.free = free
+    def __init__(self, blocks: list[np.ndarray], n: int, free: np.ndarray | None,
+                 batch_last: tuple[bool, ...] | None = None, lower: bool = False) -> None:
+        self.free, self.lower = free, lower
+        nv = n // 3
+        pairs = [(np.repeat(v, v.shape[1], axis=1), np.tile(v, (1, v.shape[1]))) for v in blocks]  # (k, v²)
+        keys = np.concatenate([(c * nv + r).ravel() for r, c in pairs])           # column-major
+        vkeys, vinv = np.unique(keys, return_inverse=True)
+        vcol = vkeys // nv
+        vstart = np.searchsorted(vcol, np.arange(nv + 1))
+        deg = np.diff(vstart)
+        # the full (all dofs, both triangles) CSC: column 3J + b holds rows 3I + a, I over J's vertex
+        # rows in order; its entry sits at 9 vstart[J] + 3 deg[J] b + 3 (p − vstart[J]) + a
+        p = np.arange(len(vkeys))
+        J, I = vcol, vkeys % nv
+        ab = np.arange(3)
+        full_pos = (9 * vstart[J] - 3 * vstart[J] + 3 * p)[:, None, None] + ab[:, None] \
+            + (3 * deg[J])[:, None, None] * ab[None, :]                          # (pairs, a, b)
+        order = np.empty(9 * len(p), dtype=np.int64)
+        order[full_pos.ravel()] = np.arange(9 * len(p))
+        row = (3 * I[:, None, None] + ab[:, None] + 0 * ab[None, :]).ravel()[order]
+        col = (3 * J[:, None, None] + 0 * ab[:, None] + ab[None, :]).ravel()[order]
         index = np.arange(n) if free is None else np.full(n, -1, dtype=np.int64)
         if free is not None:
             index[free] = np.arange(len(free))
+        keep = (index[row] >= 0) & (index[col] >= 0)
+        if lower:
+            keep &= row >= col
+        remap = np.where(keep, np.cumsum(keep) - 1, -1)
         nf = n if free is None else len(free)
-        keys = []
-        for dofs, d in blocks:
-            r = index[np.repeat(dofs, d, axis=1).ravel()]
-            c = index[np.tile(dofs, (1, d)).ravel()]
-            keys.append(np.where((r >= 0) & (c >= 0), c * nf + r, -1))      # column-major: CSC order
-        allk = np.concatenate(keys)
-        uniq, inv = np.unique(allk[allk >= 0], return_inverse=True)
-        self.nnz = len(uniq)
-        slots, start = [], 0
-        for k in keys:
-            sl = np.full(len(k), self.nnz, dtype=np.int64)                  # the pinned: a spare slot
-            ok = k >= 0
-            sl[ok] = inv[start:start + int(ok.sum())]
-            start += int(ok.sum())
-            slots.append(sl)
-        for g, (dofs, d) in enumerate(blocks):
-            if batch_last is not None and batch_last[g]:
-                slots[g] = np.ascontiguousarray(slots[g].reshape(len(dofs), d * d).T).ravel()
-        self.slots = slots
-        self.indices = (uniq % nf).astype(np.int32)
-        cols = uniq // nf
-        self.indptr = np.searchsorted(cols, np.arange(nf + 1)).astype(np.int32)
-        self.diagonal = np.flatnonzero(self.indices == cols)
+        self.nnz = int(keep.sum())
+        self.indices = index[row[keep]].astype(np.int32)
+        self.indptr = np.searchsorted(index[col[keep]], np.arange(nf + 1)).astype(np.int32)
         self.shape = (nf, nf)
+        self.scatter = []
+        start = 0
+        for g, (v, (r, c)) in enumerate(zip(blocks, pairs)):
+            k, m = v.shape
+            pk = vinv[start:start + r.size].reshape(k, m, m)                     # (k, i, j) pair ids
+            start += r.size
+            fp = (9 * vstart[c.reshape(k, m, m)] - 3 * vstart[c.reshape(k, m, m)] + 3 * pk)[:, :, None, :, None] \
+                + ab[None, None, :, None, None] + (3 * deg[c.reshape(k, m, m)])[:, :, None, :, None] * ab
+            slot = remap[fp]                                                     # (k, i, a, j, b)
+            if batch_last is not None and batch_last[g]:
+                slot = np.moveaxis(slot, 0, -1)
+            slot = slot.ravel()
+            ok = np.flatnonzero(slot >= 0)
+            self.scatter.append(sp.csr_matrix((np.ones(len(ok)), (slot[ok], ok)), shape=(self.nnz, slot.size)))
 
     def assemble(self, values: tuple[np.ndarray | None, ...]) -> sp.csc_matrix:
         """The matrix with the element blocks ``values`` (one (k, d, d) array, or (d, d, k) for a
-        ``batch_last`` group, or None per group)."""
-        data = np.zeros(self.nnz + 1)
-        for sl, v in zip(self.slots, values):
+        ``batch_last`` group, or None per group); with ``lower``, its lower triangle."""
+        data = np.zeros(self.nnz)
+        for S, v in zip(self.scatter, values):
             if v is not None:
-                data += np.bincount(sl, weights=v.ravel(), minlength=self.nnz + 1)
-        H = sp.csc_matrix((data[:-1], self.indices, self.indptr), shape=self.shape)
+                data += S @ np.ascontiguousarray(v).ravel()
+        H = sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
         H.has_sorted_indices = True
         return H
 

@@ -189,6 +189,12 @@ def test_hessian_on_the_free_dofs_is_the_full_one_restricted():
         C.sort_indices()
         np.testing.assert_array_equal(C.indices, A.indices)
     assert E.gradient_and_hessians(X, free.copy())[1]().nnz == exact().nnz     # same pattern reused
+    # the solver's: the lower triangle only, the same values
+    _, exact_low, psd_low = E.gradient_and_hessians(X, free, lower=True)
+    for low, sub in ((exact_low, exact), (psd_low, psd)):
+        L, A = low(), sub()
+        assert L.format == "csc" and np.all(L.indices >= np.repeat(np.arange(len(free)), np.diff(L.indptr)))
+        np.testing.assert_array_equal(L.toarray(), np.tril(A.toarray()))
 
 
 def _cross_matrices(v):
