@@ -572,8 +572,8 @@ class ShellEnergy:
         grad = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=n3)
         grad += np.bincount(self._hdof.ravel(), weights=(lam[:, None] * gs).ravel(), minlength=n3)
         pattern = self._pattern(free, lower)
-        Jf = np.zeros((len(self.F), 3, 6, 3))
-        Jf[self._nb_face[:, None], self._nb_edge[:, None], self._nb_loc] = gs[self._nb_hinge].reshape(-1, 4, 3)
+        Jf = np.zeros(len(self.F) * 54)
+        Jf[self._nb_to] = gs.ravel()[self._nb_from]
         Jf = Jf.reshape(-1, 3, 18)
         gauss_newton = np.swapaxes(Jf, 1, 2) @ self.bending.face_H @ Jf
 
@@ -615,7 +615,10 @@ class ShellEnergy:
         self._nb_vertices = nb
         f_idx, e_idx = np.nonzero(hid >= 0)
         loc = np.argmax(hv[f_idx, e_idx][:, :, None] == nb[f_idx][:, None, :], axis=2)   # (k, 4)
-        self._nb_face, self._nb_edge, self._nb_loc, self._nb_hinge = f_idx, e_idx, loc, hid[f_idx, e_idx]
+        # J_f (m, 3, 6, 3) flattened: hinge k's gradient (12,) goes to face f_idx[k], edge e_idx[k],
+        # its four vertices' places loc[k] among the six
+        self._nb_to = ((54 * f_idx + 18 * e_idx)[:, None, None] + 3 * loc[:, :, None] + np.arange(3)).ravel()
+        self._nb_from = (12 * hid[f_idx, e_idx][:, None] + np.arange(12)).ravel()
 
 
 class HessianPattern:
