@@ -259,6 +259,8 @@ class _HingeGeometry:
 
     def gradient(self) -> np.ndarray:
         """∂s/∂x (h, 12)."""
+        if self._grad is not None:
+            return self._grad
         v0, v1, v2, v3 = self._v
         # the arguments of J = ∂u/∂x's cross-matrix blocks (signs folded in: −[a]× = [−a]×): N_f's at
         # v0, v1, v2, N_g's at v2, v1, v3
@@ -519,8 +521,18 @@ class ShellEnergy:
     def energy(self, X: np.ndarray) -> float:
         """E(X) (a float): stretching plus bending."""
         W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, forms=self._stretch_forms)
-        s_h, _, _ = hinge_tan(X, self.topo.hinge)
-        return float(W.sum()) + self.bending.value(self._edge_values(s_h))
+        hinges = self._hinges(X)
+        return float(W.sum()) + self.bending.value(self._edge_values(hinges.s))
+
+    def _hinges(self, X: np.ndarray) -> "_HingeGeometry":
+        """The hinges' geometry at X, kept for the next call: Newton's line search evaluates the
+        energy at the point it accepts, whose gradient and Hessians come next."""
+        last = getattr(self, "_last_hinges", None)
+        if last is not None and last[0].shape == X.shape and np.array_equal(last[0], X):
+            return last[1]
+        hinges = _HingeGeometry(X, self.topo.hinge)
+        self._last_hinges = (np.array(X, dtype=float), hinges)
+        return hinges
 
     def parts(self, X: np.ndarray) -> tuple[float, float]:
         """(stretching, bending) energies."""
@@ -565,7 +577,7 @@ class ShellEnergy:
         _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3,
                                      forms=self._stretch_forms)
         GN_e, Wa = parts
-        hinges = _HingeGeometry(X, self.topo.hinge)
+        hinges = self._hinges(X)
         s_h, gs = hinges.s, hinges.gradient()
         lam = (self.bending.H @ self._edge_values(s_h) + self.bending.g)[self._hedge]
         n3 = 3 * self.n
