@@ -1,9 +1,9 @@
 """Newton's method for the shell's static equilibrium: min_X E(X) with six degrees of freedom pinned.
 
 Each iteration assembles the gradient and a Hessian (``ShellEnergy``; its lower triangle, all the
-factorization reads), solves on the free degrees of freedom with a sparse Cholesky factorization (CHOLMOD, the symbolic analysis once per solve; it also
-tells whether the matrix is positive definite) and backtracks
-along the step until the energy decreases enough (Armijo), the largest move capped at a tenth of
+factorization reads), solves on the free degrees of freedom with a sparse Cholesky factorization
+(CHOLMOD, the symbolic analysis once per solve; it also tells whether the matrix is positive
+definite) and backtracks along the step until the energy decreases enough (Armijo), the largest move capped at a tenth of
 the size. Six coordinates of three vertices are held fixed, which removes
 the rigid motions (the free body has no net force, so they carry no load at equilibrium).
 
