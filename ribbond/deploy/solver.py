@@ -3,8 +3,8 @@
 Each iteration assembles the gradient and a Hessian (``ShellEnergy``; its lower triangle, all the
 factorization reads), solves on the free degrees of freedom with a sparse Cholesky factorization
 (CHOLMOD, the symbolic analysis once per solve; it also tells whether the matrix is positive
-definite) and backtracks along the step until the energy decreases enough (Armijo), the largest move capped at a tenth of
-the size. Six coordinates of three vertices are held fixed, which removes
+definite) and backtracks along the step until the energy decreases enough (Armijo), the largest
+move capped at a tenth of the size. Six coordinates of three vertices are held fixed, which removes
 the rigid motions (the free body has no net force, so they carry no load at equilibrium).
 
 Each iteration first tries the exact Hessian (with a tiny diagonal shift): near a stable equilibrium it
