@@ -116,33 +116,37 @@ class CoverageImage:
 
     def sample(self, image: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """Bilinear values of ``image`` at points xy (..., 2); 0 outside the raster (what
-        ``scipy.ndimage.map_coordinates(order=1, mode="constant")`` gives, by direct gathers: 1.5× faster)."""
+        ``scipy.ndimage.map_coordinates(order=1, mode="constant")`` gives, by direct gathers: 1.5× faster;
+        a point is inside where clipping leaves it unchanged, and the gathers index shifted views of
+        the image: fewer passes over the points, the same arithmetic)."""
         ny, nx = image.shape
         x = ((xy[..., 0] - self.origin[0]) / self.pixel).ravel()
         y = ((xy[..., 1] - self.origin[1]) / self.pixel).ravel()
-        out = (x >= 0) & (x <= nx - 1) & (y >= 0) & (y <= ny - 1)
-        np.clip(x, 0, nx - 1, out=x)
-        np.clip(y, 0, ny - 1, out=y)
-        i = np.minimum(x.astype(np.intp), nx - 2)
-        j = np.minimum(y.astype(np.intp), ny - 2)
-        x -= i                                                       # the fractions
-        y -= j
+        xc = np.clip(x, 0, nx - 1)
+        yc = np.clip(y, 0, ny - 1)
+        inside = xc == x
+        inside &= yc == y
+        i = xc.astype(np.intp)
+        np.minimum(i, nx - 2, out=i)
+        j = yc.astype(np.intp)
+        np.minimum(j, ny - 2, out=j)
+        xc -= i                                                      # the fractions
+        yc -= j
         flat = image.ravel()
         k = j * nx
         k += i
-        a, b = flat[k], flat[k + 1]
-        k += nx
-        c, d = flat[k], flat[k + 1]
+        a, b = flat[k], flat[1:][k]
+        c, d = flat[nx:][k], flat[nx + 1:][k]
         b -= a
-        b *= x
+        b *= xc
         a += b                                                       # along x on row j
         d -= c
-        d *= x
+        d *= xc
         c += d                                                       # along x on row j + 1
         c -= a
-        c *= y
+        c *= yc
         v = a + c
-        v[~out] = 0.0
+        v *= inside                                                  # 0 outside (values are ≥ 0)
         return v.reshape(xy.shape[:-1])
 
 

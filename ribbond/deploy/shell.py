@@ -48,15 +48,6 @@ __all__ = ["ShellTopology", "shell_topology", "hinge_tan", "stretch_energy", "Be
 
 # -- small vectorized helpers ------------------------------------------------------------------------
 
-def _cross_matrices(v: np.ndarray) -> np.ndarray:
-    """[v]× (..., 3, 3) with [v]× w = v × w, for v (..., 3)."""
-    out = np.zeros(v.shape + (3,))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
 def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, :, None] * b[:, None, :]
 
@@ -158,10 +149,61 @@ def shell_topology(F: np.ndarray) -> ShellTopology:
 
 
 # -- the hinge quantity s = tan(θ/2) ---------------------------------------------------------------
+#
+# The hinges' arrays are kept batch-last, (3, h) vectors and (3, 3, h) matrices: numpy's inner loop
+# then runs over the h hinges, not over a trailing axis of 3 (10× fewer loop overheads).
 
-#: Where the cross-matrix blocks of ∂u/∂x sit in J (9, 12), u = (N_f, N_g, e): (row block, column block)
-#: of N_f = (v1 − v0) × (v2 − v0) and N_g = (v1 − v2) × (v3 − v2) in (v0, v1, v2, v3).
-_J_BLOCKS = ((0, 0), (0, 1), (0, 2), (1, 2), (1, 1), (1, 3))
+def _cross3(a: np.ndarray, b: np.ndarray, axis: int = 0) -> np.ndarray:
+    """a × b over the component axis ``axis`` (0 or 1) of a (3, ...) or (k, 3, ...); b (3, h)
+    broadcast over a's other axes (a's trailing axis is h)."""
+    out = np.empty(a.shape)
+    part = (lambda x, i: x[i]) if axis == 0 else (lambda x, i: x[:, i])
+    t = np.empty(part(a, 0).shape)
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        o = part(out, i)
+        np.multiply(part(a, j), b[k], out=o)
+        np.multiply(part(a, k), b[j], out=t)
+        np.subtract(o, t, out=o)
+    return out
+
+
+def _skew3(a: np.ndarray) -> np.ndarray:
+    """[a]× (3, 3, h), [a]× w = a × w, of a batch-last vector a (3, h)."""
+    z = np.zeros_like(a[0])
+    return np.stack([np.stack([z, -a[2], a[1]]), np.stack([a[2], z, -a[0]]), np.stack([-a[1], a[0], z])])
+
+
+def _projector3(a: np.ndarray) -> np.ndarray:
+    """I − a aᵀ (3, 3, h) of batch-last unit vectors a (3, h)."""
+    return np.eye(3)[:, :, None] - a[:, None, :] * a[None, :, :]
+
+
+def _skew_scatter(blocks: tuple[tuple[int, int, int, int], ...], width: int) -> tuple[np.ndarray, ...]:
+    """Where the off-diagonal entries of cross-matrix blocks go in a flattened (·, width) matrix.
+
+    blocks : (row block, column block, source vector, sign) per block, the block being
+        sign × [source]× at rows 3·row block, columns 3·column block.
+
+    Returns
+    -------
+    positions (6b,) into the flattened matrix, sources (6b,) into the sources' flattened (k, 3)
+    components, signs (6b,).
+    """
+    entries = ((0, 1, 2, -1.0), (0, 2, 1, 1.0), (1, 0, 2, 1.0), (1, 2, 0, -1.0), (2, 0, 1, -1.0), (2, 1, 0, 1.0))
+    pos, src, sign = [], [], []
+    for rb, cb, k, sg in blocks:
+        for i, j, comp, s in entries:
+            pos.append((3 * rb + i) * width + 3 * cb + j)
+            src.append(3 * k + comp)
+            sign.append(sg * s)
+    return np.array(pos), np.array(src), np.array(sign)
+
+
+#: The second derivatives of N_f (v0, v1, v2) and N_g (v2, v1, v3) contracted with ∂s/∂N_f, ∂s/∂N_g:
+#: cross-matrix blocks of ∂s/∂N_f (source 0), ∂s/∂N_g (1) and their difference (2) in ∂²s/∂x² (12, 12).
+_N2_POS, _N2_SRC, _N2_SIGN = _skew_scatter(tuple(
+    t for i, j, k, sg in ((0, 1, 0, -1.0), (0, 2, 0, 1.0), (1, 2, 2, 1.0), (2, 3, 1, 1.0), (1, 3, 1, -1.0))
+    for t in ((i, j, k, sg), (j, i, k, -sg))), 12)
 
 
 def hinge_tan(X: np.ndarray, hinge: np.ndarray, derivatives: int = 0
@@ -184,105 +226,118 @@ def hinge_tan(X: np.ndarray, hinge: np.ndarray, derivatives: int = 0
     if derivatives == 0:
         return hg.s, None, None
     grad = hg.gradient()
-    return hg.s, grad, (hg.hessian() if derivatives == 2 else None)
+    return hg.s, grad, (np.ascontiguousarray(hg.hessian().transpose(2, 0, 1)) if derivatives == 2 else None)
 
 
 class _HingeGeometry:
     """The hinges' shared quantities at one X, so that the gradient and (on demand, later in the same
-    Newton iteration) the Hessian reuse them instead of recomputing from X."""
+    Newton iteration) the Hessian reuse them instead of recomputing from X. Batch-last: (3, h)."""
 
     def __init__(self, X: np.ndarray, hinge: np.ndarray) -> None:
-        v0, v1, v2, v3 = (X[hinge[:, k]] for k in range(4))
+        XT = np.ascontiguousarray(np.asarray(X, dtype=float).T)
+        v0, v1, v2, v3 = (XT[:, hinge[:, k]] for k in range(4))
         self._v = (v0, v1, v2, v3)
-        self.Nf = np.cross(v1 - v0, v2 - v0)
-        self.Ng = np.cross(v1 - v2, v3 - v2)
+        self.Nf = _cross3(v1 - v0, v2 - v0)
+        self.Ng = _cross3(v1 - v2, v3 - v2)
         self.e = v2 - v1
-        self.nf = np.linalg.norm(self.Nf, axis=1)
-        self.ng = np.linalg.norm(self.Ng, axis=1)
-        self.L = np.linalg.norm(self.e, axis=1)
-        P = _dot(np.cross(self.Nf, self.Ng), self.e)
-        self.Qv = self.nf * self.ng + _dot(self.Nf, self.Ng)
+        self.nf = np.sqrt((self.Nf * self.Nf).sum(0))
+        self.ng = np.sqrt((self.Ng * self.Ng).sum(0))
+        self.L = np.sqrt((self.e * self.e).sum(0))
+        P = (_cross3(self.Nf, self.Ng) * self.e).sum(0)
+        self.Qv = self.nf * self.ng + (self.Nf * self.Ng).sum(0)
         self.D = self.L * self.Qv
         self.s = P / self.D
         self._grad: np.ndarray | None = None
 
     def _pull(self, gf: np.ndarray, gg: np.ndarray, ge: np.ndarray) -> np.ndarray:
-        """uᵀ-gradient (∂/∂N_f, ∂/∂N_g, ∂/∂e) pulled back to (v0, v1, v2, v3): λᵀ[w]× = (λ × w)ᵀ."""
+        """uᵀ-gradient (∂/∂N_f, ∂/∂N_g, ∂/∂e) (3, h) each pulled back to (v0, v1, v2, v3) (h, 12):
+        λᵀ[w]× = (λ × w)ᵀ."""
         w = self.w
-        c = np.cross(np.stack([gf, gf, gf, gg, gg, gg], 1), w)                      # (h, 6, 3)
-        out = np.empty((len(gf), 12))
-        out[:, 0:3] = c[:, 0]
-        out[:, 3:6] = c[:, 1] + c[:, 4]
-        out[:, 6:9] = c[:, 2] + c[:, 3]
-        out[:, 9:12] = c[:, 5]
-        out[:, 3:6] -= ge
-        out[:, 6:9] += ge
-        return out
+        c = [_cross3(gf, w[k]) for k in range(3)] + [_cross3(gg, w[k]) for k in range(3, 6)]
+        out = np.stack([c[0], c[1] + c[4] - ge, c[2] + c[3] + ge, c[5]])          # (4, 3, h)
+        return np.ascontiguousarray(out.reshape(12, -1).T)
 
     def gradient(self) -> np.ndarray:
         """∂s/∂x (h, 12)."""
+        if self._grad is not None:
+            return self._grad
         v0, v1, v2, v3 = self._v
-        # the arguments of ∂u/∂x's cross-matrix blocks at _J_BLOCKS (signs folded in: −[a]× = [−a]×)
-        self.w = np.stack([v2 - v1, v0 - v2, v1 - v0, v3 - v1, v2 - v3, v1 - v2], 1)   # (h, 6, 3)
+        # the arguments of J = ∂u/∂x's cross-matrix blocks (signs folded in: −[a]× = [−a]×): N_f's at
+        # v0, v1, v2, N_g's at v2, v1, v3
+        self.w = np.stack([v2 - v1, v0 - v2, v1 - v0, v3 - v1, v2 - v3, v1 - v2])      # (6, 3, h)
         Nf, Ng, e, D = self.Nf, self.Ng, self.e, self.D
-        self.Nfh, self.Ngh, self.eh = Nf / self.nf[:, None], Ng / self.ng[:, None], e / self.L[:, None]
-        self.gQf = self.ng[:, None] * self.Nfh + Ng
-        self.gQg = self.nf[:, None] * self.Ngh + Nf
+        self.Nfh, self.Ngh, self.eh = Nf / self.nf, Ng / self.ng, e / self.L
+        self.gQf = self.ng * self.Nfh + Ng
+        self.gQg = self.nf * self.Ngh + Nf
         # ∂s/∂u = ∂P/∂u / D − s/D ∂D/∂u, ∂D/∂u = Q ∂L/∂u + L ∂Q/∂u
-        sD, LsD = self.s / D, (self.s / D * self.L)[:, None]
-        self.gT = (np.cross(Ng, e) / D[:, None] - LsD * self.gQf,
-                   np.cross(e, Nf) / D[:, None] - LsD * self.gQg,
-                   np.cross(Nf, Ng) / D[:, None] - (sD * self.Qv)[:, None] * self.eh)
+        sD = self.s / D
+        LsD = sD * self.L
+        self.gT = (_cross3(Ng, e) / D - LsD * self.gQf,
+                   _cross3(e, Nf) / D - LsD * self.gQg,
+                   _cross3(Nf, Ng) / D - (sD * self.Qv) * self.eh)
         self._grad = self._pull(*self.gT)
         return self._grad
 
-    def hessian(self) -> np.ndarray:
-        """∂²s/∂x² (h, 12, 12). With b = ∂D/∂u / D and c = s/D, ∂²s/∂u² = ∂²P/D − c (Q ∂²L + L ∂²Q)
-        − (∂s bᵀ + b ∂sᵀ) − c (∂L ∂Qᵀ + ∂Q ∂Lᵀ) (the terms in s/D² and 2s/D³ of the quotient rule
-        cancel), pulled back as Jᵀ M J, plus the second derivatives of N_f, N_g contracted with ∂s/∂N."""
+    def _u_hessian(self, weight: np.ndarray | None) -> np.ndarray:
+        """weight × ∂²s/∂u² (9, 9, h) (notation of ``hessian``; the weight folded into the
+        coefficients, not a pass over M)."""
+        D, L, Qv, nf, ng = self.D, self.L, self.Qv, self.nf, self.ng
+        wt = 1.0 if weight is None else weight
+        c = self.s / D
+        cL = c * L * wt
+        C = [_skew3(a * (wt / D)) for a in (self.e, self.Nf, self.Ng)]
+        M = np.empty((9, 9, len(D)))
+        M[0:3, 0:3] = -(cL * (ng / nf)) * _projector3(self.Nfh)
+        M[3:6, 3:6] = -(cL * (nf / ng)) * _projector3(self.Ngh)
+        M[0:3, 3:6] = -C[0] - cL * (self.Nfh[:, None] * self.Ngh[None, :] + np.eye(3)[:, :, None])
+        M[3:6, 0:3] = M[0:3, 3:6].transpose(1, 0, 2)
+        M[0:3, 6:9] = C[2]
+        M[6:9, 0:3] = -C[2]
+        M[3:6, 6:9] = -C[1]
+        M[6:9, 3:6] = C[1]
+        M[6:9, 6:9] = -(c * Qv / L * wt) * _projector3(self.eh)
+        # the rank-two parts: R = [∂s, ∂L]ᵀ [b, c ∂Q], M −= R + Rᵀ
+        U0 = np.concatenate(self.gT) * wt
+        V0 = np.concatenate([(L / D) * self.gQf, (L / D) * self.gQg, (Qv / D) * self.eh])
+        V1 = np.concatenate([c * self.gQf, c * self.gQg])
+        R = U0[:, None] * V0[None, :]
+        R[6:9, 0:6] += (self.eh * wt)[:, None] * V1[None, :]
+        M -= R
+        M -= R.transpose(1, 0, 2)
+        return M
+
+    def hessian(self, weight: np.ndarray | None = None) -> np.ndarray:
+        """∂²s/∂x² (12, 12, h), batch-last, times ``weight`` (h,) if given. With b = ∂D/∂u / D and
+        c = s/D, ∂²s/∂u² = ∂²P/D − c (Q ∂²L + L ∂²Q) − (∂s bᵀ + b ∂sᵀ) − c (∂L ∂Qᵀ + ∂Q ∂Lᵀ) (the
+        terms in s/D² and 2s/D³ of the quotient rule cancel), pulled back as Jᵀ M J, plus the second
+        derivatives of N_f, N_g contracted with ∂s/∂N.
+
+        J's blocks are [w_k]× (N_f, N_g) and ∓I (e): A [w]× and [w]×ᵀ B are cross products of A's
+        rows and B's columns with w, so no 9 × 12 J is formed; the blocks below the diagonal are
+        the transposes of those above (the result is exactly symmetric)."""
         if self._grad is None:
             self.gradient()
-        h = len(self.s)
-        D, L, Qv, nf, ng = self.D, self.L, self.Qv, self.nf, self.ng
-        c = self.s / D
-        eye = np.eye(3)
-        J = np.zeros((h, 9, 12))
-        J5 = J.reshape(h, 3, 3, 4, 3)                                 # (u block, 3, x block, 3)
-        for k, blk in enumerate(np.moveaxis(_cross_matrices(self.w), 1, 0)):
-            J5[:, _J_BLOCKS[k][0], :, _J_BLOCKS[k][1], :] = blk
-        J[:, 6:9, 6:9] = eye
-        J[:, 6:9, 3:6] = -eye
-        C = _cross_matrices(np.stack([self.e, self.Nf, self.Ng], 1) / D[:, None, None])
-        cL = (c * L)[:, None, None]
-        M = np.empty((h, 9, 9))
-        M[:, 0:3, 0:3] = -(cL * (ng / nf)[:, None, None]) * (eye - _outer(self.Nfh, self.Nfh))
-        M[:, 3:6, 3:6] = -(cL * (nf / ng)[:, None, None]) * (eye - _outer(self.Ngh, self.Ngh))
-        M[:, 0:3, 3:6] = -C[:, 0] - cL * (_outer(self.Nfh, self.Ngh) + eye)
-        M[:, 3:6, 0:3] = np.swapaxes(M[:, 0:3, 3:6], 1, 2)
-        M[:, 0:3, 6:9] = C[:, 2]
-        M[:, 6:9, 0:3] = -C[:, 2]
-        M[:, 3:6, 6:9] = -C[:, 1]
-        M[:, 6:9, 3:6] = C[:, 1]
-        M[:, 6:9, 6:9] = -(c * Qv / L)[:, None, None] * (eye - _outer(self.eh, self.eh))
-        # the rank-two parts: R = [∂s, ∂L]ᵀ [b, c ∂Q], M −= R + Rᵀ
-        U = np.zeros((h, 2, 9))
-        V = np.zeros((h, 2, 9))
-        U[:, 0, 0:3], U[:, 0, 3:6], U[:, 0, 6:9] = self.gT
-        U[:, 1, 6:9] = self.eh
-        LD = (L / D)[:, None]
-        V[:, 0, 0:3], V[:, 0, 3:6], V[:, 0, 6:9] = LD * self.gQf, LD * self.gQg, (Qv / D)[:, None] * self.eh
-        V[:, 1, 0:3], V[:, 1, 3:6] = c[:, None] * self.gQf, c[:, None] * self.gQg
-        R = np.swapaxes(U, 1, 2) @ V
-        M -= R
-        M -= np.swapaxes(R, 1, 2)
-        hess = np.swapaxes(J, 1, 2) @ M @ J
-        # second derivatives of N_f (v0, v1, v2) and N_g (v2, v1, v3) contracted with ∂s/∂N
-        X = _cross_matrices(np.stack(self.gT[:2], 1))
-        Xf, Xg = X[:, 0], X[:, 1]
-        h5 = hess.reshape(h, 4, 3, 4, 3)
-        for i, j, blk in ((0, 1, -Xf), (0, 2, Xf), (1, 2, Xg - Xf), (2, 3, Xg), (1, 3, -Xg)):
-            h5[:, i, :, j, :] += blk
-            h5[:, j, :, i, :] -= blk
+        M = self._u_hessian(weight)
+        w = self.w
+        Mf, Mg, Me = M[:, 0:3], M[:, 3:6], M[:, 6:9]                                # (9, 3, h)
+        T = np.concatenate([_cross3(Mf, w[0], axis=1),
+                            _cross3(Mf, w[1], axis=1) + _cross3(Mg, w[4], axis=1) - Me,
+                            _cross3(Mf, w[2], axis=1) + _cross3(Mg, w[3], axis=1) + Me,
+                            _cross3(Mg, w[5], axis=1)], axis=1)                     # M J (9, 12, h)
+        Tf, Tg, Te = T[0:3], T[3:6], T[6:9]                                         # (3, 12, h)
+        hess = np.empty((12, 12, len(self.s)))                                      # Jᵀ M J
+        hess[0:3] = _cross3(Tf, w[0])
+        hess[3:6, 3:] = _cross3(Tf[:, 3:], w[1]) + _cross3(Tg[:, 3:], w[4]) - Te[:, 3:]
+        hess[6:9, 6:] = _cross3(Tf[:, 6:], w[2]) + _cross3(Tg[:, 6:], w[3]) + Te[:, 6:]
+        hess[9:12, 9:] = _cross3(Tg[:, 9:], w[5])
+        for i in range(1, 4):
+            for j in range(i):
+                hess[3 * i:3 * i + 3, 3 * j:3 * j + 3] = hess[3 * j:3 * j + 3, 3 * i:3 * i + 3].transpose(1, 0, 2)
+        gf, gg = self.gT[0], self.gT[1]
+        if weight is not None:
+            gf, gg = weight * gf, weight * gg
+        G = np.concatenate([gf, gg, gg - gf])                                       # (9, h)
+        hess.reshape(144, -1)[_N2_POS] += G[_N2_SRC] * _N2_SIGN[:, None]
         return hess
 
 
@@ -466,8 +521,18 @@ class ShellEnergy:
     def energy(self, X: np.ndarray) -> float:
         """E(X) (a float): stretching plus bending."""
         W, _, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, forms=self._stretch_forms)
-        s_h, _, _ = hinge_tan(X, self.topo.hinge)
-        return float(W.sum()) + self.bending.value(self._edge_values(s_h))
+        hinges = self._hinges(X)
+        return float(W.sum()) + self.bending.value(self._edge_values(hinges.s))
+
+    def _hinges(self, X: np.ndarray) -> "_HingeGeometry":
+        """The hinges' geometry at X, kept for the next call: Newton's line search evaluates the
+        energy at the point it accepts, whose gradient and Hessians come next."""
+        last = getattr(self, "_last_hinges", None)
+        if last is not None and last[0].shape == X.shape and np.array_equal(last[0], X):
+            return last[1]
+        hinges = _HingeGeometry(X, self.topo.hinge)
+        self._last_hinges = (np.array(X, dtype=float), hinges)
+        return hinges
 
     def parts(self, X: np.ndarray) -> tuple[float, float]:
         """(stretching, bending) energies."""
@@ -498,34 +563,35 @@ class ShellEnergy:
         grad, exact, psd = self.gradient_and_hessians(X)
         return grad, (psd() if project else exact()).tocsr()
 
-    def gradient_and_hessians(self, X: np.ndarray, free: np.ndarray | None = None):
+    def gradient_and_hessians(self, X: np.ndarray, free: np.ndarray | None = None, lower: bool = False):
         """(∇E, exact(), psd()): the gradient (3n,) and two functions assembling each Hessian on demand,
-        on the rows and columns ``free`` (sorted dof indices; default all) as CSC with sorted indices.
+        on the rows and columns ``free`` (sorted dof indices; default all) as CSC with sorted indices;
+        with ``lower``, only its lower triangle (what the solver's Cholesky factorization reads).
 
-        The Hessian's sparsity is fixed, so each is one ``bincount`` of the element blocks into the
-        data of a pattern made once per ``free`` set (no COO conversion, sort or slicing per call).
+        The Hessian's sparsity is fixed, so each is one sparse product per group of element blocks
+        into the data of a pattern made once per ``free`` set (no COO conversion, sort or slicing per
+        call; ``HessianPattern``).
         The bending's Gauss–Newton term Jᵀ H_s J is summed per face over its three hinges:
         J_fᵀ H_f J_f on the face and its three neighbours' opposite vertices (18 dofs).
         """
         _, g, parts = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=3,
                                      forms=self._stretch_forms)
         GN_e, Wa = parts
-        hinges = _HingeGeometry(X, self.topo.hinge)
+        hinges = self._hinges(X)
         s_h, gs = hinges.s, hinges.gradient()
         lam = (self.bending.H @ self._edge_values(s_h) + self.bending.g)[self._hedge]
         n3 = 3 * self.n
         grad = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=n3)
         grad += np.bincount(self._hdof.ravel(), weights=(lam[:, None] * gs).ravel(), minlength=n3)
-        pattern = self._pattern(free)
-        Jf = np.zeros((len(self.F), 3, 6, 3))
-        Jf[self._nb_face[:, None], self._nb_edge[:, None], self._nb_loc] = gs[self._nb_hinge].reshape(-1, 4, 3)
+        pattern = self._pattern(free, lower)
+        Jf = np.zeros(len(self.F) * 54)
+        Jf[self._nb_to] = gs.ravel()[self._nb_from]
         Jf = Jf.reshape(-1, 3, 18)
         gauss_newton = np.swapaxes(Jf, 1, 2) @ self.bending.face_H @ Jf
 
         def exact() -> sp.csc_matrix:
             He = E_TO_X.T @ (GN_e + _stress_term(Wa)) @ E_TO_X
-            hs = hinges.hessian()                      # the hinges' second derivatives: only here
-            hs *= lam[:, None, None]
+            hs = hinges.hessian(lam)                   # the hinges' second derivatives: only here
             return pattern.assemble((He, hs, gauss_newton))
 
         def psd() -> sp.csc_matrix:
@@ -534,14 +600,16 @@ class ShellEnergy:
 
         return grad, exact, psd
 
-    def _pattern(self, free: np.ndarray | None) -> "HessianPattern":
+    def _pattern(self, free: np.ndarray | None, lower: bool = False) -> "HessianPattern":
         key = None if free is None else np.asarray(free, dtype=np.int64)
         cached = getattr(self, "_cached_pattern", None)
-        if cached is not None and (cached.free is None if key is None
-                                   else cached.free is not None and np.array_equal(cached.free, key)):
+        if cached is not None and cached.lower == lower and (
+                cached.free is None if key is None else cached.free is not None and np.array_equal(cached.free, key)):
             return cached
-        blocks = [(self._fdof, 9), (self._hdof, 12), (self._nb_dof, 18)]
-        self._cached_pattern = HessianPattern(blocks, 3 * self.n, key)
+        blocks = [self.F, self.topo.hinge, self._nb_vertices]
+        # the hinges' blocks come batch-last (12, 12, h) from _HingeGeometry.hessian
+        self._cached_pattern = HessianPattern(blocks, 3 * self.n, key, batch_last=(False, True, False),
+                                              lower=lower)
         return self._cached_pattern
 
     def _face_neighbourhoods(self) -> None:
@@ -556,56 +624,88 @@ class ShellEnergy:
         hv = topo.hinge[np.maximum(hid, 0)]                                 # (m, 3, 4)
         opp = np.where(hv[:, :, 0] == F, hv[:, :, 3], hv[:, :, 0])
         nb = np.concatenate([F, np.where(hid >= 0, opp, F)], axis=1)        # (m, 6)
-        self._nb_dof = (3 * nb[:, :, None] + np.arange(3)).reshape(m, 18)
+        self._nb_vertices = nb
         f_idx, e_idx = np.nonzero(hid >= 0)
         loc = np.argmax(hv[f_idx, e_idx][:, :, None] == nb[f_idx][:, None, :], axis=2)   # (k, 4)
-        self._nb_face, self._nb_edge, self._nb_loc, self._nb_hinge = f_idx, e_idx, loc, hid[f_idx, e_idx]
+        # J_f (m, 3, 6, 3) flattened: hinge k's gradient (12,) goes to face f_idx[k], edge e_idx[k],
+        # its four vertices' places loc[k] among the six
+        self._nb_to = ((54 * f_idx + 18 * e_idx)[:, None, None] + 3 * loc[:, :, None] + np.arange(3)).ravel()
+        self._nb_from = (12 * hid[f_idx, e_idx][:, None] + np.arange(12)).ravel()
 
 
 class HessianPattern:
-    """The fixed sparsity of a sum of dense element blocks, restricted to the dofs ``free``.
+    """The fixed sparsity of a sum of dense element blocks over vertices (three dofs each, xyz
+    interleaved), restricted to the dofs ``free``, and the sparse maps that sum the blocks into it.
 
     Parameters
     ----------
-    blocks : per group (dofs (k, d), d): element k's block sits at rows and columns dofs[k].
-    n : the number of dofs; free : sorted dofs kept (None: all).
+    blocks : per group the vertices (k, v) of each element: element k's block (3v × 3v) sits at the
+        dofs of vertices[k].
+    n : the number of dofs (3 × vertices); free : sorted dofs kept (None: all).
+    batch_last : per group, its values come as (3v, 3v, k) rather than (k, 3v, 3v) (default: none).
+    lower : only the lower triangle (row ≥ column), all a Cholesky factorization reads: half the sums.
+
+    The pattern is made per vertex pair (3 × 3 dense blocks, one ``unique`` over the pairs, not over
+    every dof pair); ``assemble`` is one sparse matrix-vector product per group (each slot sums its
+    contributions in the order of the values, as a ``bincount`` would: the same sums).
     """
 
-    def __init__(self, blocks: list[tuple[np.ndarray, int]], n: int, free: np.ndarray | None) -> None:
-        self.free = free
+    def __init__(self, blocks: list[np.ndarray], n: int, free: np.ndarray | None,
+                 batch_last: tuple[bool, ...] | None = None, lower: bool = False) -> None:
+        self.free, self.lower = free, lower
+        nv = n // 3
+        pairs = [(np.repeat(v, v.shape[1], axis=1), np.tile(v, (1, v.shape[1]))) for v in blocks]  # (k, v²)
+        keys = np.concatenate([(c * nv + r).ravel() for r, c in pairs])           # column-major
+        vkeys, vinv = np.unique(keys, return_inverse=True)
+        vcol = vkeys // nv
+        vstart = np.searchsorted(vcol, np.arange(nv + 1))
+        deg = np.diff(vstart)
+        # the full (all dofs, both triangles) CSC: column 3J + b holds rows 3I + a, I over J's vertex
+        # rows in order; its entry sits at 9 vstart[J] + 3 deg[J] b + 3 (p − vstart[J]) + a
+        p = np.arange(len(vkeys))
+        J, I = vcol, vkeys % nv
+        ab = np.arange(3)
+        full_pos = (9 * vstart[J] - 3 * vstart[J] + 3 * p)[:, None, None] + ab[:, None] \
+            + (3 * deg[J])[:, None, None] * ab[None, :]                          # (pairs, a, b)
+        order = np.empty(9 * len(p), dtype=np.int64)
+        order[full_pos.ravel()] = np.arange(9 * len(p))
+        row = (3 * I[:, None, None] + ab[:, None] + 0 * ab[None, :]).ravel()[order]
+        col = (3 * J[:, None, None] + 0 * ab[:, None] + ab[None, :]).ravel()[order]
         index = np.arange(n) if free is None else np.full(n, -1, dtype=np.int64)
         if free is not None:
             index[free] = np.arange(len(free))
+        keep = (index[row] >= 0) & (index[col] >= 0)
+        if lower:
+            keep &= row >= col
+        remap = np.where(keep, np.cumsum(keep) - 1, -1)
         nf = n if free is None else len(free)
-        keys = []
-        for dofs, d in blocks:
-            r = index[np.repeat(dofs, d, axis=1).ravel()]
-            c = index[np.tile(dofs, (1, d)).ravel()]
-            keys.append(np.where((r >= 0) & (c >= 0), c * nf + r, -1))      # column-major: CSC order
-        allk = np.concatenate(keys)
-        uniq, inv = np.unique(allk[allk >= 0], return_inverse=True)
-        self.nnz = len(uniq)
-        slots, start = [], 0
-        for k in keys:
-            sl = np.full(len(k), self.nnz, dtype=np.int64)                  # the pinned: a spare slot
-            ok = k >= 0
-            sl[ok] = inv[start:start + int(ok.sum())]
-            start += int(ok.sum())
-            slots.append(sl)
-        self.slots = slots
-        self.indices = (uniq % nf).astype(np.int32)
-        cols = uniq // nf
-        self.indptr = np.searchsorted(cols, np.arange(nf + 1)).astype(np.int32)
-        self.diagonal = np.flatnonzero(self.indices == cols)
+        self.nnz = int(keep.sum())
+        self.indices = index[row[keep]].astype(np.int32)
+        self.indptr = np.searchsorted(index[col[keep]], np.arange(nf + 1)).astype(np.int32)
         self.shape = (nf, nf)
+        self.scatter = []
+        start = 0
+        for g, (v, (r, c)) in enumerate(zip(blocks, pairs)):
+            k, m = v.shape
+            pk = vinv[start:start + r.size].reshape(k, m, m)                     # (k, i, j) pair ids
+            start += r.size
+            fp = (9 * vstart[c.reshape(k, m, m)] - 3 * vstart[c.reshape(k, m, m)] + 3 * pk)[:, :, None, :, None] \
+                + ab[None, None, :, None, None] + (3 * deg[c.reshape(k, m, m)])[:, :, None, :, None] * ab
+            slot = remap[fp]                                                     # (k, i, a, j, b)
+            if batch_last is not None and batch_last[g]:
+                slot = np.moveaxis(slot, 0, -1)
+            slot = slot.ravel()
+            ok = np.flatnonzero(slot >= 0)
+            self.scatter.append(sp.csr_matrix((np.ones(len(ok)), (slot[ok], ok)), shape=(self.nnz, slot.size)))
 
     def assemble(self, values: tuple[np.ndarray | None, ...]) -> sp.csc_matrix:
-        """The matrix with the element blocks ``values`` (one (k, d, d) array or None per group)."""
-        data = np.zeros(self.nnz + 1)
-        for sl, v in zip(self.slots, values):
+        """The matrix with the element blocks ``values`` (one (k, d, d) array, or (d, d, k) for a
+        ``batch_last`` group, or None per group); with ``lower``, its lower triangle."""
+        data = np.zeros(self.nnz)
+        for S, v in zip(self.scatter, values):
             if v is not None:
-                data += np.bincount(sl, weights=v.ravel(), minlength=self.nnz + 1)
-        H = sp.csc_matrix((data[:-1], self.indices, self.indptr), shape=self.shape)
+                data += S @ np.ascontiguousarray(v).ravel()
+        H = sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
         H.has_sorted_indices = True
         return H
 

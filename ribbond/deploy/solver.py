@@ -1,10 +1,10 @@
 """Newton's method for the shell's static equilibrium: min_X E(X) with six degrees of freedom pinned.
 
-Each iteration assembles the gradient and a Hessian (``ShellEnergy``), solves on the free degrees of
-freedom with a sparse Cholesky factorization (CHOLMOD, the symbolic analysis once per solve; it also
-tells whether the matrix is positive definite) and backtracks
-along the step until the energy decreases enough (Armijo), the largest move capped at a tenth of
-the size. Six coordinates of three vertices are held fixed, which removes
+Each iteration assembles the gradient and a Hessian (``ShellEnergy``; its lower triangle, all the
+factorization reads), solves on the free degrees of freedom with a sparse Cholesky factorization
+(CHOLMOD, the symbolic analysis once per solve; it also tells whether the matrix is positive
+definite) and backtracks along the step until the energy decreases enough (Armijo), the largest
+move capped at a tenth of the size. Six coordinates of three vertices are held fixed, which removes
 the rigid motions (the free body has no net force, so they carry no load at equilibrium).
 
 Each iteration first tries the exact Hessian (with a tiny diagonal shift): near a stable equilibrium it
@@ -48,6 +48,7 @@ class _Factor:
         cols = np.repeat(np.arange(A.shape[1]), np.diff(A.indptr))
         lower = A.indices >= cols
         self._sel = np.flatnonzero(lower)
+        self._all = bool(lower.all())                 # given the lower triangle only (the solver's)
         self._rows = A.indices[lower].astype(np.int64)
         self._cols = cols[lower].astype(np.int64)
         n = A.shape[0]
@@ -58,9 +59,10 @@ class _Factor:
         self._factor = cholmod.symbolic(self._lower, uplo="L")
 
     def _lower_of(self, A: sp.csc_matrix) -> cvxopt.spmatrix:
+        values = A.data if self._all else A.data[self._sel]
         if not self._in_order:
-            return cvxopt.spmatrix(A.data[self._sel], self._rows, self._cols, self._lower.size)
-        self._lower.V = cvxopt.matrix(A.data[self._sel])
+            return cvxopt.spmatrix(values, self._rows, self._cols, self._lower.size)
+        self._lower.V = cvxopt.matrix(values)
         return self._lower
 
     def factor(self, A: sp.csc_matrix) -> bool:
@@ -175,10 +177,11 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
     it = 0
     level, streak, psd_streak = 0, 0, 0
     fac: _Factor | None = None
+    di: np.ndarray | None = None
     factorizations = 0
     history: list[float] = []
     for it in range(1, max_iterations + 1):
-        g, exact, psd = energy.gradient_and_hessians(X, free)
+        g, exact, psd = energy.gradient_and_hessians(X, free, lower=True)     # all CHOLMOD reads
         gf = g[free]
         gnorm = float(np.abs(gf).max())
         accepted = False
@@ -196,7 +199,7 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
             if kind not in unshifted:
                 unshifted[kind] = exact() if kind == "exact" else psd()
             Hf = unshifted[kind].copy()
-            di = _diagonal(Hf)
+            di = di if di is not None else _diagonal(Hf)         # the pattern is fixed
             dmean = float(np.mean(np.abs(Hf.data[di]))) or 1.0
             Hf.data[di] += mu_rel * dmean
             fac = fac if fac is not None else _Factor(Hf)     # the sparsity is fixed: analyse once

@@ -190,3 +190,18 @@ def test_hemisphere_predicts_flatter_and_says_so(tmp_path):
     assert target > 5.0
     assert total_gaussian_curvature(p.V, p.F) < 0.8 * target     # intrinsically flatter
     assert p.deviation_pct["mean"] > 2.0                             # the cylinder's is ≤ 0.5
+
+
+def test_a_tie_between_the_starts_goes_to_the_flat_one_and_a_lower_energy_wins():
+    from ribbond.deploy.predict import TIE_RTOL, _lowest
+    from ribbond.deploy.solver import NewtonResult
+
+    def res(e: float) -> NewtonResult:
+        return NewtonResult(X=np.zeros((3, 3)), energy=e, iterations=1, converged=True, gradient_norm=0.0,
+                            time_s=0.0)
+
+    e = 0.145
+    assert _lowest({"target": res(e), "flat": res(e * (1 + 0.5 * TIE_RTOL))}) == "flat"
+    assert _lowest({"target": res(e * (1 + 0.5 * TIE_RTOL)), "flat": res(e)}) == "flat"
+    assert _lowest({"target": res(e), "flat": res(e * (1 + 3 * TIE_RTOL))}) == "target"
+    assert _lowest({"target": res(e * (1 + 3 * TIE_RTOL)), "flat": res(e)}) == "flat"

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ribbond.deploy.shell import (E_TO_X, ShellEnergy, edge_basis_forms, hinge_tan, quadratic_form,
-                                  shell_topology, stretch_energy)
+from ribbond.deploy.shell import (E_TO_X, ShellEnergy, _HingeGeometry, edge_basis_forms, hinge_tan,
+                                  quadratic_form, shell_topology, stretch_energy)
 from ribbond.design import surfaces
 
 H = 1e-6
@@ -189,3 +189,75 @@ def test_hessian_on_the_free_dofs_is_the_full_one_restricted():
         C.sort_indices()
         np.testing.assert_array_equal(C.indices, A.indices)
     assert E.gradient_and_hessians(X, free.copy())[1]().nnz == exact().nnz     # same pattern reused
+    # the solver's: the lower triangle only, the same values
+    _, exact_low, psd_low = E.gradient_and_hessians(X, free, lower=True)
+    for low, sub in ((exact_low, exact), (psd_low, psd)):
+        L, A = low(), sub()
+        assert L.format == "csc" and np.all(L.indices >= np.repeat(np.arange(len(free)), np.diff(L.indptr)))
+        np.testing.assert_array_equal(L.toarray(), np.tril(A.toarray()))
+
+
+def _cross_matrices(v):
+    out = np.zeros(v.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def _dense_hinge_hessian(X, hinge):
+    """The hinge Hessian as first written (before the batch-last rewrite): the dense J (9, 12) of
+    u = (N_f, N_g, e), the 9 × 9 ∂²s/∂u² and Jᵀ M J, plus N_f's and N_g's second derivatives."""
+    v0, v1, v2, v3 = (X[hinge[:, k]] for k in range(4))
+    Nf, Ng, e = np.cross(v1 - v0, v2 - v0), np.cross(v1 - v2, v3 - v2), v2 - v1
+    nf, ng, L = (np.linalg.norm(a, axis=1) for a in (Nf, Ng, e))
+    Q = nf * ng + np.einsum("ki,ki->k", Nf, Ng)
+    D = L * Q
+    s = np.einsum("ki,ki->k", np.cross(Nf, Ng), e) / D
+    Nfh, Ngh, eh = Nf / nf[:, None], Ng / ng[:, None], e / L[:, None]
+    gQf, gQg = ng[:, None] * Nfh + Ng, nf[:, None] * Ngh + Nf
+    c = s / D
+    gs = (np.cross(Ng, e) / D[:, None] - (c * L)[:, None] * gQf,
+          np.cross(e, Nf) / D[:, None] - (c * L)[:, None] * gQg,
+          np.cross(Nf, Ng) / D[:, None] - (c * Q)[:, None] * eh)
+    h, eye, outer = len(s), np.eye(3), (lambda a, b: a[:, :, None] * b[:, None, :])
+    J = np.zeros((h, 9, 12))
+    w = (v2 - v1, v0 - v2, v1 - v0, v3 - v1, v2 - v3, v1 - v2)
+    for (ub, xb), wk in zip(((0, 0), (0, 1), (0, 2), (1, 2), (1, 1), (1, 3)), w):
+        J[:, 3 * ub:3 * ub + 3, 3 * xb:3 * xb + 3] = _cross_matrices(wk)
+    J[:, 6:9, 6:9], J[:, 6:9, 3:6] = eye, -eye
+    C = [_cross_matrices(a / D[:, None]) for a in (e, Nf, Ng)]
+    cL = (c * L)[:, None, None]
+    M = np.zeros((h, 9, 9))
+    M[:, 0:3, 0:3] = -(cL * (ng / nf)[:, None, None]) * (eye - outer(Nfh, Nfh))
+    M[:, 3:6, 3:6] = -(cL * (nf / ng)[:, None, None]) * (eye - outer(Ngh, Ngh))
+    M[:, 0:3, 3:6] = -C[0] - cL * (outer(Nfh, Ngh) + eye)
+    M[:, 3:6, 0:3] = np.swapaxes(M[:, 0:3, 3:6], 1, 2)
+    M[:, 0:3, 6:9], M[:, 6:9, 0:3], M[:, 3:6, 6:9], M[:, 6:9, 3:6] = C[2], -C[2], -C[1], C[1]
+    M[:, 6:9, 6:9] = -(c * Q / L)[:, None, None] * (eye - outer(eh, eh))
+    U = np.concatenate([np.concatenate(gs, 1)[:, None], np.concatenate([0 * eh, 0 * eh, eh], 1)[:, None]], 1)
+    V = np.concatenate([np.concatenate([(L / D)[:, None] * gQf, (L / D)[:, None] * gQg, (Q / D)[:, None] * eh],
+                                       1)[:, None],
+                        np.concatenate([c[:, None] * gQf, c[:, None] * gQg, 0 * eh], 1)[:, None]], 1)
+    R = np.swapaxes(U, 1, 2) @ V
+    M -= R + np.swapaxes(R, 1, 2)
+    hess = np.swapaxes(J, 1, 2) @ M @ J
+    Xf, Xg = _cross_matrices(gs[0]), _cross_matrices(gs[1])
+    for i, j, blk in ((0, 1, -Xf), (0, 2, Xf), (1, 2, Xg - Xf), (2, 3, Xg), (1, 3, -Xg)):
+        hess[:, 3 * i:3 * i + 3, 3 * j:3 * j + 3] += blk
+        hess[:, 3 * j:3 * j + 3, 3 * i:3 * i + 3] -= blk
+    return s, np.concatenate(gs, 1), hess
+
+
+def test_hinge_hessian_is_the_dense_formula_and_its_weighted_form_the_weighted_one():
+    X, F, rng = _mesh(5)
+    hinge = shell_topology(F).hinge
+    s_ref, _, H_ref = _dense_hinge_hessian(X, hinge)
+    s, g, Hs = hinge_tan(X, hinge, derivatives=2)
+    scale = np.abs(H_ref).max()
+    np.testing.assert_allclose(s, s_ref, rtol=1e-13)
+    np.testing.assert_allclose(Hs, H_ref, atol=1e-13 * scale)
+    weight = rng.standard_normal(len(hinge))
+    hg = _HingeGeometry(X, hinge)
+    Hw = hg.hessian(weight)                                        # batch-last (12, 12, h)
+    np.testing.assert_allclose(np.moveaxis(Hw, 2, 0), weight[:, None, None] * H_ref, atol=1e-13 * scale)
