@@ -381,12 +381,11 @@ def _smooth(points: np.ndarray, sigma: float, *fields: np.ndarray, k: int = 24) 
 
 
 def _outline(uv: np.ndarray, F: np.ndarray) -> shapely.Geometry:
-    """The flat domain as a polygon (the union of the faces' boundary loop)."""
-    import igl
-    loop = np.asarray(igl.boundary_loop(np.asarray(F, dtype=np.int64)))
-    poly = shapely.Polygon(uv[loop])
-    if not poly.is_valid:
-        poly = shapely.make_valid(poly)
+    """The flat domain as a polygon: the union of the faces. (Not the boundary loop: where two fans
+    of faces touch at one boundary vertex, as a fresh triangulation of a curved outline can leave,
+    a loop walks only part of the boundary, and the raster then took most of the domain for
+    outside: bare fabric.)"""
+    poly = shapely.union_all(shapely.polygons(np.asarray(uv, dtype=float)[np.asarray(F, dtype=np.int64)]))
     shapely.prepare(poly)
     return poly
 

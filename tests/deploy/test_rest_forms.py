@@ -149,3 +149,29 @@ def test_coverage_equals_the_map_coordinates_one_and_a_shared_raster_its_own(mon
                                        err_msg=name)
     with pytest.raises(ValueError, match="raster was made for"):
         face_coverage(uv, F, rib, 2.0, TABLE, raster=raster)
+
+
+def _bowtie():
+    """Two sheets of 60 × 40 mm touching at one corner, (60, 40): one mesh whose boundary vertex
+    there joins two fans of faces (a fresh triangulation of a curved outline can leave such)."""
+    uv_a, F_a = _sheet(20, 14, (60.0, 40.0))
+    uv_b = uv_a + np.array([60.0, 40.0])
+    shared = int(np.flatnonzero(np.all(np.isclose(uv_a, [60.0, 40.0]), axis=1))[0])
+    corner_b = int(np.flatnonzero(np.all(np.isclose(uv_b, [60.0, 40.0]), axis=1))[0])
+    others = np.setdiff1d(np.arange(len(uv_b)), [corner_b])
+    index_b = np.empty(len(uv_b), dtype=np.int64)
+    index_b[others] = len(uv_a) + np.arange(len(others))
+    index_b[corner_b] = shared
+    return np.vstack([uv_a, uv_b[others]]), np.vstack([F_a, index_b[F_a]])
+
+
+def test_the_outline_is_the_union_of_the_faces_even_where_two_fans_touch():
+    uv, F = _bowtie()
+    assert rf._outline(uv, F).area == pytest.approx(2 * 60.0 * 40.0)
+    rib = staggered_pattern((120.0, 80.0), 22.9, 6.0, 15.0, 0.6)
+    cov = face_coverage(uv, F, rib, 1.5, TABLE)
+    c = uv[F].mean(axis=1)
+    for lo in ((0.0, 0.0), (60.0, 40.0)):          # the middle of each sheet
+        inner = np.all((c > np.add(lo, [20.0, 10.0])) & (c < np.add(lo, [40.0, 30.0])), axis=1)
+        assert inner.sum() > 50
+        assert np.median(cov.f_along[inner]) == pytest.approx(15.0 / 22.9, rel=0.01)
