@@ -42,6 +42,7 @@ from .config import DaemonConfig
 from .design.folder import read_design_folder
 from .design.params import check_printable, settings_from_dict
 from .design.thickness import TABLE_NAME, CurvatureTable, available_tables, load_curvature_table
+from .events import EventBus
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, SidePlan, render_side
 from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
@@ -50,6 +51,7 @@ from .printer.errors import LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
 from .programs import Part, Timeline, check_program, program_parts, program_timeline, resumed_program
+from .records import JobRecords, NotFound, ServiceError, has_program
 from .store import JobRecord, JobStore, new_id
 
 log = logging.getLogger(__name__)
@@ -110,36 +112,6 @@ def worker_environment() -> dict[str, str]:
 
 #: How often the printer's status is checked for a change worth an event (seconds).
 PRINTER_EVENT_S = 0.5
-
-
-class ServiceError(Exception):
-    """A request that cannot be done now, with the reason (the API answers 409)."""
-
-
-class NotFound(ServiceError):
-    """No such job or file (the API answers 404)."""
-
-
-class EventBus:
-    """Fan-out of events to live subscribers (server-sent events); a slow one loses old events."""
-
-    def __init__(self) -> None:
-        self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
-
-    def subscribe(self) -> asyncio.Queue[dict[str, Any]]:
-        q: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=256)
-        self._subscribers.add(q)
-        return q
-
-    def unsubscribe(self, q: asyncio.Queue[dict[str, Any]]) -> None:
-        self._subscribers.discard(q)
-
-    def publish(self, event: dict[str, Any]) -> None:
-        for q in list(self._subscribers):
-            if q.full():
-                with contextlib.suppress(asyncio.QueueEmpty):
-                    q.get_nowait()
-            q.put_nowait(event)
 
 
 @dataclass
@@ -297,6 +269,7 @@ class RibbonService:
         self.python = python
         self.jobs_dir = Path(config.state_dir) / "jobs"
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
         self._compile_queue: asyncio.Queue[str] = asyncio.Queue()
         self._print_queue: asyncio.Queue[str] = asyncio.Queue()
         self._tasks: list[asyncio.Task[None]] = []
@@ -319,7 +292,7 @@ class RibbonService:
         """Mark jobs the last daemon left holding the printer as interrupted; start the queues."""
         interrupted = self.store.mark_interrupted("the daemon stopped while this job was running")
         for job in interrupted:
-            self._publish(job)
+            self.records.publish(job)
         self._remove_orphan_folders()
         if any(j.state is JobState.INTERRUPTED and j.side is not None for j in interrupted):
             # the last daemon died with a job on the printer: a board that does not reset when the
@@ -441,50 +414,17 @@ class RibbonService:
         if run.heaters is not None:
             run.heaters.cancel()
 
-    # ------------------------------------------------------------------ events
-
-    def _publish(self, job: JobRecord, **extra: Any) -> None:
-        self.bus.publish({"type": "job", "job": self.status(job), **extra})
-
-    def _transition(self, job_id: str, new: JobState, **fields: Any) -> JobRecord:
-        job = self.store.transition(job_id, new, **fields)     # committed before it is published
-        log.info("job %s -> %s%s", job_id, new.value, f" ({fields['reason']})" if fields.get("reason") else "")
-        self._publish(job)
-        return job
-
-    async def _wait_state(self, job_id: str, done: Any, timeout: float) -> JobRecord:
-        """The job once ``done(state)`` holds (or after ``timeout`` s, as it is then)."""
-        deadline = time.monotonic() + timeout
-        while True:
-            job = self.job(job_id)
-            if done(job.state) or time.monotonic() > deadline:
-                return job
-            await asyncio.sleep(0.02)
-
     # ------------------------------------------------------------------ jobs
 
     def job(self, job_id: str) -> JobRecord:
-        try:
-            return self.store.get(job_id)
-        except KeyError:
-            raise NotFound(f"no job {job_id!r}") from None
+        return self.records.get(job_id)
 
     def jobs(self, states: list[JobState] | None = None, limit: int | None = None,
              offset: int = 0) -> list[JobRecord]:
         return self.store.list(states, limit=limit, offset=offset)
 
     def job_dir(self, job_id: str) -> Path:
-        return self.jobs_dir / job_id
-
-    def _queued(self) -> int:
-        """Jobs that count against ``limits.max_jobs``: compiling or waiting to, printing or queued
-        to print (a ``ready`` design nobody started does not count)."""
-        return sum(1 for j in self.store.active() if j.state is not JobState.READY or j.start_when_ready)
-
-    def _check_queue(self) -> None:
-        if self._queued() >= self.config.limits.max_jobs:
-            raise ServiceError(f"{self.config.limits.max_jobs} jobs are already queued or printing "
-                               "(limits.max_jobs); wait for some to finish, or cancel some")
+        return self.records.dir(job_id)
 
     def submit(self, upload: Path, name: str, parameters: dict[str, Any], start: bool) -> JobRecord:
         """Take an uploaded mesh (``upload``, moved into the job's folder) and queue its compile.
@@ -498,7 +438,7 @@ class RibbonService:
         if Path(safe).suffix.lower() not in MESH_SUFFIXES:
             raise ValueError(f"{name!r}: not a mesh file the engine reads ({', '.join(MESH_SUFFIXES)})")
         self._check_settings(parameters)
-        self._check_queue()
+        self.records.check_queue()
         job_id = new_id()
         folder = self.job_dir(job_id)
         try:
@@ -510,7 +450,7 @@ class RibbonService:
         except BaseException:
             shutil.rmtree(folder, ignore_errors=True)
             raise
-        self._publish(job)
+        self.records.publish(job)
         self._compile_queue.put_nowait(job.id)
         return job
 
@@ -550,25 +490,19 @@ class RibbonService:
         # checked and estimated beside the loop: a long program must not hold up the printer's stream
         commands, timeline = await asyncio.to_thread(_check_and_estimate, text, self.profile, safe)
         if start:
-            self._check_queue()
+            self.records.check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
                                 kind="gcode")
         folder = self.job_dir(job.id)
         folder.mkdir(parents=True, exist_ok=True)
         program = folder / "program.gcode"
         shutil.move(str(upload), program)
-        job = self._transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
+        job = self.records.transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
                                mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
                                estimate_s={"front": timeline.total})
         if start:
             self._print_queue.put_nowait(job.id)
         return job
-
-    def _has_program(self, job: JobRecord) -> bool:
-        if not job.design_dir:
-            return False
-        folder = Path(job.design_dir)
-        return (folder / ("program.gcode" if job.kind == "gcode" else "front.gcode")).is_file()
 
     def start_job(self, job_id: str) -> JobRecord:
         """Queue a job for printing: a compiled one, one still compiling (it prints when ready), or
@@ -576,22 +510,22 @@ class RibbonService:
         job = self.job(job_id)
         if job.state in (JobState.SUBMITTED, JobState.COMPILING):
             job = self.store.update(job_id, start_when_ready=True)
-            self._publish(job)
+            self.records.publish(job)
             return job
-        if job.state is JobState.INTERRUPTED and job.kind == "design" and not self._has_program(job) \
+        if job.state is JobState.INTERRUPTED and job.kind == "design" and not has_program(job) \
                 and Path(job.mesh_path).is_file():
             # the daemon stopped during the compile: compile it again
-            self._check_queue()
-            job = self._transition(job_id, JobState.SUBMITTED, reason="compiled again", start_when_ready=True,
+            self.records.check_queue()
+            job = self.records.transition(job_id, JobState.SUBMITTED, reason="compiled again", start_when_ready=True,
                                    error=None, stage=None, progress=None)
             self._compile_queue.put_nowait(job_id)
             return job
         if job.state.terminal:
-            if not self._has_program(job):
+            if not has_program(job):
                 raise ServiceError(f"cannot start: job {job_id} has no design to print"
                                    + (f" (its compile failed: {job.error})" if job.error else "")
                                    + "; submit the mesh again")
-            self._check_queue()
+            self.records.check_queue()
             runs = list(job.runs)
             started = [t.at for t in self.store.transitions(job_id) if t.to_state is JobState.HEATING]
             if started:
@@ -600,7 +534,7 @@ class RibbonService:
                              "lines_total": job.lines_total, "last_acked_line": job.last_acked_line,
                              "checkpoint": job.checkpoint, "checkpoint_line": job.checkpoint_line,
                              "correction": job.correction})
-            job = self._transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
+            job = self.records.transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
                                    runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
                                    lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
                                    side=None, correction=None, paused_from=None)
@@ -610,10 +544,10 @@ class RibbonService:
             raise IllegalTransition(job.state, "start")
         if job.start_when_ready:
             return job                                        # already queued
-        self._check_queue()
+        self.records.check_queue()
         job = self.store.update(job_id, start_when_ready=True)
         self._print_queue.put_nowait(job_id)
-        self._publish(job)
+        self.records.publish(job)
         return job
 
     async def cancel(self, job_id: str) -> JobRecord:
@@ -624,14 +558,14 @@ class RibbonService:
         if proc is not None:
             with contextlib.suppress(ProcessLookupError):
                 proc.kill()
-            return await self._wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
+            return await self.records.wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
         run = self._run
         if run is not None and run.job_id == job_id:
             run.cancel_requested = True
             self._interrupt(run)
             # the printer task finishes the cancel (heaters off, head up)
-            return await self._wait_state(job_id, lambda s: s.terminal, 60)
-        return self._transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
+            return await self.records.wait_state(job_id, lambda s: s.terminal, 60)
+        return self.records.transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
                                 start_when_ready=False, stage=None)
 
     def delete(self, job_id: str) -> None:
@@ -751,7 +685,7 @@ class RibbonService:
             raise ValueError(f"base_table {base!r}: give a shipped table ({', '.join(available_tables())})")
         cal = CalibrationSpec.model_validate({**spec, "printer_profile": self.config.printer_profile})
         if start:
-            self._check_queue()
+            self.records.check_queue()
         cal_id = "cal-" + os.urandom(4).hex()
         folder = self.calibrations_dir / cal_id
         folder.parent.mkdir(parents=True, exist_ok=True)
@@ -773,7 +707,7 @@ class RibbonService:
             for side in ("front", "back"):
                 shutil.copyfile(folder / "plans" / f"sheet-{k}-{side}-plan.npz",
                                 self.job_dir(job.id) / "plans" / f"{side}-plan.npz")
-            job = self._transition(job.id, JobState.READY,
+            job = self.records.transition(job.id, JobState.READY,
                                    reason=f"calibration {cal_id}: sheet {k} of {len(plan['sheets'])}, coupons "
                                           f"{sheet['coupons'][0]}-{sheet['coupons'][-1]}",
                                    design_dir=str(folder / f"sheet-{k}"), estimate_s=sheet["time_s"])
@@ -924,12 +858,12 @@ class RibbonService:
             text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
         else:
             why = f" ({job.error})" if job.error else ""
-            if s is JobState.INTERRUPTED and job.kind == "design" and self._has_program(job) and job.side:
+            if s is JobState.INTERRUPTED and job.kind == "design" and has_program(job) and job.side:
                 text = (f"interrupted{why}; resume it where it was proven to stand: ribbonctl resume {j} "
                         f"[--partial skip|reprint] (the ribbon begun and not proven printed: skipped by "
                         f"default), print it again from the start: ribbonctl start {j}, or remove it: "
                         f"ribbonctl delete {j}")
-            elif self._has_program(job):
+            elif has_program(job):
                 text = f"{s.value}{why}; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
             else:
                 text = f"{s.value}{why}; nothing to print: submit the mesh again (ribbonctl delete {j} removes it)"
@@ -971,7 +905,7 @@ class RibbonService:
             except Exception:  # noqa: BLE001 - one job's failure never stops the daemon
                 log.exception("compiling job %s", job_id)
                 with contextlib.suppress(Exception):
-                    self._transition(job_id, JobState.FAILED, reason="internal error while compiling (see the log)")
+                    self.records.transition(job_id, JobState.FAILED, reason="internal error while compiling (see the log)")
 
     async def _compile(self, job_id: str) -> None:
         job = self.job(job_id)
@@ -980,12 +914,12 @@ class RibbonService:
         folder = self.job_dir(job_id)
         if not Path(job.mesh_path).is_file() or not folder.is_dir():
             # a job an older daemon left without its upload (its row was written first)
-            self._transition(job_id, JobState.FAILED, reason="the uploaded mesh is missing",
+            self.records.transition(job_id, JobState.FAILED, reason="the uploaded mesh is missing",
                              error=f"the uploaded mesh {job.mesh_name!r} was never stored (the submit failed "
                                    "part way); submit it again")
             return
         params = {**job.parameters, "printer_profile": self.config.printer_profile}
-        self._transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
+        self.records.transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
         log_path = folder / "compile.log"
         with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
             proc = await asyncio.create_subprocess_exec(
@@ -1003,9 +937,9 @@ class RibbonService:
                     continue
                 last = event
                 if event.get("event") == "stage":
-                    self._publish(self.store.update(job_id, stage=event["stage"], progress=None))
+                    self.records.publish(self.store.update(job_id, stage=event["stage"], progress=None))
                 elif event.get("event") == "iteration":
-                    self._publish(self.job(job_id), progress_event=event)
+                    self.records.publish(self.job(job_id), progress_event=event)
             code = await proc.wait()
         finally:
             self._compiling.pop(job_id, None)
@@ -1014,17 +948,17 @@ class RibbonService:
         if code == 0 and last.get("event") == "done":
             printed = (last.get("report") or {}).get("print") or {}
             estimate = {side: float((printed.get(side) or {}).get("time_s") or 0.0) for side in ("front", "back")}
-            job = self._transition(job_id, JobState.READY, design_dir=last["design_dir"], stage=None, progress=None,
+            job = self.records.transition(job_id, JobState.READY, design_dir=last["design_dir"], stage=None, progress=None,
                                    estimate_s=estimate)
             if job.start_when_ready:
                 self._print_queue.put_nowait(job_id)
         elif last.get("event") == "error":
-            self._transition(job_id, JobState.FAILED, reason=last["message"], error=last["message"])
+            self.records.transition(job_id, JobState.FAILED, reason=last["message"], error=last["message"])
         elif code < 0:
-            self._transition(job_id, JobState.CANCELLED, reason="the compile was stopped")
+            self.records.transition(job_id, JobState.CANCELLED, reason="the compile was stopped")
         else:
             tail = log_path.read_text(errors="replace").strip().splitlines()[-1:] or ["no output"]
-            self._transition(job_id, JobState.FAILED, reason=f"the compiler stopped ({code}): {tail[0]}",
+            self.records.transition(job_id, JobState.FAILED, reason=f"the compiler stopped ({code}): {tail[0]}",
                              error=tail[0])
 
     # ------------------------------------------------------------------ printing
@@ -1050,11 +984,11 @@ class RibbonService:
                 continue                                      # the daemon stops: queued again at its next start
             if not self._connected():                         # wait for the printer, do not fail
                 log.info("job %s waits for the printer to connect", job_id)
-                self._publish(self.store.update(job_id, stage="waiting for the printer"))
-                while not self._connected() and not self._stopping and self._job_exists(job_id) \
+                self.records.publish(self.store.update(job_id, stage="waiting for the printer"))
+                while not self._connected() and not self._stopping and self.records.exists(job_id) \
                         and self.job(job_id).state is JobState.READY:
                     await asyncio.sleep(0.2)
-                if not self._job_exists(job_id) or self.job(job_id).state is not JobState.READY or self._stopping:
+                if not self.records.exists(job_id) or self.job(job_id).state is not JobState.READY or self._stopping:
                     continue
                 job = self.store.update(job_id, stage=None)
             self._run = run = _Run(job_id)
@@ -1075,13 +1009,6 @@ class RibbonService:
             self._run = None
             run.done.set()
 
-    def _job_exists(self, job_id: str) -> bool:
-        try:
-            self.store.get(job_id)
-        except KeyError:
-            return False
-        return True
-
     async def _end_run_logged(self, run: _Run, error: str | None) -> None:
         try:
             await self._end_run(run, error)
@@ -1096,7 +1023,7 @@ class RibbonService:
         if job.state.terminal:
             return
         if run.cancel_requested and error is None:
-            self._transition(run.job_id, JobState.CANCELLED, reason="cancelled by the operator",
+            self.records.transition(run.job_id, JobState.CANCELLED, reason="cancelled by the operator",
                              start_when_ready=False, stage="cancelled: heaters off, head lifted" if stopped else None)
             return
         reason = error or run.stop_reason or "stopped"
@@ -1106,7 +1033,7 @@ class RibbonService:
             side = job.side or "front"
             self.store.record_ack(run.job_id, self._acked)
             self.store.checkpoint(run.job_id, f"{side}_stopped", self._acked)
-        self._transition(run.job_id, JobState.INTERRUPTED, reason=reason, start_when_ready=False,
+        self.records.transition(run.job_id, JobState.INTERRUPTED, reason=reason, start_when_ready=False,
                          stage="stopped: heaters off, head lifted" if stopped else "stopped")
 
     async def _print(self, job: JobRecord) -> None:
@@ -1115,12 +1042,12 @@ class RibbonService:
         assert run is not None
         if job.kind == "gcode":
             text = Path(job.mesh_path).read_text(encoding="utf-8")
-            self._transition(job.id, JobState.HEATING, side="front", stage="heating")
+            self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
             await self._stream(job.id, text, "front", JobState.PRINTING_FRONT, plain=True)
             await link.send("M400", timeout=600)
-            self._publish(self.store.checkpoint(job.id, "program_done", self._acked))
+            self.records.publish(self.store.checkpoint(job.id, "program_done", self._acked))
             run.check()
-            self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
+            self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
             return
         folder = read_design_folder(Path(job.design_dir or ""))
         design = folder.design
@@ -1133,13 +1060,13 @@ class RibbonService:
             start = resume.start if resume is not None else 0
             if start:
                 front = self._resumed_text(front, "front", start, resume)
-            self._transition(job.id, JobState.HEATING, side="front", stage="heating")
+            self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
             await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start)
             await link.send("M400", timeout=600)
-            self._publish(self.store.checkpoint(job.id, "front_done", self._acked))
+            self.records.publish(self.store.checkpoint(job.id, "front_done", self._acked))
             run.check()
             if not has_back:
-                self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
+                self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
                 return
         expected = expected_marks(design.registration_marks or [], self.profile.frame)
         if len(expected) < 2:
@@ -1162,15 +1089,15 @@ class RibbonService:
         fields: dict[str, Any] = dict(side="back", correction=correction.model_dump(mode="json"), error=None,
                                       estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
         if kept:
-            self._transition(job.id, JobState.HEATING, stage="heating", **fields)
+            self.records.transition(job.id, JobState.HEATING, stage="heating", **fields)
             await self._stream(job.id, text, "back", JobState.PRINTING_BACK, part_base=start)
         else:
-            self._transition(job.id, JobState.PRINTING_BACK, stage="printing back", **fields)
+            self.records.transition(job.id, JobState.PRINTING_BACK, stage="printing back", **fields)
             await self._stream(job.id, text, "back", None, part_base=start)
         await link.send("M400", timeout=600)
-        self._publish(self.store.checkpoint(job.id, "back_done", self._acked))
+        self.records.publish(self.store.checkpoint(job.id, "back_done", self._acked))
         run.check()
-        self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
+        self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
 
     async def _align(self, job_id: str, expected: np.ndarray, *, flipped: bool) -> Correction:
         """The flip (unless ``flipped``: the frame is turned already) and the alignment check over the
@@ -1183,7 +1110,7 @@ class RibbonService:
                 await self._await_flip(job_id)
             flipped = False
             run.alignment = _Alignment(expected=expected)
-            self._transition(job_id, JobState.ALIGNING, stage="aligning")
+            self.records.transition(job_id, JobState.ALIGNING, stage="aligning")
             # the front program ended with the motors off (M84) and the frame was handled: home again
             async with self._manual:
                 await link.send("G28", timeout=300)
@@ -1198,7 +1125,7 @@ class RibbonService:
             run.flip.clear()
             run.aligned.clear()
             reseat = run.alignment.reseat
-            self._transition(job_id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
+            self.records.transition(job_id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
                              reason="the operator chose to re-seat the frame" if reseat
                              else f"alignment refused: {refused}")
 
@@ -1222,7 +1149,7 @@ class RibbonService:
         self._run_commands = commands
         self._acked = -1
         self._head = None
-        self._publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
+        self.records.publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
         parts = [] if plain else program_parts(lines)
         track = _PartTracker(self.store, job_id, side, parts, part_base)
         last_write = 0.0
@@ -1241,7 +1168,7 @@ class RibbonService:
                 switched = True
                 job = self.job(job_id)
                 if job.state is JobState.HEATING:
-                    self._transition(job_id, after_heating, stage=f"printing {side}")
+                    self.records.transition(job_id, after_heating, stage=f"printing {side}")
             if now - last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
                 last_write = now
                 self.store.record_ack(job_id, p.acknowledged)
@@ -1257,7 +1184,7 @@ class RibbonService:
                 self._rate = rate                             # what this printer does with an estimate
             run.stream = None
         if not switched and after_heating is not None:
-            self._transition(job_id, after_heating, stage=f"printing {side}")
+            self.records.transition(job_id, after_heating, stage=f"printing {side}")
 
     def _safe_stop_commands(self) -> list[str]:
         """Heaters off, fan off, the head lifted by the profile's park lift, motion finished, motors off."""
@@ -1307,7 +1234,7 @@ class RibbonService:
         message = f"heaters off after {policy.off_after_s:.0f} s {why}"
         log.info("job %s: %s", job_id, message)
         with contextlib.suppress(NotFound, ValueError):
-            self._publish(self.store.update(job_id, stage=message))
+            self.records.publish(self.store.update(job_id, stage=message))
         self.bus.publish({"type": "notice", "job_id": job_id, "message": message})
 
     # ------------------------------------------------------------------ the flip
@@ -1317,9 +1244,9 @@ class RibbonService:
         assert run is not None
         job = self.job(job_id)
         if job.state is not JobState.AWAITING_FLIP:
-            self._transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
+            self.records.transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
                              reason="the front is printed: turn the frame over, then flip-done")
-        self._publish(self.store.checkpoint(job_id, "flip", self._acked))
+        self.records.publish(self.store.checkpoint(job_id, "flip", self._acked))
         run.heaters = await self._wait_heaters(job_id, "awaiting the flip")
         try:
             await run.flip.wait()
@@ -1335,7 +1262,7 @@ class RibbonService:
         if job.state is not JobState.AWAITING_FLIP or run is None or run.job_id != job_id:
             raise IllegalTransition(job.state, "flip-done")
         run.flip.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.AWAITING_FLIP, 30)
+        return await self.records.wait_state(job_id, lambda s: s is not JobState.AWAITING_FLIP, 30)
 
     async def _go_to_mark(self, mark: int) -> None:
         """Move the head above where mark ``mark`` (from 1) should be now, at the safe height."""
@@ -1354,7 +1281,7 @@ class RibbonService:
             self._set_head((x, y, z))
         al.current = mark
         job = self.job(run.job_id)
-        self._publish(job)
+        self.records.publish(job)
         self.bus.publish({"type": "alignment", "job_id": run.job_id, "mark": mark, "marks": len(al.expected),
                           "expected": [x, y], "message": self.guidance(job)["instruction"]})
 
@@ -1413,7 +1340,7 @@ class RibbonService:
         al.correction = fit.correction()
         if review:
             al.fit = status["fit"]
-            self._transition(job_id, JobState.FITTED, stage="the fit is ready: accept or re-seat")
+            self.records.transition(job_id, JobState.FITTED, stage="the fit is ready: accept or re-seat")
             status["review"] = True
             return status
         status["accepted"] = True
@@ -1431,7 +1358,7 @@ class RibbonService:
         """The operator accepts the fit under review: the back prints with it (returns once printing)."""
         run = self._fitted_run(job_id, "accept")
         run.aligned.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
+        return await self.records.wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
 
     async def re_seat(self, job_id: str) -> JobRecord:
         """The operator refuses the fit under review: back to the flip step, to seat the frame again."""
@@ -1441,7 +1368,7 @@ class RibbonService:
         al.correction = None
         al.reseat = True
         run.aligned.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
+        return await self.records.wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
 
     # ------------------------------------------------------------------ pause and resume
 
@@ -1456,7 +1383,7 @@ class RibbonService:
             link.pause()
             if run.stream is not None:
                 run.stream.paused_at = time.monotonic()
-            job = self._transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
+            job = self.records.transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
             await link.send("M400", timeout=300)
             # every acknowledged line has now been executed: an exact checkpoint
             self.store.record_ack(job_id, self._acked)
@@ -1480,7 +1407,7 @@ class RibbonService:
             run.heaters = await self._wait_heaters(job_id, "paused")
         finally:
             run.busy = False
-        self._publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)
+        self.records.publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)
         return self.job(job_id)
 
     async def resume(self, job_id: str, partial: str | None = None) -> JobRecord:
@@ -1521,13 +1448,13 @@ class RibbonService:
             commands.append(f"G0 F{snap['feed']:.0f}")
         run.busy = True
         try:
-            self._publish(self.store.update(job_id, stage="resuming: reheating"))
+            self.records.publish(self.store.update(job_id, stage="resuming: reheating"))
             async with self._manual:
                 for command in commands:
                     await link.send(command, timeout=1200)
                 self._head = None
             back_to = job.paused_from or JobState.PRINTING_FRONT
-            job = self._transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
+            job = self.records.transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
             run.pause_snapshot = None
             if run.stream is not None and run.stream.paused_at is not None:
                 run.stream.paused_s += time.monotonic() - run.stream.paused_at
@@ -1551,7 +1478,7 @@ class RibbonService:
         """Where the interrupted ``job`` goes on: the side it stood on, from the first part not
         proven printed (a part begun and not proven: skipped or printed again, as ``partial`` says);
         None: every part of the job was proven printed (or skipped)."""
-        if job.kind != "design" or not self._has_program(job):
+        if job.kind != "design" or not has_program(job):
             raise ServiceError(f"cannot resume job {job.id}: only a compiled design is resumed at a part "
                                f"boundary; print it again from the start: ribbonctl start {job.id}")
         if partial is not None and partial not in ("skip", "reprint"):
@@ -1607,20 +1534,20 @@ class RibbonService:
             raise LinkError("the printer is not connected (or busy): resume when it is ready")
         plan = self._resume_plan(job, partial)
         if plan is None:
-            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed, "
+            return self.records.transition(job_id, JobState.DONE, reason="resumed: every part was proven printed, "
                                     "nothing is left to print", error=None, stage=None, start_when_ready=False)
         if plan.partial is not None:
             self.store.record_part(job_id, job.side or "front", plan.partial,
                                    "skipped" if plan.choice == "skip" else "reprint")
         if plan.start >= plan.parts > 0:                     # every part proven printed (or the last skipped)
-            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed or "
+            return self.records.transition(job_id, JobState.DONE, reason="resumed: every part was proven printed or "
                                     "skipped, nothing is left to print", error=None, stage=None,
                                     start_when_ready=False)
         where = (f"the {plan.side} from part {plan.start + 1} of {plan.parts}" if plan.parts
                  else "the alignment of the back")
         note = f"; part {plan.partial + 1} begun and not proven printed: {plan.choice}" \
             if plan.partial is not None else ""
-        job = self._transition(job_id, JobState.AWAITING_CHECK, reason=f"resumed at {where}{note}",
+        job = self.records.transition(job_id, JobState.AWAITING_CHECK, reason=f"resumed at {where}{note}",
                                stage="homing", error=None, start_when_ready=False)
         self._resumes[job_id] = plan
         self._print_queue.put_nowait(job_id)
@@ -1649,7 +1576,7 @@ class RibbonService:
                 await link.send(f"M140 S{t.bed:.0f}")
             await link.send(f"M104 S{t.nozzle:.0f}")
         run.check()
-        self._publish(self.store.update(job_id, stage="check the frame"))
+        self.records.publish(self.store.update(job_id, stage="check the frame"))
         run.heaters = await self._wait_heaters(job_id, "awaiting the frame check")
         try:
             await run.checked.wait()
@@ -1671,7 +1598,7 @@ class RibbonService:
                              "(it is measured after the flip); leave it out")
         run.keep_alignment = keep_alignment
         run.checked.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.AWAITING_CHECK, 30)
+        return await self.records.wait_state(job_id, lambda s: s is not JobState.AWAITING_CHECK, 30)
 
     # ------------------------------------------------------------------ manual control
 
