@@ -262,11 +262,11 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     @app.get("/tables", responses=responses())
     async def tables() -> list[dict[str, Any]]:
         """The curvature tables a design may name: shipped ones and the daemon's own."""
-        return service.tables()
+        return service.library.tables()
 
     @app.get("/tables/{name}", responses=responses(404, 422))
     async def table(name: Ident) -> dict[str, Any]:
-        return service.table(name)
+        return service.library.table(name)
 
     table_links = {201: {"links": _links("name=$response.body#/name", {"GetTable": "table",
                                                                         "RemoveTable": "remove_table"})}}
@@ -274,12 +274,12 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     @app.post("/tables", status_code=201, responses={**responses(409, mutating=True, body=True), **table_links})
     async def add_table(body: TableRequest) -> dict[str, Any]:
         """Add or replace a daemon table from the text of its TOML file (named by its ``name``)."""
-        return service.add_table(body.toml)
+        return service.library.add_table(body.toml)
 
     @app.delete("/tables/{name}", status_code=204, response_class=Response,
                 responses=responses(404, 409, 422, mutating=True))
     async def remove_table(name: Ident) -> Response:
-        service.remove_table(name)
+        service.library.remove_table(name)
         return Response(status_code=204)
 
     @app.get("/jobs", response_model=list[JobStatus], responses=responses(422))

@@ -35,13 +35,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
 
 from .alignment import AlignmentRefused, check_fit, expected_marks, fit_rigid
 from .config import DaemonConfig
 from .design.folder import read_design_folder
 from .design.params import check_printable, settings_from_dict
-from .design.thickness import TABLE_NAME, CurvatureTable, available_tables, load_curvature_table
+from .design.thickness import available_tables
 from .events import EventBus
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, SidePlan, render_side
@@ -53,6 +52,7 @@ from .printer.sender import StreamProgress
 from .programs import Part, Timeline, check_program, program_parts, program_timeline, resumed_program
 from .records import JobRecords, NotFound, ServiceError, has_program
 from .store import JobRecord, JobStore, new_id
+from .tables import TableLibrary
 
 log = logging.getLogger(__name__)
 
@@ -269,6 +269,7 @@ class RibbonService:
         self.python = python
         self.jobs_dir = Path(config.state_dir) / "jobs"
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        self.library = TableLibrary(config.state_dir, store)
         self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
         self._compile_queue: asyncio.Queue[str] = asyncio.Queue()
         self._print_queue: asyncio.Queue[str] = asyncio.Queue()
@@ -463,7 +464,7 @@ class RibbonService:
             raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
                              "printer; leave printer_profile out (designs are made for the daemon's printer)")
         check_printable(settings.parameters, self.profile.frame.size, self.profile.extruder.nozzle_diameter)
-        self.check_table_name(settings.parameters.curvature_table)
+        self.library.check_table_name(settings.parameters.curvature_table)
         limit = self.config.limits.max_faces
         if settings.solver.max_faces > limit and "max_faces" in settings.solver.model_fields_set:
             raise ValueError(f"solver.max_faces = {settings.solver.max_faces}: above this daemon's limit "
@@ -579,91 +580,6 @@ class RibbonService:
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
         log.info("job %s deleted", job_id)
         self.bus.publish({"type": "deleted", "job_id": job_id})
-
-    # ------------------------------------------------------------------ curvature tables (issue 15)
-
-    @property
-    def tables_dir(self) -> Path:
-        """The daemon's own curvature tables, ``<state_dir>/tables/NAME.toml``."""
-        return Path(self.config.state_dir) / "tables"
-
-    def table_names(self) -> dict[str, str]:
-        """Every table a design may name: ``name -> "shipped" | "daemon"``."""
-        names = {n: "shipped" for n in available_tables()}
-        if self.tables_dir.is_dir():
-            names.update({p.stem: "daemon" for p in self.tables_dir.glob("*.toml") if TABLE_NAME.match(p.stem)})
-        return dict(sorted(names.items()))
-
-    def check_table_name(self, name: Any) -> None:
-        """A design's ``curvature_table`` must name a known table: a path is refused (the daemon reads no
-        file a client points at)."""
-        known = self.table_names()
-        if not isinstance(name, str) or name not in known:
-            what = "is a path, not a table name" if isinstance(name, str) and ("/" in name or "\\" in name
-                                                                              or name.endswith(".toml")) else "is unknown"
-            raise ValueError(f"curvature_table {name!r} {what}; the daemon's tables: {', '.join(known)} "
-                             "(add one with 'ribbonctl tables add FILE')")
-
-    def _table(self, name: str) -> tuple[CurvatureTable, str]:
-        source = self.table_names().get(name)
-        if source is None:
-            raise NotFound(f"no curvature table {name!r}; tables: {', '.join(self.table_names())}")
-        return load_curvature_table(name, tables_dir=self.tables_dir), source
-
-    def tables(self) -> list[dict[str, Any]]:
-        out = []
-        for name, source in self.table_names().items():
-            try:
-                t, _ = self._table(name)
-                out.append({"name": name, "source": source, "material": t.material, "fabric": t.fabric,
-                            "prestretch": t.prestretch, "description": t.description})
-            except ValueError as exc:
-                out.append({"name": name, "source": source, "error": str(exc)})
-        return out
-
-    def table(self, name: str) -> dict[str, Any]:
-        t, source = self._table(name)
-        return {"source": source, **t.model_dump(mode="json")}
-
-    def add_table(self, text: str) -> dict[str, Any]:
-        """Add (or replace) a daemon table from the text of its TOML file; its ``name`` names it.
-
-        Raises ValueError for an invalid table (the field named), a name that is not a plain name, or
-        the name of a shipped table."""
-        import tomllib
-
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"the curvature table is not valid TOML: {exc}") from None
-        try:
-            table = CurvatureTable(**data)
-        except ValidationError as exc:
-            problems = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or '(file)'}: {e['msg']}" for e in exc.errors())
-            raise ValueError(f"invalid curvature table: {problems}") from None
-        if not TABLE_NAME.match(table.name):
-            raise ValueError(f"table name {table.name!r}: letters, digits, '-' and '_' only (at most 64)")
-        if table.name in available_tables():
-            raise ValueError(f"{table.name!r} is a shipped table: give yours another name")
-        self.tables_dir.mkdir(parents=True, exist_ok=True)
-        path = self.tables_dir / f"{table.name}.toml"
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-        log.info("curvature table %s added", table.name)
-        return {"source": "daemon", **table.model_dump(mode="json")}
-
-    def remove_table(self, name: str) -> None:
-        source = self.table_names().get(name)
-        if source is None:
-            raise NotFound(f"no curvature table {name!r}")
-        if source == "shipped":
-            raise ServiceError(f"{name!r} is a shipped table: it cannot be removed")
-        users = [j.id for j in self.store.active() if j.state in (JobState.SUBMITTED, JobState.COMPILING)
-                 and j.parameters.get("curvature_table") == name]
-        if users:
-            raise ServiceError(f"table {name!r} is used by job(s) {', '.join(users)} being compiled")
-        (self.tables_dir / f"{name}.toml").unlink()
 
     # ------------------------------------------------------------------ calibration plans (issue 15)
 
@@ -924,7 +840,7 @@ class RibbonService:
         with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
             proc = await asyncio.create_subprocess_exec(
                 *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans",
-                                self.tables_dir, self.config.limits.max_faces),
+                                self.library.tables_dir, self.config.limits.max_faces),
                 stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
         self._compiling[job_id] = proc
         last: dict[str, Any] = {}
