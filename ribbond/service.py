@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from .alignment import AlignmentRefused, check_fit, expected_marks, fit_rigid
+from .compiler import COMPILE_STAGES, Compiler, worker_environment
 from .config import DaemonConfig
 from .design.folder import read_design_folder
 from .design.params import check_printable, settings_from_dict
@@ -62,8 +63,6 @@ ACK_INTERVAL_S = 0.5
 MESH_SUFFIXES = (".obj", ".off", ".stl", ".ply")
 #: Extensions of plain G-code programs.
 GCODE_SUFFIXES = (".gcode", ".gco", ".g", ".nc")
-#: The compile's stages in order (``ribbond.design.pipeline``): a compile's progress.
-COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "deploy", "preview", "write")
 #: How long a stop of the daemon waits for the safe stop before the emergency stop, seconds
 #: (systemd's TimeoutStopSec is 30).
 STOP_TIMEOUT_S = 20.0
@@ -90,24 +89,6 @@ def mesh_file_name(name: str) -> str:
     suffix = Path(safe).suffix if len(Path(safe).suffix) <= 10 else ""
     stem = safe[:len(safe) - len(suffix)].encode()[:100].decode("utf-8", errors="ignore")
     return f"{stem}-{hashlib.sha256(name.encode('utf-8', errors='surrogatepass')).hexdigest()[:8]}{suffix}"
-
-
-def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path,
-                   tables: Path | None = None, max_faces: int | None = None) -> list[str]:
-    """The command line of one compile (``python -m ribbond.worker``); ``parameters`` in the
-    ``--params`` layout (design parameters, an optional ``solver`` table), ``max_faces`` the
-    daemon's ``[limits] max_faces``."""
-    return [python, "-m", "ribbond.worker", mesh, str(out), "--params", json.dumps(parameters),
-            "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else []) \
-        + (["--max-faces", str(max_faces)] if max_faces is not None else [])
-
-
-def worker_environment() -> dict[str, str]:
-    """The compile's environment: its numeric libraries use all cores but one, which is left to
-    the event loop that feeds the printer (the worker also runs at nice +10)."""
-    threads = str(max(1, (os.cpu_count() or 2) - 1))
-    limits = {name: threads for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
-    return {**os.environ, **limits}
 
 
 #: How often the printer's status is checked for a change worth an event (seconds).
@@ -271,10 +252,9 @@ class RibbonService:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
         self.library = TableLibrary(config.state_dir, store)
         self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
-        self._compile_queue: asyncio.Queue[str] = asyncio.Queue()
         self._print_queue: asyncio.Queue[str] = asyncio.Queue()
+        self.compiler = Compiler(config, self.records, self.library.tables_dir, self._print_queue.put_nowait, python)
         self._tasks: list[asyncio.Task[None]] = []
-        self._compiling: dict[str, asyncio.subprocess.Process] = {}
         self._run: _Run | None = None
         self._acked = -1                 # program lines acknowledged in the current stream
         self._run_commands: list[str] = []
@@ -301,10 +281,10 @@ class RibbonService:
             self._cooling = asyncio.create_task(self._cool_after_interruption(), name="cool")
         for job in self.store.active():
             if job.state is JobState.SUBMITTED:
-                self._compile_queue.put_nowait(job.id)
+                self.compiler.queue(job.id)
             elif job.state is JobState.READY and job.start_when_ready:
                 self._print_queue.put_nowait(job.id)
-        self._tasks = [asyncio.create_task(self._compile_loop(), name="compile"),
+        self._tasks = [asyncio.create_task(self.compiler.run(), name="compile"),
                        asyncio.create_task(self._print_loop(), name="print"),
                        asyncio.create_task(self._printer_events(), name="printer events")]
 
@@ -391,9 +371,7 @@ class RibbonService:
                         await link.send(command, timeout=10)
 
     async def close(self) -> None:
-        for proc in self._compiling.values():
-            with contextlib.suppress(ProcessLookupError):
-                proc.kill()
+        self.compiler.stop_all()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
@@ -452,7 +430,7 @@ class RibbonService:
             shutil.rmtree(folder, ignore_errors=True)
             raise
         self.records.publish(job)
-        self._compile_queue.put_nowait(job.id)
+        self.compiler.queue(job.id)
         return job
 
     def _check_settings(self, parameters: dict[str, Any]) -> None:
@@ -519,7 +497,7 @@ class RibbonService:
             self.records.check_queue()
             job = self.records.transition(job_id, JobState.SUBMITTED, reason="compiled again", start_when_ready=True,
                                    error=None, stage=None, progress=None)
-            self._compile_queue.put_nowait(job_id)
+            self.compiler.queue(job_id)
             return job
         if job.state.terminal:
             if not has_program(job):
@@ -555,10 +533,7 @@ class RibbonService:
         job = self.job(job_id)
         if JobState.CANCELLED not in TRANSITIONS[job.state]:
             raise IllegalTransition(job.state, "cancel")
-        proc = self._compiling.get(job_id)
-        if proc is not None:
-            with contextlib.suppress(ProcessLookupError):
-                proc.kill()
+        if self.compiler.stop(job_id):
             return await self.records.wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
         run = self._run
         if run is not None and run.job_id == job_id:
@@ -808,74 +783,6 @@ class RibbonService:
                 and run.alignment.current > 0
         return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED) or (
             job.state is JobState.AWAITING_CHECK and job.stage == "check the frame")
-
-    # ------------------------------------------------------------------ compiling
-
-    async def _compile_loop(self) -> None:
-        while True:
-            job_id = await self._compile_queue.get()
-            try:
-                await self._compile(job_id)
-            except NotFound:
-                continue
-            except Exception:  # noqa: BLE001 - one job's failure never stops the daemon
-                log.exception("compiling job %s", job_id)
-                with contextlib.suppress(Exception):
-                    self.records.transition(job_id, JobState.FAILED, reason="internal error while compiling (see the log)")
-
-    async def _compile(self, job_id: str) -> None:
-        job = self.job(job_id)
-        if job.state is not JobState.SUBMITTED:
-            return
-        folder = self.job_dir(job_id)
-        if not Path(job.mesh_path).is_file() or not folder.is_dir():
-            # a job an older daemon left without its upload (its row was written first)
-            self.records.transition(job_id, JobState.FAILED, reason="the uploaded mesh is missing",
-                             error=f"the uploaded mesh {job.mesh_name!r} was never stored (the submit failed "
-                                   "part way); submit it again")
-            return
-        params = {**job.parameters, "printer_profile": self.config.printer_profile}
-        self.records.transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
-        log_path = folder / "compile.log"
-        with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
-            proc = await asyncio.create_subprocess_exec(
-                *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans",
-                                self.library.tables_dir, self.config.limits.max_faces),
-                stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
-        self._compiling[job_id] = proc
-        last: dict[str, Any] = {}
-        try:
-            assert proc.stdout is not None
-            async for raw in proc.stdout:
-                try:
-                    event = json.loads(raw)
-                except ValueError:
-                    continue
-                last = event
-                if event.get("event") == "stage":
-                    self.records.publish(self.store.update(job_id, stage=event["stage"], progress=None))
-                elif event.get("event") == "iteration":
-                    self.records.publish(self.job(job_id), progress_event=event)
-            code = await proc.wait()
-        finally:
-            self._compiling.pop(job_id, None)
-        if self.job(job_id).state is not JobState.COMPILING:
-            return                                            # cancelled meanwhile
-        if code == 0 and last.get("event") == "done":
-            printed = (last.get("report") or {}).get("print") or {}
-            estimate = {side: float((printed.get(side) or {}).get("time_s") or 0.0) for side in ("front", "back")}
-            job = self.records.transition(job_id, JobState.READY, design_dir=last["design_dir"], stage=None, progress=None,
-                                   estimate_s=estimate)
-            if job.start_when_ready:
-                self._print_queue.put_nowait(job_id)
-        elif last.get("event") == "error":
-            self.records.transition(job_id, JobState.FAILED, reason=last["message"], error=last["message"])
-        elif code < 0:
-            self.records.transition(job_id, JobState.CANCELLED, reason="the compile was stopped")
-        else:
-            tail = log_path.read_text(errors="replace").strip().splitlines()[-1:] or ["no output"]
-            self.records.transition(job_id, JobState.FAILED, reason=f"the compiler stopped ({code}): {tail[0]}",
-                             error=tail[0])
 
     # ------------------------------------------------------------------ printing
 
