@@ -47,7 +47,7 @@ MEDIA_TYPES = {".png": "image/png", ".svg": "image/svg+xml", ".json": "applicati
 _CHUNK = 1 << 20
 #: A job file's name in a path: one of ``JOB_FILES`` (the document lists them).
 JobFile = Enum("JobFile", {name: name for name in JOB_FILES}, type=str)  # type: ignore[misc]
-#: A calibration's files (``RibbonService.calibration_file``).
+#: A calibration's files (``Calibrations.calibration_file``).
 CalibrationFileName = Annotated[str, PathParam(pattern=r"^(plan\.json|coupons\.csv|sheet-[0-9]{1,3}\.(png|svg))$")]
 #: Ids and names in paths: longer ones cannot exist (job ids are 12 hex digits, table names at most
 #: 64 characters), and are refused without being echoed.
@@ -252,12 +252,12 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     async def calibrate(body: CalibrationRequest) -> dict[str, Any]:
         """A calibration plan for this printer: one ready two-sided job per sheet (issue 15)."""
         spec = body.model_dump(exclude_none=True, exclude={"start"})
-        return await service.submit_calibration(spec, body.start)
+        return await service.calibrations.submit_calibration(spec, body.start)
 
     @app.get("/calibrations/{cal_id}/files/{name}", response_class=FileResponse,
              responses={**responses(404, 422), **_file_content([".json", ".csv", ".png", ".svg"])})
     async def calibration_file(cal_id: Ident, name: CalibrationFileName) -> FileResponse:
-        return _file(service.calibration_file(cal_id, name))
+        return _file(service.calibrations.calibration_file(cal_id, name))
 
     @app.get("/tables", responses=responses())
     async def tables() -> list[dict[str, Any]]:

@@ -23,7 +23,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import hashlib
-import json
 import logging
 import os
 import re
@@ -37,11 +36,11 @@ from typing import Any
 import numpy as np
 
 from .alignment import AlignmentRefused, check_fit, expected_marks, fit_rigid
-from .compiler import COMPILE_STAGES, Compiler, worker_environment
+from .calibrations import Calibrations
+from .compiler import COMPILE_STAGES, Compiler
 from .config import DaemonConfig
 from .design.folder import read_design_folder
 from .design.params import check_printable, settings_from_dict
-from .design.thickness import available_tables
 from .events import EventBus
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, SidePlan, render_side
@@ -253,6 +252,7 @@ class RibbonService:
         self.library = TableLibrary(config.state_dir, store)
         self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
         self._print_queue: asyncio.Queue[str] = asyncio.Queue()
+        self.calibrations = Calibrations(config, self.records, self._print_queue.put_nowait, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self._print_queue.put_nowait, python)
         self._tasks: list[asyncio.Task[None]] = []
         self._run: _Run | None = None
@@ -555,69 +555,6 @@ class RibbonService:
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
         log.info("job %s deleted", job_id)
         self.bus.publish({"type": "deleted", "job_id": job_id})
-
-    # ------------------------------------------------------------------ calibration plans (issue 15)
-
-    @property
-    def calibrations_dir(self) -> Path:
-        return Path(self.config.state_dir) / "calibrations"
-
-    async def submit_calibration(self, spec: dict[str, Any], start: bool) -> dict[str, Any]:
-        """Make a calibration plan (``python -m ribbond.calibration plan``, its own process) for this
-        daemon's printer and one ``ready`` two-sided job per sheet (the first queued if ``start``)."""
-        from .calibration.spec import CalibrationSpec
-
-        asked = spec.get("printer_profile")
-        if asked is not None and asked != self.config.printer_profile:
-            raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
-                             "printer; leave printer_profile out")
-        base = spec.get("base_table", CalibrationSpec().base_table)
-        if base not in available_tables():
-            raise ValueError(f"base_table {base!r}: give a shipped table ({', '.join(available_tables())})")
-        cal = CalibrationSpec.model_validate({**spec, "printer_profile": self.config.printer_profile})
-        if start:
-            self.records.check_queue()
-        cal_id = "cal-" + os.urandom(4).hex()
-        folder = self.calibrations_dir / cal_id
-        folder.parent.mkdir(parents=True, exist_ok=True)
-        proc = await asyncio.create_subprocess_exec(
-            self.python, "-m", "ribbond.calibration", "plan", "--spec", cal.model_dump_json(), "-o", str(folder),
-            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, env=worker_environment())
-        out, err = await proc.communicate()
-        if proc.returncode != 0:
-            tail = (err.decode(errors="replace").strip().splitlines() or ["no output"])[-1]
-            shutil.rmtree(folder, ignore_errors=True)
-            raise ValueError(f"the calibration plan cannot be made: {tail}")
-        plan = json.loads((folder / "plan.json").read_text(encoding="utf-8"))
-        jobs = []
-        for sheet in plan["sheets"]:
-            k = sheet["sheet"]
-            job = self.store.create(mesh_name=f"{cal_id}-sheet-{k}", mesh_path=str(folder),
-                                    parameters={"calibration": cal_id, "sheet": k}, start_when_ready=start and k == 1)
-            (self.job_dir(job.id) / "plans").mkdir(parents=True, exist_ok=True)
-            for side in ("front", "back"):
-                shutil.copyfile(folder / "plans" / f"sheet-{k}-{side}-plan.npz",
-                                self.job_dir(job.id) / "plans" / f"{side}-plan.npz")
-            job = self.records.transition(job.id, JobState.READY,
-                                   reason=f"calibration {cal_id}: sheet {k} of {len(plan['sheets'])}, coupons "
-                                          f"{sheet['coupons'][0]}-{sheet['coupons'][-1]}",
-                                   design_dir=str(folder / f"sheet-{k}"), estimate_s=sheet["time_s"])
-            if job.start_when_ready:
-                self._print_queue.put_nowait(job.id)
-            jobs.append(job.id)
-        return {"calibration": cal_id, "sheets": len(plan["sheets"]), "coupons": len(plan["coupons"]),
-                "jobs": jobs, "folder": str(folder)}
-
-    def calibration_file(self, cal_id: str, name: str) -> Path:
-        """A file of a calibration plan: plan.json, coupons.csv, sheet-K.png or sheet-K.svg."""
-        if not re.fullmatch(r"cal-[0-9a-f]{8}", cal_id) or not (self.calibrations_dir / cal_id).is_dir():
-            raise NotFound(f"no calibration {cal_id!r}")
-        if not re.fullmatch(r"plan\.json|coupons\.csv|sheet-[0-9]{1,3}\.(png|svg)", name):
-            raise NotFound(f"{name!r} is not a calibration file; files: plan.json, coupons.csv, sheet-K.png, sheet-K.svg")
-        path = self.calibrations_dir / cal_id / name
-        if not path.is_file():
-            raise NotFound(f"calibration {cal_id} has no {name}")
-        return path
 
     # ------------------------------------------------------------------ what a person sees
 
