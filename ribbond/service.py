@@ -29,7 +29,6 @@ import re
 import shutil
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +50,7 @@ from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
 from .programs import Part, Timeline, check_program, program_parts, program_timeline, resumed_program
 from .records import JobRecords, NotFound, ServiceError, has_program
+from .run import MarkCheck, PrintState, ResumePlan, Run, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
 
@@ -92,77 +92,6 @@ def mesh_file_name(name: str) -> str:
 
 #: How often the printer's status is checked for a change worth an event (seconds).
 PRINTER_EVENT_S = 0.5
-
-
-@dataclass
-class _Alignment:
-    """The alignment check of one job: expected mark positions (back-side) and what was measured."""
-
-    expected: np.ndarray
-    measured: dict[int, tuple[float, float]] = field(default_factory=dict)
-    correction: Correction | None = None        # the accepted fit, once every mark is in
-    refused: AlignmentRefused | None = None     # or why it was refused
-    fit: dict[str, Any] | None = None           # the fit shown for review (state fitted)
-    reseat: bool = False                        # the operator refused the fit under review
-
-    current: int = 0                            # the mark the head is above (from 1; 0: on its way)
-
-    @property
-    def next_mark(self) -> int | None:
-        """The first mark (numbered from 1) not measured yet."""
-        missing = [i for i in range(1, len(self.expected) + 1) if i not in self.measured]
-        return missing[0] if missing else None
-
-
-@dataclass(frozen=True)
-class _Resume:
-    """Where an interrupted print goes on (issue 16): ``side`` from part ``start`` (its place in the
-    side's program, from 0); ``partial`` the part begun and not proven printed, if any, and what
-    the operator chose for it."""
-
-    side: str
-    start: int
-    parts: int
-    partial: int | None = None
-    choice: str | None = None
-
-
-@dataclass
-class _Run:
-    """What the printer task knows of the job it is printing."""
-
-    job_id: str
-    flip: asyncio.Event = field(default_factory=asyncio.Event)
-    aligned: asyncio.Event = field(default_factory=asyncio.Event)
-    alignment: _Alignment | None = None
-    pause_snapshot: dict[str, Any] | None = None
-    cancel_requested: bool = False
-    stop_reason: str | None = None              # the daemon stops: interrupted, not cancelled
-    busy: bool = False                           # pausing or resuming (manual control waits)
-    done: asyncio.Event = field(default_factory=asyncio.Event)
-    heaters: asyncio.Task[None] | None = None   # the idle-heater policy while waiting
-    started: float = field(default_factory=time.time)
-    stream: _Stream | None = None
-    resume: _Resume | None = None               # an interrupted print resumed (issue 16)
-    checked: asyncio.Event = field(default_factory=asyncio.Event)   # the operator checked the frame
-    keep_alignment: bool = False                # ... and it was not moved: the stored correction holds
-
-    def check(self) -> None:
-        """Raise ``StreamCancelled`` once a cancel or a stop was asked for."""
-        if self.cancel_requested or self.stop_reason is not None:
-            raise StreamCancelled(self.stop_reason or "cancelled by the operator")
-
-
-@dataclass
-class _Stream:
-    """The program being streamed: its time line and the measured rate."""
-
-    side: str
-    timeline: Timeline
-    acked: int = -1
-    printing_since: float | None = None         # monotonic, when the first line after heating was acked
-    paused_s: float = 0.0
-    paused_at: float | None = None
 
 
 def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
@@ -251,20 +180,14 @@ class RibbonService:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
         self.library = TableLibrary(config.state_dir, store)
         self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
-        self._print_queue: asyncio.Queue[str] = asyncio.Queue()
-        self.calibrations = Calibrations(config, self.records, self._print_queue.put_nowait, python)
-        self.compiler = Compiler(config, self.records, self.library.tables_dir, self._print_queue.put_nowait, python)
+        self.state = PrintState()
+        self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
+        self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
         self._tasks: list[asyncio.Task[None]] = []
-        self._run: _Run | None = None
-        self._acked = -1                 # program lines acknowledged in the current stream
-        self._run_commands: list[str] = []
-        self._rate: float | None = None  # measured seconds per estimated second, from the last stream
         self._manual = asyncio.Lock()    # one sequence of moves at a time (manual, marks, pause)
         self._head: tuple[float, float, float] | None = None   # commanded position (exact)
         self._head_sender: object = None # the link's sender the position was commanded through
-        self._stopping = False
         self._background_tasks: set[asyncio.Future[Any]] = set()
-        self._resumes: dict[str, _Resume] = {}    # interrupted jobs resumed, waiting for the print task
         self._cooling: asyncio.Task[None] | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -283,7 +206,7 @@ class RibbonService:
             if job.state is JobState.SUBMITTED:
                 self.compiler.queue(job.id)
             elif job.state is JobState.READY and job.start_when_ready:
-                self._print_queue.put_nowait(job.id)
+                self.state.queue_print(job.id)
         self._tasks = [asyncio.create_task(self.compiler.run(), name="compile"),
                        asyncio.create_task(self._print_loop(), name="print"),
                        asyncio.create_task(self._printer_events(), name="printer events")]
@@ -308,8 +231,8 @@ class RibbonService:
         boundary, the heaters go off, the head is lifted by the profile's park lift, and the job is
         ``interrupted`` with an exact checkpoint. If that does not finish in ``STOP_TIMEOUT_S``,
         the emergency stop (M112: heaters off in the firmware)."""
-        self._stopping = True
-        run = self._run
+        self.state.stopping = True
+        run = self.state.run
         if run is None:
             await self._heaters_off_if_on()
             return
@@ -323,7 +246,7 @@ class RibbonService:
                 if self.link is not None:
                     self.link.emergency_stop()
 
-    async def _break_heater_waits(self, run: _Run, link: PrinterLink) -> None:
+    async def _break_heater_waits(self, run: Run, link: PrinterLink) -> None:
         """M109/M190 hold the firmware's queue until hot, and the lines in flight may hold more
         than one: M108 ends each wait (the emergency parser acts on it at arrival, ahead of the
         queue), again until the stream has ended."""
@@ -347,7 +270,7 @@ class RibbonService:
     async def _cool_after_interruption(self) -> None:
         """Once the printer is connected: heaters and fan off, whatever the last daemon left on."""
         while not self._connected():
-            if self._stopping:
+            if self.state.stopping:
                 return
             await asyncio.sleep(0.1)
         link = self._require_link()
@@ -378,7 +301,7 @@ class RibbonService:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
 
-    def _interrupt(self, run: _Run) -> None:
+    def _interrupt(self, run: Run) -> None:
         """Make the print task leave what it waits on (the stream, a heater wait, the flip, the marks)."""
         link = self.link
         if link is not None and link.state in (LinkState.STREAMING, LinkState.PAUSED):
@@ -480,7 +403,7 @@ class RibbonService:
                                mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
                                estimate_s={"front": timeline.total})
         if start:
-            self._print_queue.put_nowait(job.id)
+            self.state.queue_print(job.id)
         return job
 
     def start_job(self, job_id: str) -> JobRecord:
@@ -517,7 +440,7 @@ class RibbonService:
                                    runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
                                    lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
                                    side=None, correction=None, paused_from=None)
-            self._print_queue.put_nowait(job_id)
+            self.state.queue_print(job_id)
             return job
         if job.state is not JobState.READY:
             raise IllegalTransition(job.state, "start")
@@ -525,7 +448,7 @@ class RibbonService:
             return job                                        # already queued
         self.records.check_queue()
         job = self.store.update(job_id, start_when_ready=True)
-        self._print_queue.put_nowait(job_id)
+        self.state.queue_print(job_id)
         self.records.publish(job)
         return job
 
@@ -535,7 +458,7 @@ class RibbonService:
             raise IllegalTransition(job.state, "cancel")
         if self.compiler.stop(job_id):
             return await self.records.wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
-        run = self._run
+        run = self.state.run
         if run is not None and run.job_id == job_id:
             run.cancel_requested = True
             self._interrupt(run)
@@ -549,7 +472,7 @@ class RibbonService:
         holds the printer."""
         job = self.job(job_id)
         if job.state.holds_printer or job.state in (JobState.SUBMITTED, JobState.COMPILING) \
-                or (self._run is not None and self._run.job_id == job_id):
+                or (self.state.run is not None and self.state.run.job_id == job_id):
             raise IllegalTransition(job.state, "delete", hint=f"cancel it first: ribbonctl cancel {job_id}")
         self.store.delete(job_id)
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
@@ -577,9 +500,9 @@ class RibbonService:
         totals = {k: float(v) for k, v in (job.estimate_s or {}).items() if v}
         if not totals:
             return out
-        run = self._run if self._run is not None and self._run.job_id == job.id else None
+        run = self.state.run if self.state.run is not None and self.state.run.job_id == job.id else None
         stream = run.stream if run is not None else None
-        rate = self._rate or 1.0
+        rate = self.state.rate or 1.0
         side = job.side or "front"
         done_side: float | None = None
         if stream is not None:
@@ -588,7 +511,7 @@ class RibbonService:
             # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
             acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
             done_side = stream.timeline.done_s(acked)
-            rate = self._stream_rate(stream) or rate
+            rate = stream_rate(stream) or rate
             out["ribbon"] = stream.timeline.ribbon_at(acked) or None
             out["ribbons"] = stream.timeline.ribbons or None
         elif s is JobState.PRINTING_BACK:
@@ -612,23 +535,10 @@ class RibbonService:
             out["elapsed_s"] = time.time() - run.started
         return out
 
-    @staticmethod
-    def _stream_rate(stream: _Stream) -> float | None:
-        """Measured seconds per estimated second since the stream passed its heating (pauses left out)."""
-        if stream.printing_since is None:
-            return None
-        tl = stream.timeline
-        estimated = tl.done_s(stream.acked) - tl.done_s(tl.first)
-        now = stream.paused_at if stream.paused_at is not None else time.monotonic()
-        measured = now - stream.printing_since - stream.paused_s
-        if estimated < 0.5 or measured <= 0:
-            return None
-        return measured / estimated
-
     def guidance(self, job: JobRecord) -> dict[str, Any]:
         """What the operator does next: an instruction and the exact commands, for every state."""
         j, s = job.id, job.state
-        run = self._run if self._run is not None and self._run.job_id == j else None
+        run = self.state.run if self.state.run is not None and self.state.run.job_id == j else None
         cmds: list[str] = [f"ribbonctl {c} {j}" for c in COMMANDS[s]]
         if s in (JobState.SUBMITTED, JobState.COMPILING):
             text = "compiling; it prints when compiled" if job.start_when_ready else \
@@ -675,7 +585,7 @@ class RibbonService:
             text = (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
                     f"re-seat the frame and align again (ribbonctl re-seat {j})")
         elif s is JobState.AWAITING_CHECK:
-            plan = run.resume if run is not None and run.resume is not None else self._resumes.get(j)
+            plan = run.resume if run is not None and run.resume is not None else self.state.resumes.get(j)
             side = plan.side if plan is not None else job.side or "front"
             keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
                 "stored alignment" if job.side == "back" and job.correction else ""
@@ -704,7 +614,7 @@ class RibbonService:
         info = self.progress(job)
         data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
                     compile_progress=job.progress, waits_for_operator=self._waits(job))
-        run = self._run
+        run = self.state.run
         if job.state is JobState.FITTED and run is not None and run.job_id == job.id and run.alignment is not None:
             data["fit"] = run.alignment.fit
         return data
@@ -715,7 +625,7 @@ class RibbonService:
         if job.state is JobState.READY:
             return not job.start_when_ready
         if job.state is JobState.ALIGNING:
-            run = self._run
+            run = self.state.run
             return run is not None and run.job_id == job.id and run.alignment is not None \
                 and run.alignment.current > 0
         return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED) or (
@@ -728,33 +638,33 @@ class RibbonService:
 
     async def _print_loop(self) -> None:
         while True:
-            job_id = await self._print_queue.get()
+            job_id = await self.state.queue.get()
             try:
                 job = self.job(job_id)
             except NotFound:
                 continue                                      # deleted while queued
-            resume = self._resumes.pop(job_id, None)
+            resume = self.state.resumes.pop(job_id, None)
             if resume is not None and job.state is JobState.AWAITING_CHECK:
-                self._run = run = _Run(job_id, resume=resume)
+                self.state.run = run = Run(job_id, resume=resume)
                 await self._run_print(run, job)
                 continue
             if job.state is not JobState.READY or not job.start_when_ready:
                 continue
-            if self._stopping:
+            if self.state.stopping:
                 continue                                      # the daemon stops: queued again at its next start
             if not self._connected():                         # wait for the printer, do not fail
                 log.info("job %s waits for the printer to connect", job_id)
                 self.records.publish(self.store.update(job_id, stage="waiting for the printer"))
-                while not self._connected() and not self._stopping and self.records.exists(job_id) \
+                while not self._connected() and not self.state.stopping and self.records.exists(job_id) \
                         and self.job(job_id).state is JobState.READY:
                     await asyncio.sleep(0.2)
-                if not self.records.exists(job_id) or self.job(job_id).state is not JobState.READY or self._stopping:
+                if not self.records.exists(job_id) or self.job(job_id).state is not JobState.READY or self.state.stopping:
                     continue
                 job = self.store.update(job_id, stage=None)
-            self._run = run = _Run(job_id)
+            self.state.run = run = Run(job_id)
             await self._run_print(run, job)
 
-    async def _run_print(self, run: _Run, job: JobRecord) -> None:
+    async def _run_print(self, run: Run, job: JobRecord) -> None:
         try:
             await self._print(job)
         except StreamCancelled:
@@ -766,16 +676,16 @@ class RibbonService:
         finally:
             if run.heaters is not None:
                 run.heaters.cancel()
-            self._run = None
+            self.state.run = None
             run.done.set()
 
-    async def _end_run_logged(self, run: _Run, error: str | None) -> None:
+    async def _end_run_logged(self, run: Run, error: str | None) -> None:
         try:
             await self._end_run(run, error)
         except Exception:  # noqa: BLE001 - the print queue goes on with the next job
             log.exception("ending the run of job %s", run.job_id)
 
-    async def _end_run(self, run: _Run, error: str | None) -> None:
+    async def _end_run(self, run: Run, error: str | None) -> None:
         """After the stream ended early: heaters off, head lifted; the job ``cancelled`` (asked for),
         or ``interrupted`` (the daemon stops, or ``error``) with the exact checkpoint."""
         stopped = await self._safe_stop()
@@ -791,21 +701,21 @@ class RibbonService:
                                      JobState.PAUSED):
             # after M400 every acknowledged line has been executed: the checkpoint is exact
             side = job.side or "front"
-            self.store.record_ack(run.job_id, self._acked)
-            self.store.checkpoint(run.job_id, f"{side}_stopped", self._acked)
+            self.store.record_ack(run.job_id, self.state.acked)
+            self.store.checkpoint(run.job_id, f"{side}_stopped", self.state.acked)
         self.records.transition(run.job_id, JobState.INTERRUPTED, reason=reason, start_when_ready=False,
                          stage="stopped: heaters off, head lifted" if stopped else "stopped")
 
     async def _print(self, job: JobRecord) -> None:
         link = self._require_link()
-        run = self._run
+        run = self.state.run
         assert run is not None
         if job.kind == "gcode":
             text = Path(job.mesh_path).read_text(encoding="utf-8")
             self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
             await self._stream(job.id, text, "front", JobState.PRINTING_FRONT, plain=True)
             await link.send("M400", timeout=600)
-            self.records.publish(self.store.checkpoint(job.id, "program_done", self._acked))
+            self.records.publish(self.store.checkpoint(job.id, "program_done", self.state.acked))
             run.check()
             self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
             return
@@ -823,7 +733,7 @@ class RibbonService:
             self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
             await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start)
             await link.send("M400", timeout=600)
-            self.records.publish(self.store.checkpoint(job.id, "front_done", self._acked))
+            self.records.publish(self.store.checkpoint(job.id, "front_done", self.state.acked))
             run.check()
             if not has_back:
                 self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
@@ -855,7 +765,7 @@ class RibbonService:
             self.records.transition(job.id, JobState.PRINTING_BACK, stage="printing back", **fields)
             await self._stream(job.id, text, "back", None, part_base=start)
         await link.send("M400", timeout=600)
-        self.records.publish(self.store.checkpoint(job.id, "back_done", self._acked))
+        self.records.publish(self.store.checkpoint(job.id, "back_done", self.state.acked))
         run.check()
         self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
 
@@ -863,13 +773,13 @@ class RibbonService:
         """The flip (unless ``flipped``: the frame is turned already) and the alignment check over the
         registration marks, again after a refused fit; the accepted correction."""
         link = self._require_link()
-        run = self._run
+        run = self.state.run
         assert run is not None
         while True:
             if not flipped:
                 await self._await_flip(job_id)
             flipped = False
-            run.alignment = _Alignment(expected=expected)
+            run.alignment = MarkCheck(expected=expected)
             self.records.transition(job_id, JobState.ALIGNING, stage="aligning")
             # the front program ended with the motors off (M84) and the frame was handled: home again
             async with self._manual:
@@ -898,16 +808,16 @@ class RibbonService:
         filament goes out (a barrier of the sender), ``done`` when the part's ``M400`` is
         acknowledged: two writes a part, none a line."""
         link = self._require_link()
-        run = self._run
+        run = self.state.run
         assert run is not None
         run.check()
         lines = text.splitlines()
         commands = prepare_program(lines, f"{side}.gcode")
         timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
         first_part = timeline.first
-        stream = run.stream = _Stream(side=side, timeline=timeline)
-        self._run_commands = commands
-        self._acked = -1
+        stream = run.stream = Stream(side=side, timeline=timeline)
+        self.state.commands = commands
+        self.state.acked = -1
         self._head = None
         self.records.publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
         parts = [] if plain else program_parts(lines)
@@ -920,7 +830,7 @@ class RibbonService:
         def progress(p: StreamProgress) -> None:
             nonlocal last_write, switched
             now = time.monotonic()
-            self._acked = stream.acked = p.acknowledged
+            self.state.acked = stream.acked = p.acknowledged
             track.acknowledged(p.acknowledged)
             if stream.printing_since is None and p.acknowledged >= first_part:
                 stream.printing_since = now
@@ -939,9 +849,9 @@ class RibbonService:
         try:
             await link.stream(commands, progress, track.barriers)
         finally:
-            rate = self._stream_rate(stream)
+            rate = stream_rate(stream)
             if rate is not None and stream.acked >= len(commands) - 1:
-                self._rate = rate                             # what this printer does with an estimate
+                self.state.rate = rate                             # what this printer does with an estimate
             run.stream = None
         if not switched and after_heating is not None:
             self.records.transition(job_id, after_heating, stage=f"printing {side}")
@@ -1000,13 +910,13 @@ class RibbonService:
     # ------------------------------------------------------------------ the flip
 
     async def _await_flip(self, job_id: str) -> None:
-        run = self._run
+        run = self.state.run
         assert run is not None
         job = self.job(job_id)
         if job.state is not JobState.AWAITING_FLIP:
             self.records.transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
                              reason="the front is printed: turn the frame over, then flip-done")
-        self.records.publish(self.store.checkpoint(job_id, "flip", self._acked))
+        self.records.publish(self.store.checkpoint(job_id, "flip", self.state.acked))
         run.heaters = await self._wait_heaters(job_id, "awaiting the flip")
         try:
             await run.flip.wait()
@@ -1018,7 +928,7 @@ class RibbonService:
     async def flip_done(self, job_id: str) -> JobRecord:
         """The operator turned the frame over: go on to the alignment (returns once aligning)."""
         job = self.job(job_id)
-        run = self._run
+        run = self.state.run
         if job.state is not JobState.AWAITING_FLIP or run is None or run.job_id != job_id:
             raise IllegalTransition(job.state, "flip-done")
         run.flip.set()
@@ -1026,7 +936,7 @@ class RibbonService:
 
     async def _go_to_mark(self, mark: int) -> None:
         """Move the head above where mark ``mark`` (from 1) should be now, at the safe height."""
-        run = self._run
+        run = self.state.run
         assert run is not None and run.alignment is not None
         al = run.alignment
         link = self._require_link()
@@ -1052,7 +962,7 @@ class RibbonService:
         else ``jog`` (dx, dy) is the offset of the mark from where the head was sent (None: it was
         on the mark). Returns the alignment's status; the last mark ends the check. With
         ``review``, a fit within the limits waits in ``fitted`` for ``accept`` or ``re_seat``."""
-        run = self._run
+        run = self.state.run
         job = self.job(job_id)
         if job.state is not JobState.ALIGNING or run is None or run.job_id != job_id or run.alignment is None:
             raise IllegalTransition(job.state, "align")
@@ -1107,8 +1017,8 @@ class RibbonService:
         run.aligned.set()
         return status
 
-    def _fitted_run(self, job_id: str, command: str) -> _Run:
-        run = self._run
+    def _fitted_run(self, job_id: str, command: str) -> Run:
+        run = self.state.run
         job = self.job(job_id)
         if job.state is not JobState.FITTED or run is None or run.job_id != job_id or run.alignment is None:
             raise IllegalTransition(job.state, command)
@@ -1134,7 +1044,7 @@ class RibbonService:
 
     async def pause(self, job_id: str) -> JobRecord:
         job = self.job(job_id)
-        run = self._run
+        run = self.state.run
         if job.state not in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK) or run is None or run.job_id != job_id:
             raise IllegalTransition(job.state, "pause")
         link = self._require_link()
@@ -1146,10 +1056,10 @@ class RibbonService:
             job = self.records.transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
             await link.send("M400", timeout=300)
             # every acknowledged line has now been executed: an exact checkpoint
-            self.store.record_ack(job_id, self._acked)
-            self.store.checkpoint(job_id, f"{job.side or 'front'}_paused", self._acked)
+            self.store.record_ack(job_id, self.state.acked)
+            self.store.checkpoint(job_id, f"{job.side or 'front'}_paused", self.state.acked)
             pos = await link.query_position()
-            modal = modal_state(self._run_commands, max(self._acked, 0))
+            modal = modal_state(self.state.commands, max(self.state.acked, 0))
             exact = {k: modal[k] if modal[k] is not None else getattr(pos, k) for k in ("x", "y", "z")}
             nozzle = link.status.heaters.get("T")
             if modal["nozzle"] is None and nozzle is not None and nozzle.target:
@@ -1178,7 +1088,7 @@ class RibbonService:
         if partial is not None:  # a request the job's state does not allow: 409, as other verbs
             raise IllegalTransition(job.state, "resume", command=f"resume with partial={partial!r}",
                                     hint="only an interrupted print has a partial part")
-        run = self._run
+        run = self.state.run
         if job.state is JobState.PAUSED and run is not None and run.job_id == job_id and run.pause_snapshot is None:
             raise IllegalTransition(job.state, "resume", hint="the head is still being parked: resume in a "
                                     "moment, when the job's stage says 'paused (head parked)'")
@@ -1234,7 +1144,7 @@ class RibbonService:
             base = Path(job.design_dir or "") / "back.gcode"
         return base.read_text(encoding="utf-8").splitlines()
 
-    def _resume_plan(self, job: JobRecord, partial: str | None) -> _Resume | None:
+    def _resume_plan(self, job: JobRecord, partial: str | None) -> ResumePlan | None:
         """Where the interrupted ``job`` goes on: the side it stood on, from the first part not
         proven printed (a part begun and not proven: skipped or printed again, as ``partial`` says);
         None: every part of the job was proven printed (or skipped)."""
@@ -1249,7 +1159,7 @@ class RibbonService:
         side = "back" if job.side == "back" or front_done else "front"
         if side == "back" and job.side != "back":
             # the front is printed: align the back (a one-sided design is complete)
-            return _Resume(side="back", start=0, parts=0) if has_back else None
+            return ResumePlan(side="back", start=0, parts=0) if has_back else None
         parts = program_parts(self._side_program(job, side))
         unproven = [p.ordinal + 1 for p in parts if p.sync is None]
         if unproven:
@@ -1260,10 +1170,10 @@ class RibbonService:
         partial_at, choice = (first, partial or "skip") if states.get(first) == "started" else (None, None)
         start = first + 1 if choice == "skip" else first
         if start < len(parts):
-            return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
+            return ResumePlan(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
         if side == "front" and has_back:                     # every front part proven: the back
-            return _Resume(side="back", start=0, parts=0, partial=partial_at, choice=choice)
-        return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
+            return ResumePlan(side="back", start=0, parts=0, partial=partial_at, choice=choice)
+        return ResumePlan(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
 
     def resume_interrupted(self, job_id: str, partial: str | None = None) -> JobRecord:
         """Resume an interrupted design print where it was proven to stand (issue 16).
@@ -1286,8 +1196,8 @@ class RibbonService:
         job = self.job(job_id)
         if job.state is not JobState.INTERRUPTED:
             raise IllegalTransition(job.state, "resume")
-        if self._run is not None or any(j.state is JobState.READY and j.start_when_ready for j in self.store.active()):
-            busy = self._run.job_id if self._run is not None else "queued jobs"
+        if self.state.run is not None or any(j.state is JobState.READY and j.start_when_ready for j in self.store.active()):
+            busy = self.state.run.job_id if self.state.run is not None else "queued jobs"
             raise ServiceError(f"cannot resume job {job_id} now: the printer is busy ({busy}); resume it when "
                                "it is free")
         if not self._connected():
@@ -1309,11 +1219,11 @@ class RibbonService:
             if plan.partial is not None else ""
         job = self.records.transition(job_id, JobState.AWAITING_CHECK, reason=f"resumed at {where}{note}",
                                stage="homing", error=None, start_when_ready=False)
-        self._resumes[job_id] = plan
-        self._print_queue.put_nowait(job_id)
+        self.state.resumes[job_id] = plan
+        self.state.queue_print(job_id)
         return job
 
-    def _resumed_text(self, text: str, side: str, start: int, resume: _Resume | None) -> str:
+    def _resumed_text(self, text: str, side: str, start: int, resume: ResumePlan | None) -> str:
         lines = text.splitlines()
         cut = program_parts(lines)[start].begin
         modal = modal_state(prepare_program(lines, f"{side}.gcode"), cut)
@@ -1323,7 +1233,7 @@ class RibbonService:
 
     async def _check_frame(self, job_id: str) -> None:
         """Home, set the heaters (the idle policy applies while waiting), wait for ``frame_ok``."""
-        run = self._run
+        run = self.state.run
         assert run is not None
         link = self._require_link()
         if self._cooling is not None:
@@ -1350,7 +1260,7 @@ class RibbonService:
         ``keep_alignment``: the back was being printed and the frame was not moved: take the stored
         correction instead of measuring the marks again."""
         job = self.job(job_id)
-        run = self._run
+        run = self.state.run
         if job.state is not JobState.AWAITING_CHECK or run is None or run.job_id != job_id or run.resume is None:
             raise IllegalTransition(job.state, "frame-ok")
         if keep_alignment and (run.resume.side != "back" or job.side != "back" or not job.correction):
@@ -1365,7 +1275,7 @@ class RibbonService:
     def _manual_link(self, what: str) -> PrinterLink:
         """The link, if the operator may move the printer now: no program streaming (a job paused,
         awaiting the flip or aligning, or no job at all)."""
-        run = self._run
+        run = self.state.run
         if run is not None:
             job = self.job(run.job_id)
             if job.state.streams or job.state not in (JobState.PAUSED, JobState.AWAITING_FLIP, JobState.ALIGNING,
