@@ -32,7 +32,9 @@ from .apierrors import responses
 from .guard import Guard, HostRule, Policy
 from .jobs import JobState
 from .design.params import DesignParameters
-from .service import MAX_MANUAL_COMMANDS, NotFound, RibbonService
+from .manual import MAX_MANUAL_COMMANDS
+from .records import NotFound
+from .service import RibbonService
 from .store import JobRecord, Transition
 
 #: Files of a job that can be fetched.
@@ -362,41 +364,41 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/printer/home", responses=printer_action)
     async def home() -> dict[str, Any]:
-        return await service.home()
+        return await service.manual.home()
 
     @app.post("/printer/jog", responses=printer_body)
     async def jog(body: JogRequest) -> dict[str, Any]:
-        return await service.jog(body.dx, body.dy, body.dz)
+        return await service.manual.jog(body.dx, body.dy, body.dz)
 
     @app.post("/printer/goto", responses=printer_body)
     async def goto(body: GotoRequest) -> dict[str, Any]:
-        return await service.goto(body.x, body.y)
+        return await service.manual.goto(body.x, body.y)
 
     @app.post("/printer/gcode", responses=printer_body)
     async def gcode(body: GcodeRequest) -> dict[str, Any]:
-        return await service.gcode(body.commands)
+        return await service.manual.gcode(body.commands)
 
     @app.post("/printer/heat", responses=printer_body)
     async def heat(body: HeatRequest) -> dict[str, Any]:
-        return await service.heat(body.nozzle, body.bed)
+        return await service.manual.heat(body.nozzle, body.bed)
 
     @app.post("/printer/cool", responses=printer_action)
     async def cool() -> dict[str, Any]:
-        return await service.cool()
+        return await service.manual.cool()
 
     @app.get("/printer", responses=responses(422, 503))
     async def printer(refresh: bool = False) -> dict[str, Any]:
         """Connection, firmware, temperatures, position; ``refresh=true`` asks the printer first."""
-        return await service.printer_status(refresh)
+        return await service.manual.printer_status(refresh)
 
     @app.post("/printer/emergency-stop", responses=printer_action)
     async def emergency_stop() -> dict[str, Any]:
-        service.emergency_stop()
-        return await service.printer_status()
+        service.manual.emergency_stop()
+        return await service.manual.printer_status()
 
     @app.post("/printer/recover", responses=printer_action)
     async def recover() -> dict[str, Any]:
-        return await service.recover()
+        return await service.manual.recover()
 
     @app.get("/events", response_class=StreamingResponse, responses={
         **responses(), 200: {"description": "server-sent events, a keep-alive comment every 15 s",

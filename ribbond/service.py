@@ -43,8 +43,9 @@ from .design.params import check_printable, settings_from_dict
 from .events import EventBus
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, SidePlan, render_side
+from .head import Head
 from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
-from .printer import codec
+from .manual import MAX_MANUAL_COMMANDS, ManualControl
 from .printer.errors import LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
@@ -53,6 +54,10 @@ from .records import JobRecords, NotFound, ServiceError, has_program
 from .run import MarkCheck, PrintState, ResumePlan, Run, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
+
+#: What callers import from here: the service, and the names of its components they use.
+__all__ = ["MAX_MANUAL_COMMANDS", "MAX_NAME_BYTES", "NotFound", "RibbonService", "ServiceError", "mesh_file_name",
+           "modal_state"]
 
 log = logging.getLogger(__name__)
 
@@ -65,12 +70,6 @@ GCODE_SUFFIXES = (".gcode", ".gco", ".g", ".nc")
 #: How long a stop of the daemon waits for the safe stop before the emergency stop, seconds
 #: (systemd's TimeoutStopSec is 30).
 STOP_TIMEOUT_S = 20.0
-#: At most this many commands in one manual G-code request.
-MAX_MANUAL_COMMANDS = 16
-#: Jogs and gotos move at most this fast in X/Y, mm/s (the profile's travel speed if slower).
-JOG_SPEED = 50.0
-#: Commands after which the head's position is no longer the one the daemon commanded.
-_MOVES_HEAD = frozenset({"G0", "G1", "G2", "G3", "G28", "G29", "G92", "G30", "M206", "M428"})
 
 
 #: Longest stored mesh file name, bytes (file systems allow 255); longer names are shortened.
@@ -173,7 +172,6 @@ class RibbonService:
         self.config = config
         self.profile = profile
         self.store = store
-        self.link = link
         self.bus = EventBus()
         self.python = python
         self.jobs_dir = Path(config.state_dir) / "jobs"
@@ -181,12 +179,11 @@ class RibbonService:
         self.library = TableLibrary(config.state_dir, store)
         self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
         self.state = PrintState()
+        self.head = Head(link)
+        self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
         self._tasks: list[asyncio.Task[None]] = []
-        self._manual = asyncio.Lock()    # one sequence of moves at a time (manual, marks, pause)
-        self._head: tuple[float, float, float] | None = None   # commanded position (exact)
-        self._head_sender: object = None # the link's sender the position was commanded through
         self._background_tasks: set[asyncio.Future[Any]] = set()
         self._cooling: asyncio.Task[None] | None = None
 
@@ -218,7 +215,7 @@ class RibbonService:
         while True:
             await asyncio.sleep(PRINTER_EVENT_S)
             try:
-                status = await self.printer_status()
+                status = await self.manual.printer_status()
             except Exception:  # noqa: BLE001 - a status that cannot be read is not worth a stop
                 log.debug("printer status for the events", exc_info=True)
                 continue
@@ -243,8 +240,8 @@ class RibbonService:
         except asyncio.TimeoutError:
             log.error("the safe stop did not finish in %.0f s: emergency stop", STOP_TIMEOUT_S)
             with contextlib.suppress(Exception):
-                if self.link is not None:
-                    self.link.emergency_stop()
+                if self.head.link is not None:
+                    self.head.link.emergency_stop()
 
     async def _break_heater_waits(self, run: Run, link: PrinterLink) -> None:
         """M109/M190 hold the firmware's queue until hot, and the lines in flight may hold more
@@ -269,27 +266,27 @@ class RibbonService:
 
     async def _cool_after_interruption(self) -> None:
         """Once the printer is connected: heaters and fan off, whatever the last daemon left on."""
-        while not self._connected():
+        while not self.head.connected():
             if self.state.stopping:
                 return
             await asyncio.sleep(0.1)
-        link = self._require_link()
+        link = self.head.require_link()
         with contextlib.suppress(LinkError, asyncio.TimeoutError):
-            async with self._manual:
+            async with self.head.lock:
                 for command in ("M104 S0", "M140 S0", "M107"):
                     await link.send(command, timeout=10)
             log.info("heaters off: the last daemon stopped with a job on the printer")
 
     async def _heaters_off_if_on(self) -> None:
         """No job on the printer, but heaters the operator turned on (``heat``): off before leaving."""
-        link = self.link
+        link = self.head.link
         if link is None or link.state is not LinkState.READY:
             return
         with contextlib.suppress(LinkError, asyncio.TimeoutError):
             temps = await asyncio.wait_for(link.query_temperatures(), 10)
             if any((h.target or 0) > 0 for h in temps.heaters):
                 log.info("heaters off before stopping")
-                async with self._manual:
+                async with self.head.lock:
                     for command in ("M104 S0", "M140 S0"):
                         await link.send(command, timeout=10)
 
@@ -303,7 +300,7 @@ class RibbonService:
 
     def _interrupt(self, run: Run) -> None:
         """Make the print task leave what it waits on (the stream, a heater wait, the flip, the marks)."""
-        link = self.link
+        link = self.head.link
         if link is not None and link.state in (LinkState.STREAMING, LinkState.PAUSED):
             with contextlib.suppress(NotFound):
                 if self.job(run.job_id).state is JobState.HEATING and link.capabilities.emergency_parser:
@@ -545,7 +542,7 @@ class RibbonService:
                 f"compiling; then print it with: ribbonctl start {j}"
         elif s is JobState.READY:
             if job.start_when_ready:
-                connected = self.link is not None and self.link.state in (LinkState.READY, LinkState.STREAMING,
+                connected = self.head.link is not None and self.head.link.state in (LinkState.READY, LinkState.STREAMING,
                                                                           LinkState.PAUSED)
                 text = "queued: it prints when the printer is free" + (
                     "" if connected else " (the printer is not connected: it prints once it is)")
@@ -634,7 +631,7 @@ class RibbonService:
     # ------------------------------------------------------------------ printing
 
     def _connected(self) -> bool:
-        return self.link is not None and self.link.state is LinkState.READY
+        return self.head.link is not None and self.head.link.state is LinkState.READY
 
     async def _print_loop(self) -> None:
         while True:
@@ -652,10 +649,10 @@ class RibbonService:
                 continue
             if self.state.stopping:
                 continue                                      # the daemon stops: queued again at its next start
-            if not self._connected():                         # wait for the printer, do not fail
+            if not self.head.connected():                         # wait for the printer, do not fail
                 log.info("job %s waits for the printer to connect", job_id)
                 self.records.publish(self.store.update(job_id, stage="waiting for the printer"))
-                while not self._connected() and not self.state.stopping and self.records.exists(job_id) \
+                while not self.head.connected() and not self.state.stopping and self.records.exists(job_id) \
                         and self.job(job_id).state is JobState.READY:
                     await asyncio.sleep(0.2)
                 if not self.records.exists(job_id) or self.job(job_id).state is not JobState.READY or self.state.stopping:
@@ -707,7 +704,7 @@ class RibbonService:
                          stage="stopped: heaters off, head lifted" if stopped else "stopped")
 
     async def _print(self, job: JobRecord) -> None:
-        link = self._require_link()
+        link = self.head.require_link()
         run = self.state.run
         assert run is not None
         if job.kind == "gcode":
@@ -772,7 +769,7 @@ class RibbonService:
     async def _align(self, job_id: str, expected: np.ndarray, *, flipped: bool) -> Correction:
         """The flip (unless ``flipped``: the frame is turned already) and the alignment check over the
         registration marks, again after a refused fit; the accepted correction."""
-        link = self._require_link()
+        link = self.head.require_link()
         run = self.state.run
         assert run is not None
         while True:
@@ -782,9 +779,9 @@ class RibbonService:
             run.alignment = MarkCheck(expected=expected)
             self.records.transition(job_id, JobState.ALIGNING, stage="aligning")
             # the front program ended with the motors off (M84) and the frame was handled: home again
-            async with self._manual:
+            async with self.head.lock:
                 await link.send("G28", timeout=300)
-                self._head = None
+                self.head.forget()
             run.check()
             await self._go_to_mark(1)
             await run.aligned.wait()
@@ -807,7 +804,7 @@ class RibbonService:
         at a later part) in the store as they go: ``started`` before the first line that feeds
         filament goes out (a barrier of the sender), ``done`` when the part's ``M400`` is
         acknowledged: two writes a part, none a line."""
-        link = self._require_link()
+        link = self.head.require_link()
         run = self.state.run
         assert run is not None
         run.check()
@@ -818,7 +815,7 @@ class RibbonService:
         stream = run.stream = Stream(side=side, timeline=timeline)
         self.state.commands = commands
         self.state.acked = -1
-        self._head = None
+        self.head.forget()
         self.records.publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
         parts = [] if plain else program_parts(lines)
         track = _PartTracker(self.store, job_id, side, parts, part_base)
@@ -863,17 +860,17 @@ class RibbonService:
 
     async def _safe_stop(self) -> bool:
         """Heaters off, head lifted: after a cancel, a stop or a failure. Whether it was sent."""
-        link = self.link
+        link = self.head.link
         if link is None or link.state not in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED):
             return False
         sent = True
-        async with self._manual:
+        async with self.head.lock:
             for command in self._safe_stop_commands():
                 try:
                     await link.send(command, timeout=60)
                 except (LinkError, asyncio.TimeoutError):
                     sent = False
-            self._head = None
+            self.head.forget()
         return sent
 
     # ------------------------------------------------------------------ waiting heaters
@@ -882,7 +879,7 @@ class RibbonService:
         """While the job waits for the operator: the heaters follow ``[flip]`` (keep, lower, off)
         now, and all go off after ``off_after_s`` (the task returned; cancel it to keep them)."""
         policy = self.config.flip
-        link = self._require_link()
+        link = self.head.require_link()
         if policy.heaters == "off":
             await link.send("M104 S0")
         elif policy.heaters == "lower":
@@ -893,7 +890,7 @@ class RibbonService:
         policy = self.config.flip
         if policy.off_after_s <= 0:
             return
-        link = self._require_link()
+        link = self.head.require_link()
         try:
             await asyncio.sleep(policy.off_after_s)
             await link.send("M104 S0")
@@ -939,16 +936,16 @@ class RibbonService:
         run = self.state.run
         assert run is not None and run.alignment is not None
         al = run.alignment
-        link = self._require_link()
+        link = self.head.require_link()
         lay, mo = self.profile.layers, self.profile.motion
         x, y = (float(v) for v in al.expected[mark - 1])
         z = lay.fabric_z + lay.safe_height
         al.current = 0
-        async with self._manual:
+        async with self.head.lock:
             for command in ("G90", f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
                             f"G0 X{x:.3f} Y{y:.3f} F{mo.travel_speed * 60:.0f}", "M400"):
                 await link.send(command, timeout=120)
-            self._set_head((x, y, z))
+            self.head.set((x, y, z))
         al.current = mark
         job = self.job(run.job_id)
         self.records.publish(job)
@@ -978,8 +975,8 @@ class RibbonService:
         if here:
             if jog is not None:
                 raise ValueError("give either --here (the head is on the mark) or a jog, not both")
-            async with self._manual:
-                x, y, _ = await self._where(self._require_link())
+            async with self.head.lock:
+                x, y, _ = await self.head.where(self.head.require_link())
             measured = (x, y)
         else:
             dx, dy = jog or (0.0, 0.0)
@@ -1047,7 +1044,7 @@ class RibbonService:
         run = self.state.run
         if job.state not in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK) or run is None or run.job_id != job_id:
             raise IllegalTransition(job.state, "pause")
-        link = self._require_link()
+        link = self.head.require_link()
         run.busy = True
         try:
             link.pause()
@@ -1068,12 +1065,12 @@ class RibbonService:
             lay, mo, r = self.profile.layers, self.profile.motion, self.profile.retraction
             x0, _, _, y1 = self.profile.frame.bounds
             z = max(pos.z, lay.fabric_z) + self.profile.park_lift
-            async with self._manual:
+            async with self.head.lock:
                 for command in ("G90", "M83", f"G1 E{-r.length:.5f} F{mo.retract_speed * 60:.0f}",
                                 f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
                                 f"G0 X{x0:.3f} Y{y1:.3f} F{mo.travel_speed * 60:.0f}"):
                     await link.send(command, timeout=120)
-                self._set_head((x0, y1, z))
+                self.head.set((x0, y1, z))
             run.heaters = await self._wait_heaters(job_id, "paused")
         finally:
             run.busy = False
@@ -1094,7 +1091,7 @@ class RibbonService:
                                     "moment, when the job's stage says 'paused (head parked)'")
         if job.state is not JobState.PAUSED or run is None or run.job_id != job_id or run.pause_snapshot is None:
             raise IllegalTransition(job.state, "resume")
-        link = self._require_link()
+        link = self.head.require_link()
         if run.heaters is not None:
             run.heaters.cancel()
             run.heaters = None
@@ -1119,10 +1116,10 @@ class RibbonService:
         run.busy = True
         try:
             self.records.publish(self.store.update(job_id, stage="resuming: reheating"))
-            async with self._manual:
+            async with self.head.lock:
                 for command in commands:
                     await link.send(command, timeout=1200)
-                self._head = None
+                self.head.forget()
             back_to = job.paused_from or JobState.PRINTING_FRONT
             job = self.records.transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
             run.pause_snapshot = None
@@ -1200,7 +1197,7 @@ class RibbonService:
             busy = self.state.run.job_id if self.state.run is not None else "queued jobs"
             raise ServiceError(f"cannot resume job {job_id} now: the printer is busy ({busy}); resume it when "
                                "it is free")
-        if not self._connected():
+        if not self.head.connected():
             raise LinkError("the printer is not connected (or busy): resume when it is ready")
         plan = self._resume_plan(job, partial)
         if plan is None:
@@ -1235,13 +1232,13 @@ class RibbonService:
         """Home, set the heaters (the idle policy applies while waiting), wait for ``frame_ok``."""
         run = self.state.run
         assert run is not None
-        link = self._require_link()
+        link = self.head.require_link()
         if self._cooling is not None:
             await self._cooling                               # the heaters-off of the daemon's start first
         t = self.profile.temperatures
-        async with self._manual:
+        async with self.head.lock:
             await link.send("G28", timeout=300)
-            self._head = None
+            self.head.forget()
             if t.bed > 0:
                 await link.send(f"M140 S{t.bed:.0f}")
             await link.send(f"M104 S{t.nozzle:.0f}")
@@ -1269,202 +1266,3 @@ class RibbonService:
         run.keep_alignment = keep_alignment
         run.checked.set()
         return await self.records.wait_state(job_id, lambda s: s is not JobState.AWAITING_CHECK, 30)
-
-    # ------------------------------------------------------------------ manual control
-
-    def _manual_link(self, what: str) -> PrinterLink:
-        """The link, if the operator may move the printer now: no program streaming (a job paused,
-        awaiting the flip or aligning, or no job at all)."""
-        run = self.state.run
-        if run is not None:
-            job = self.job(run.job_id)
-            if job.state.streams or job.state not in (JobState.PAUSED, JobState.AWAITING_FLIP, JobState.ALIGNING,
-                                                      JobState.FITTED, JobState.AWAITING_CHECK):
-                hint = f"pause it first: ribbonctl pause {job.id}" if job.state in (
-                    JobState.PRINTING_FRONT, JobState.PRINTING_BACK) else f"wait, or cancel it: ribbonctl cancel {job.id}"
-                raise ServiceError(f"cannot {what}: job {job.id} is {job.state.value} (a program is streaming "
-                                   f"to the printer); {hint}")
-            if run.busy:
-                raise ServiceError(f"cannot {what}: job {job.id} is pausing or resuming; try again in a moment")
-        link = self._require_link()
-        if link.state is LinkState.STREAMING:
-            raise ServiceError(f"cannot {what}: a program is streaming to the printer")
-        return link
-
-    def _set_head(self, xyz: tuple[float, float, float]) -> None:
-        self._head = xyz
-        self._head_sender = self.link.sender if self.link is not None else None
-
-    async def _where(self, link: PrinterLink) -> tuple[float, float, float]:
-        """The head's commanded position, else (first time, after homing, after typed G-code, after a
-        reconnect) the printer's own (``M400``, ``M114``)."""
-        if self._head is not None and self._head_sender is link.sender:
-            return self._head
-        await link.send("M400", timeout=300)
-        pos = await link.query_position()
-        self._set_head((pos.x, pos.y, pos.z))
-        assert self._head is not None
-        return self._head
-
-    def _inside(self, x: float, y: float, z: float, what: str) -> None:
-        x0, y0, x1, y1 = self.profile.frame.bounds
-        fabric = self.profile.layers.fabric_z
-        eps = 1e-6
-        if not (x0 - eps <= x <= x1 + eps and y0 - eps <= y <= y1 + eps):
-            raise ValueError(f"{what} would take the head to x {x:.3f}, y {y:.3f}: outside the frame "
-                             f"(x {x0:g} to {x1:g}, y {y0:g} to {y1:g} mm)")
-        if z < fabric - eps:
-            raise ValueError(f"{what} would take the nozzle down to z {z:.3f}, below the fabric (z {fabric:g} mm)")
-
-    async def _move_to(self, link: PrinterLink, x: float, y: float, z: float) -> None:
-        here = await self._where(link)
-        xy_feed = min(JOG_SPEED, self.profile.motion.travel_speed) * 60
-        z_feed = self.profile.motion.z_speed * 60
-        xy = f"G0 X{x:.3f} Y{y:.3f} F{xy_feed:.0f}"
-        zz = f"G0 Z{z:.3f} F{z_feed:.0f}"
-        # up before moving across, down after: never dragged over the fabric
-        moves = [zz, xy] if z >= here[2] else [xy, zz]
-        for command in ("G90", *moves, "M400"):
-            await link.send(command, timeout=300)
-        self._set_head((x, y, z))
-
-    def _position_status(self) -> dict[str, Any]:
-        return {"position": list(self._head) if self._head is not None else None}
-
-    async def home(self) -> dict[str, Any]:
-        """Home all axes (``G28``); the head's position is then the printer's."""
-        async with self._manual:
-            link = self._manual_link("home")
-            await link.send("G28", timeout=300)
-            self._head = None
-            await self._where(link)
-            return self._position_status()
-
-    async def jog(self, dx: float, dy: float, dz: float = 0.0) -> dict[str, Any]:
-        """Move the head by (dx, dy, dz) mm at a safe feed, within the frame and above the fabric."""
-        for name, v in (("dx", dx), ("dy", dy), ("dz", dz)):
-            if not np.isfinite(v):
-                raise ValueError(f"{name} must be a finite number of mm")
-        async with self._manual:
-            link = self._manual_link("jog")
-            x, y, z = await self._where(link)
-            target = (x + dx, y + dy, z + dz)
-            self._inside(*target, what=f"jog {dx:g} {dy:g} {dz:g}")
-            await self._move_to(link, *target)
-            return self._position_status()
-
-    async def goto(self, x: float, y: float) -> dict[str, Any]:
-        """Move the head to (x, y) in the frame, at least at the safe height above the fabric."""
-        if not (np.isfinite(x) and np.isfinite(y)):
-            raise ValueError("x and y must be finite numbers of mm")
-        async with self._manual:
-            link = self._manual_link("goto")
-            _, _, z = await self._where(link)
-            z = max(z, self.profile.layers.fabric_z + self.profile.layers.safe_height)
-            self._inside(x, y, z, what=f"goto {x:g} {y:g}")
-            await self._move_to(link, x, y, z)
-            return self._position_status()
-
-    async def gcode(self, commands: list[str]) -> dict[str, Any]:
-        """Send typed G-code (one command or a short list) and return what the printer answered."""
-        clean = [c.strip() for c in commands if c.strip()]
-        if not clean:
-            raise ValueError("no G-code command given")
-        if len(clean) > MAX_MANUAL_COMMANDS:
-            raise ValueError(f"{len(clean)} commands: at most {MAX_MANUAL_COMMANDS} at a time "
-                             "(print a longer program as a job: ribbonctl print FILE)")
-        for i, command in enumerate(clean, start=1):
-            word = command.split()[0].upper()
-            if word == "M112":
-                raise ValueError("M112 is the emergency stop: use ribbonctl stop")
-            prepare_program([command], f"command {i}")       # M110, too long, not ASCII: refused
-            codec.check_sendable(codec.strip_comment(command) or command)
-        async with self._manual:
-            link = self._manual_link("send G-code")
-            answers = []
-            for command in clean:
-                _, lines = await link.send_collecting(command, timeout=600)
-                if command.split()[0].upper() in _MOVES_HEAD:
-                    self._head = None
-                answers.append({"command": command, "answer": lines})
-            return {"answers": answers}
-
-    async def heat(self, nozzle: float | None, bed: float | None) -> dict[str, Any]:
-        """Set heater targets (no wait); defaults: the profile's nozzle temperature, the bed as it is."""
-        t = self.profile.temperatures
-        nozzle = t.nozzle if nozzle is None and bed is None else nozzle
-        if nozzle is not None and not 0 <= nozzle <= t.nozzle_max:
-            raise ValueError(f"nozzle {nozzle:g} °C: must be 0 to the profile's nozzle_max ({t.nozzle_max:g} °C)")
-        if bed is not None and not 0 <= bed <= t.bed_max:
-            raise ValueError(f"bed {bed:g} °C: must be 0 to the profile's bed_max ({t.bed_max:g} °C)")
-        async with self._manual:
-            link = self._manual_link("heat")
-            if nozzle is not None:
-                await link.send(f"M104 S{nozzle:.0f}")
-            if bed is not None:
-                await link.send(f"M140 S{bed:.0f}")
-        return await self.printer_status(refresh=True)
-
-    async def cool(self) -> dict[str, Any]:
-        """Heaters off."""
-        async with self._manual:
-            link = self._manual_link("cool")
-            await link.send("M104 S0")
-            await link.send("M140 S0")
-        return await self.printer_status(refresh=True)
-
-    # ------------------------------------------------------------------ the printer
-
-    def _require_link(self) -> PrinterLink:
-        if self.link is None or self.link.state is LinkState.DISCONNECTED:
-            raise LinkError("the printer is not connected")
-        if self.link.state is LinkState.HALTED:
-            raise LinkError("the printer is halted (emergency stop or a firmware error): ribbonctl recover")
-        if self.link.state is LinkState.CONNECTING:
-            raise LinkError("the printer is connecting; try again in a moment")
-        return self.link
-
-    async def printer_status(self, refresh: bool = False) -> dict[str, Any]:
-        """What the link knows; with ``refresh``, the temperatures and position asked for first
-        (``M105``, ``M114``: answered ahead of a running program). Halted or disconnected, no
-        temperatures or position are shown: the last ones known would be stale."""
-        if self.link is None:
-            return {"state": "disconnected", "heaters": {}, "position": None, "profile": self._profile_info()}
-        live = self.link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
-        if refresh and live:
-            with contextlib.suppress(LinkError, asyncio.TimeoutError):
-                await asyncio.wait_for(self.link.query_temperatures(), 10)
-                await asyncio.wait_for(self.link.query_position(), 10)
-        status = self.link.status.model_dump(mode="json")
-        if not live:
-            status["heaters"], status["position"] = {}, None
-            status["note"] = {"halted": "halted: temperatures unknown; ribbonctl recover restarts the firmware",
-                              "disconnected": "not connected: temperatures unknown",
-                              "connecting": "connecting"}.get(status["state"])
-        status["head"] = list(self._head) if self._head is not None else None
-        status["profile"] = self._profile_info()
-        return status
-
-    def _profile_info(self) -> dict[str, Any]:
-        """The daemon's printer profile as a person choosing a design's size needs it: its name and
-        frame (the printable rectangle, its centre, the axis the frame is flipped about)."""
-        frame = self.profile.frame
-        return {"name": self.profile.name, "frame": {"bounds": list(frame.bounds), "center": list(frame.center),
-                                                     "size": list(frame.size), "flip_axis": frame.flip_axis}}
-
-    def emergency_stop(self) -> None:
-        link = self.link
-        if link is None or link.state is LinkState.DISCONNECTED:
-            raise LinkError("the printer is not connected")
-        link.emergency_stop()
-
-    async def recover(self) -> dict[str, Any]:
-        """After an emergency stop or a halt: restart the firmware (``M999``) and shake hands again."""
-        link = self.link
-        if link is None or link.state is LinkState.DISCONNECTED:
-            raise LinkError("the printer is not connected")
-        if link.state is not LinkState.HALTED:
-            raise ServiceError(f"cannot recover: the printer is {link.state.value}, not halted; nothing to recover")
-        await link.recover()
-        self._head = None
-        return await self.printer_status()
