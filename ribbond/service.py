@@ -44,6 +44,7 @@ from .events import EventBus
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, SidePlan, render_side
 from .head import Head
+from .heaters import Heaters
 from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
 from .manual import MAX_MANUAL_COMMANDS, ManualControl
 from .printer.errors import LinkError, StreamCancelled
@@ -180,12 +181,12 @@ class RibbonService:
         self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
         self.state = PrintState()
         self.head = Head(link)
+        self.heaters = Heaters(self.head, config.flip, self.records, self.state)
         self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
         self._tasks: list[asyncio.Task[None]] = []
         self._background_tasks: set[asyncio.Future[Any]] = set()
-        self._cooling: asyncio.Task[None] | None = None
 
     # ------------------------------------------------------------------ life cycle
 
@@ -196,9 +197,7 @@ class RibbonService:
             self.records.publish(job)
         self._remove_orphan_folders()
         if any(j.state is JobState.INTERRUPTED and j.side is not None for j in interrupted):
-            # the last daemon died with a job on the printer: a board that does not reset when the
-            # port opens would still be hot over the fabric
-            self._cooling = asyncio.create_task(self._cool_after_interruption(), name="cool")
+            self.heaters.cool_after_interruption()
         for job in self.store.active():
             if job.state is JobState.SUBMITTED:
                 self.compiler.queue(job.id)
@@ -231,7 +230,7 @@ class RibbonService:
         self.state.stopping = True
         run = self.state.run
         if run is None:
-            await self._heaters_off_if_on()
+            await self.heaters.off_if_on()
             return
         run.stop_reason = reason
         self._interrupt(run)
@@ -242,15 +241,6 @@ class RibbonService:
             with contextlib.suppress(Exception):
                 if self.head.link is not None:
                     self.head.link.emergency_stop()
-
-    async def _break_heater_waits(self, run: Run, link: PrinterLink) -> None:
-        """M109/M190 hold the firmware's queue until hot, and the lines in flight may hold more
-        than one: M108 ends each wait (the emergency parser acts on it at arrival, ahead of the
-        queue), again until the stream has ended."""
-        while not run.done.is_set() and link.state in (LinkState.STREAMING, LinkState.PAUSED) \
-                and run.stream is not None:
-            await link.send("M108", timeout=30)
-            await asyncio.sleep(0.3)
 
     def _background(self, coroutine: Any, what: str) -> None:
         """Run ``coroutine`` without waiting for it; its failure is logged."""
@@ -263,32 +253,6 @@ class RibbonService:
         task.add_done_callback(done)
         self._background_tasks.add(task)
         task.add_done_callback(self._background_tasks.discard)
-
-    async def _cool_after_interruption(self) -> None:
-        """Once the printer is connected: heaters and fan off, whatever the last daemon left on."""
-        while not self.head.connected():
-            if self.state.stopping:
-                return
-            await asyncio.sleep(0.1)
-        link = self.head.require_link()
-        with contextlib.suppress(LinkError, asyncio.TimeoutError):
-            async with self.head.lock:
-                for command in ("M104 S0", "M140 S0", "M107"):
-                    await link.send(command, timeout=10)
-            log.info("heaters off: the last daemon stopped with a job on the printer")
-
-    async def _heaters_off_if_on(self) -> None:
-        """No job on the printer, but heaters the operator turned on (``heat``): off before leaving."""
-        link = self.head.link
-        if link is None or link.state is not LinkState.READY:
-            return
-        with contextlib.suppress(LinkError, asyncio.TimeoutError):
-            temps = await asyncio.wait_for(link.query_temperatures(), 10)
-            if any((h.target or 0) > 0 for h in temps.heaters):
-                log.info("heaters off before stopping")
-                async with self.head.lock:
-                    for command in ("M104 S0", "M140 S0"):
-                        await link.send(command, timeout=10)
 
     async def close(self) -> None:
         self.compiler.stop_all()
@@ -304,7 +268,7 @@ class RibbonService:
         if link is not None and link.state in (LinkState.STREAMING, LinkState.PAUSED):
             with contextlib.suppress(NotFound):
                 if self.job(run.job_id).state is JobState.HEATING and link.capabilities.emergency_parser:
-                    self._background(self._break_heater_waits(run, link), "M108")
+                    self._background(self.heaters.break_waits(run, link), "M108")
             with contextlib.suppress(LinkError):
                 link.cancel()
         run.flip.set()
@@ -873,37 +837,6 @@ class RibbonService:
             self.head.forget()
         return sent
 
-    # ------------------------------------------------------------------ waiting heaters
-
-    async def _wait_heaters(self, job_id: str, why: str) -> asyncio.Task[None]:
-        """While the job waits for the operator: the heaters follow ``[flip]`` (keep, lower, off)
-        now, and all go off after ``off_after_s`` (the task returned; cancel it to keep them)."""
-        policy = self.config.flip
-        link = self.head.require_link()
-        if policy.heaters == "off":
-            await link.send("M104 S0")
-        elif policy.heaters == "lower":
-            await link.send(f"M104 S{policy.lower_to:.0f}")
-        return asyncio.create_task(self._heaters_off_later(job_id, why))
-
-    async def _heaters_off_later(self, job_id: str, why: str) -> None:
-        policy = self.config.flip
-        if policy.off_after_s <= 0:
-            return
-        link = self.head.require_link()
-        try:
-            await asyncio.sleep(policy.off_after_s)
-            await link.send("M104 S0")
-            await link.send("M140 S0")
-        except (LinkError, asyncio.TimeoutError) as exc:
-            log.warning("job %s: idle heaters: %s", job_id, exc)
-            return
-        message = f"heaters off after {policy.off_after_s:.0f} s {why}"
-        log.info("job %s: %s", job_id, message)
-        with contextlib.suppress(NotFound, ValueError):
-            self.records.publish(self.store.update(job_id, stage=message))
-        self.bus.publish({"type": "notice", "job_id": job_id, "message": message})
-
     # ------------------------------------------------------------------ the flip
 
     async def _await_flip(self, job_id: str) -> None:
@@ -914,7 +847,7 @@ class RibbonService:
             self.records.transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
                              reason="the front is printed: turn the frame over, then flip-done")
         self.records.publish(self.store.checkpoint(job_id, "flip", self.state.acked))
-        run.heaters = await self._wait_heaters(job_id, "awaiting the flip")
+        run.heaters = await self.heaters.idle(job_id, "awaiting the flip")
         try:
             await run.flip.wait()
         finally:
@@ -1071,7 +1004,7 @@ class RibbonService:
                                 f"G0 X{x0:.3f} Y{y1:.3f} F{mo.travel_speed * 60:.0f}"):
                     await link.send(command, timeout=120)
                 self.head.set((x0, y1, z))
-            run.heaters = await self._wait_heaters(job_id, "paused")
+            run.heaters = await self.heaters.idle(job_id, "paused")
         finally:
             run.busy = False
         self.records.publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)
@@ -1233,8 +1166,7 @@ class RibbonService:
         run = self.state.run
         assert run is not None
         link = self.head.require_link()
-        if self._cooling is not None:
-            await self._cooling                               # the heaters-off of the daemon's start first
+        await self.heaters.cooled()                           # the heaters-off of the daemon's start first
         t = self.profile.temperatures
         async with self.head.lock:
             await link.send("G28", timeout=300)
@@ -1244,7 +1176,7 @@ class RibbonService:
             await link.send(f"M104 S{t.nozzle:.0f}")
         run.check()
         self.records.publish(self.store.update(job_id, stage="check the frame"))
-        run.heaters = await self._wait_heaters(job_id, "awaiting the frame check")
+        run.heaters = await self.heaters.idle(job_id, "awaiting the frame check")
         try:
             await run.checked.wait()
         finally:
