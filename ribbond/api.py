@@ -345,19 +345,19 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/jobs/{job_id}/flip-done", response_model=JobStatus, responses=job_action)
     async def flip_done(job_id: Ident) -> JobStatus:
-        return status(await service.flip_done(job_id))
+        return status(await service.aligner.flip_done(job_id))
 
     @app.post("/jobs/{job_id}/align", responses=responses(404, 409, 503, mutating=True, body=True))
     async def align(job_id: Ident, body: AlignRequest) -> dict[str, Any]:
-        return await service.align_mark(job_id, body.mark, body.jog, body.here, body.review)
+        return await service.aligner.align_mark(job_id, body.mark, body.jog, body.here, body.review)
 
     @app.post("/jobs/{job_id}/accept", response_model=JobStatus, responses=job_action)
     async def accept(job_id: Ident) -> JobStatus:
-        return status(await service.accept_fit(job_id))
+        return status(await service.aligner.accept_fit(job_id))
 
     @app.post("/jobs/{job_id}/re-seat", response_model=JobStatus, responses=job_action)
     async def re_seat(job_id: Ident) -> JobStatus:
-        return status(await service.re_seat(job_id))
+        return status(await service.aligner.re_seat(job_id))
 
     printer_action = responses(409, 422, 503, mutating=True)
     printer_body = responses(409, 503, mutating=True, body=True)

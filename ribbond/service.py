@@ -32,9 +32,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
-from .alignment import AlignmentRefused, check_fit, expected_marks, fit_rigid
+from .aligner import Aligner
+from .alignment import expected_marks
 from .calibrations import Calibrations
 from .compiler import COMPILE_STAGES, Compiler
 from .config import DaemonConfig
@@ -52,7 +52,7 @@ from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
 from .programs import Part, Timeline, check_program, program_parts, program_timeline, resumed_program
 from .records import JobRecords, NotFound, ServiceError, has_program
-from .run import MarkCheck, PrintState, ResumePlan, Run, Stream, stream_rate
+from .run import PrintState, ResumePlan, Run, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
 
@@ -182,6 +182,8 @@ class RibbonService:
         self.state = PrintState()
         self.head = Head(link)
         self.heaters = Heaters(self.head, config.flip, self.records, self.state)
+        self.aligner = Aligner(self.head, profile, self.records, self.state, self.heaters,
+                               lambda job: self.guidance(job)["instruction"])
         self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
@@ -708,7 +710,7 @@ class RibbonService:
             correction = Correction.model_validate(job.correction)
         else:
             # a resumed back: the frame is back side up already (the operator checked it)
-            correction = await self._align(job.id, expected, flipped=resume is not None and resume.side == "back")
+            correction = await self.aligner.align(job.id, expected, flipped=resume is not None and resume.side == "back")
         plan = SidePlan.load(self.job_dir(job.id) / "plans" / "back-plan.npz")
         program = render_side(plan, self.profile, correction=correction)
         corrected = self.job_dir(job.id) / "back-corrected.gcode"
@@ -729,36 +731,6 @@ class RibbonService:
         self.records.publish(self.store.checkpoint(job.id, "back_done", self.state.acked))
         run.check()
         self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-
-    async def _align(self, job_id: str, expected: np.ndarray, *, flipped: bool) -> Correction:
-        """The flip (unless ``flipped``: the frame is turned already) and the alignment check over the
-        registration marks, again after a refused fit; the accepted correction."""
-        link = self.head.require_link()
-        run = self.state.run
-        assert run is not None
-        while True:
-            if not flipped:
-                await self._await_flip(job_id)
-            flipped = False
-            run.alignment = MarkCheck(expected=expected)
-            self.records.transition(job_id, JobState.ALIGNING, stage="aligning")
-            # the front program ended with the motors off (M84) and the frame was handled: home again
-            async with self.head.lock:
-                await link.send("G28", timeout=300)
-                self.head.forget()
-            run.check()
-            await self._go_to_mark(1)
-            await run.aligned.wait()
-            run.check()
-            correction, refused = run.alignment.correction, run.alignment.refused
-            if refused is None and correction is not None:
-                return correction
-            run.flip.clear()
-            run.aligned.clear()
-            reseat = run.alignment.reseat
-            self.records.transition(job_id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
-                             reason="the operator chose to re-seat the frame" if reseat
-                             else f"alignment refused: {refused}")
 
     async def _stream(self, job_id: str, text: str, side: str, after_heating: JobState | None,
                       plain: bool = False, part_base: int = 0) -> None:
@@ -836,139 +808,6 @@ class RibbonService:
                     sent = False
             self.head.forget()
         return sent
-
-    # ------------------------------------------------------------------ the flip
-
-    async def _await_flip(self, job_id: str) -> None:
-        run = self.state.run
-        assert run is not None
-        job = self.job(job_id)
-        if job.state is not JobState.AWAITING_FLIP:
-            self.records.transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
-                             reason="the front is printed: turn the frame over, then flip-done")
-        self.records.publish(self.store.checkpoint(job_id, "flip", self.state.acked))
-        run.heaters = await self.heaters.idle(job_id, "awaiting the flip")
-        try:
-            await run.flip.wait()
-        finally:
-            run.heaters.cancel()
-            run.heaters = None
-        run.check()
-
-    async def flip_done(self, job_id: str) -> JobRecord:
-        """The operator turned the frame over: go on to the alignment (returns once aligning)."""
-        job = self.job(job_id)
-        run = self.state.run
-        if job.state is not JobState.AWAITING_FLIP or run is None or run.job_id != job_id:
-            raise IllegalTransition(job.state, "flip-done")
-        run.flip.set()
-        return await self.records.wait_state(job_id, lambda s: s is not JobState.AWAITING_FLIP, 30)
-
-    async def _go_to_mark(self, mark: int) -> None:
-        """Move the head above where mark ``mark`` (from 1) should be now, at the safe height."""
-        run = self.state.run
-        assert run is not None and run.alignment is not None
-        al = run.alignment
-        link = self.head.require_link()
-        lay, mo = self.profile.layers, self.profile.motion
-        x, y = (float(v) for v in al.expected[mark - 1])
-        z = lay.fabric_z + lay.safe_height
-        al.current = 0
-        async with self.head.lock:
-            for command in ("G90", f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
-                            f"G0 X{x:.3f} Y{y:.3f} F{mo.travel_speed * 60:.0f}", "M400"):
-                await link.send(command, timeout=120)
-            self.head.set((x, y, z))
-        al.current = mark
-        job = self.job(run.job_id)
-        self.records.publish(job)
-        self.bus.publish({"type": "alignment", "job_id": run.job_id, "mark": mark, "marks": len(al.expected),
-                          "expected": [x, y], "message": self.guidance(job)["instruction"]})
-
-    async def align_mark(self, job_id: str, mark: int | None, jog: tuple[float, float] | None,
-                         here: bool = False, review: bool = False) -> dict[str, Any]:
-        """Measure registration mark ``mark`` (numbered from 1; None: the one the head was sent to):
-        ``here`` takes the head's commanded position (the operator jogged the nozzle onto the mark),
-        else ``jog`` (dx, dy) is the offset of the mark from where the head was sent (None: it was
-        on the mark). Returns the alignment's status; the last mark ends the check. With
-        ``review``, a fit within the limits waits in ``fitted`` for ``accept`` or ``re_seat``."""
-        run = self.state.run
-        job = self.job(job_id)
-        if job.state is not JobState.ALIGNING or run is None or run.job_id != job_id or run.alignment is None:
-            raise IllegalTransition(job.state, "align")
-        al = run.alignment
-        k = len(al.expected)
-        if al.current == 0 and (here or mark is None):
-            raise ServiceError(f"cannot align yet: the head is on its way above mark {al.next_mark}; "
-                               f"wait for the prompt (ribbonctl watch {job_id})")
-        mark = al.current if mark is None else mark
-        if not 1 <= mark <= k:
-            raise ValueError(f"mark {mark} does not exist: the design has marks 1 to {k}")
-        expected = (float(al.expected[mark - 1][0]), float(al.expected[mark - 1][1]))
-        if here:
-            if jog is not None:
-                raise ValueError("give either --here (the head is on the mark) or a jog, not both")
-            async with self.head.lock:
-                x, y, _ = await self.head.where(self.head.require_link())
-            measured = (x, y)
-        else:
-            dx, dy = jog or (0.0, 0.0)
-            if not (np.isfinite(dx) and np.isfinite(dy)):
-                raise ValueError("the jog must be two finite numbers (mm)")
-            measured = (expected[0] + float(dx), expected[1] + float(dy))
-        al.measured[mark] = measured
-        nxt = al.next_mark
-        status: dict[str, Any] = {"mark": mark, "marks": k, "next_mark": nxt,
-                                  "offset": [measured[0] - expected[0], measured[1] - expected[1]],
-                                  "measured": {str(i): v for i, v in sorted(al.measured.items())}}
-        if nxt is not None:
-            await self._go_to_mark(nxt)
-            return status
-        # the fit is made once, here; the printer task takes its result from ``al``
-        fit = fit_rigid(al.expected, np.array([al.measured[i] for i in range(1, k + 1)]))
-        status["fit"] = {"rotation_deg": fit.rotation_deg, "offset": list(fit.offset),
-                         "rms_mm": fit.rms, "max_residual_mm": fit.max_residual}
-        tol = self.profile.alignment
-        try:
-            check_fit(fit, max_residual=tol.max_residual, max_rotation_deg=tol.max_rotation_deg,
-                      max_offset=tol.max_offset)
-        except BaseException as exc:  # refused, or the check itself failed: the printer task decides
-            if isinstance(exc, AlignmentRefused):
-                al.refused = exc
-            run.aligned.set()
-            raise
-        al.correction = fit.correction()
-        if review:
-            al.fit = status["fit"]
-            self.records.transition(job_id, JobState.FITTED, stage="the fit is ready: accept or re-seat")
-            status["review"] = True
-            return status
-        status["accepted"] = True
-        run.aligned.set()
-        return status
-
-    def _fitted_run(self, job_id: str, command: str) -> Run:
-        run = self.state.run
-        job = self.job(job_id)
-        if job.state is not JobState.FITTED or run is None or run.job_id != job_id or run.alignment is None:
-            raise IllegalTransition(job.state, command)
-        return run
-
-    async def accept_fit(self, job_id: str) -> JobRecord:
-        """The operator accepts the fit under review: the back prints with it (returns once printing)."""
-        run = self._fitted_run(job_id, "accept")
-        run.aligned.set()
-        return await self.records.wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
-
-    async def re_seat(self, job_id: str) -> JobRecord:
-        """The operator refuses the fit under review: back to the flip step, to seat the frame again."""
-        run = self._fitted_run(job_id, "re-seat")
-        al = run.alignment
-        assert al is not None
-        al.correction = None
-        al.reseat = True
-        run.aligned.set()
-        return await self.records.wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
 
     # ------------------------------------------------------------------ pause and resume
 
