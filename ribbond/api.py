@@ -327,17 +327,17 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/jobs/{job_id}/pause", response_model=JobStatus, responses=job_action)
     async def pause(job_id: Ident) -> JobStatus:
-        return status(await service.pause(job_id))
+        return status(await service.resumer.pause(job_id))
 
     @app.post("/jobs/{job_id}/resume", response_model=JobStatus,
               responses=responses(404, 409, 503, mutating=True, body=True))
     async def resume(job_id: Ident, body: ResumeRequest | None = None) -> JobStatus:
-        return status(await service.resume(job_id, body.partial if body is not None else None))
+        return status(await service.resumer.resume(job_id, body.partial if body is not None else None))
 
     @app.post("/jobs/{job_id}/frame-ok", response_model=JobStatus,
               responses=responses(404, 409, 503, mutating=True, body=True))
     async def frame_ok(job_id: Ident, body: FrameOkRequest | None = None) -> JobStatus:
-        return status(await service.frame_ok(job_id, body.keep_alignment if body is not None else False))
+        return status(await service.resumer.frame_ok(job_id, body.keep_alignment if body is not None else False))
 
     @app.post("/jobs/{job_id}/cancel", response_model=JobStatus, responses=job_action)
     async def cancel(job_id: Ident) -> JobStatus:

@@ -50,9 +50,10 @@ from .manual import MAX_MANUAL_COMMANDS, ManualControl
 from .printer.errors import LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
-from .programs import Part, Timeline, check_program, program_parts, program_timeline, resumed_program
+from .programs import Part, Timeline, check_program, program_parts, program_timeline
 from .records import JobRecords, NotFound, ServiceError, has_program
-from .run import PrintState, ResumePlan, Run, Stream, stream_rate
+from .resume import Resumer, modal_state, resumed_text
+from .run import PrintState, Run, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
 
@@ -92,47 +93,6 @@ def mesh_file_name(name: str) -> str:
 
 #: How often the printer's status is checked for a change worth an event (seconds).
 PRINTER_EVENT_S = 0.5
-
-
-def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
-    """The modal state after ``commands[:upto]``: positioning and extrusion modes, feed rate,
-    fan and heater targets, and the last commanded X, Y, Z (what a resumed program must restore;
-    the commanded position is exact, where ``M114`` reports it rounded to 10 µm)."""
-    state: dict[str, Any] = {"absolute": True, "e_absolute": True, "feed": None, "fan": 0,
-                             "nozzle": None, "bed": None, "x": None, "y": None, "z": None}
-    for cmd in commands[:upto]:
-        words = cmd.split()
-        code = words[0].upper()
-        args = {w[0].upper(): w[1:] for w in words[1:] if w}
-        if code == "G90":
-            state["absolute"] = state["e_absolute"] = True
-        elif code == "G91":
-            state["absolute"] = state["e_absolute"] = False
-        elif code == "M82":
-            state["e_absolute"] = True
-        elif code == "M83":
-            state["e_absolute"] = False
-        elif code in ("G0", "G1"):
-            if "F" in args:
-                state["feed"] = float(args["F"])
-            for axis in "XYZ":                     # last commanded position (absolute moves only)
-                if axis in args:
-                    key = axis.lower()
-                    if state["absolute"]:
-                        state[key] = float(args[axis])
-                    elif state[key] is not None:
-                        state[key] += float(args[axis])
-        elif code == "G28":
-            state["x"] = state["y"] = state["z"] = None
-        elif code == "M106":
-            state["fan"] = int(float(args.get("S", "255")))
-        elif code == "M107":
-            state["fan"] = 0
-        elif code in ("M104", "M109") and "S" in args:
-            state["nozzle"] = float(args["S"])
-        elif code in ("M140", "M190") and "S" in args:
-            state["bed"] = float(args["S"])
-    return state
 
 
 class _PartTracker:
@@ -184,6 +144,7 @@ class RibbonService:
         self.heaters = Heaters(self.head, config.flip, self.records, self.state)
         self.aligner = Aligner(self.head, profile, self.records, self.state, self.heaters,
                                lambda job: self.guidance(job)["instruction"])
+        self.resumer = Resumer(self.head, profile, self.records, self.state, self.heaters)
         self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
@@ -687,12 +648,12 @@ class RibbonService:
         has_back = any(r.side == "back" for r in design.ribbons or [])
         resume = run.resume
         if resume is not None:
-            await self._check_frame(job.id)
+            await self.resumer.check_frame(job.id)
         if resume is None or resume.side == "front":
             front = (Path(job.design_dir or "") / "front.gcode").read_text(encoding="utf-8")
             start = resume.start if resume is not None else 0
             if start:
-                front = self._resumed_text(front, "front", start, resume)
+                front = resumed_text(front, "front", start, resume, self.profile)
             self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
             await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start)
             await link.send("M400", timeout=600)
@@ -718,7 +679,7 @@ class RibbonService:
         tmp.write_text(program.text, encoding="utf-8")
         os.replace(tmp, corrected)
         start = resume.start if resume is not None and resume.side == "back" else 0
-        text = self._resumed_text(program.text, "back", start, resume) if start else program.text
+        text = resumed_text(program.text, "back", start, resume, self.profile) if start else program.text
         fields: dict[str, Any] = dict(side="back", correction=correction.model_dump(mode="json"), error=None,
                                       estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
         if kept:
@@ -808,232 +769,3 @@ class RibbonService:
                     sent = False
             self.head.forget()
         return sent
-
-    # ------------------------------------------------------------------ pause and resume
-
-    async def pause(self, job_id: str) -> JobRecord:
-        job = self.job(job_id)
-        run = self.state.run
-        if job.state not in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK) or run is None or run.job_id != job_id:
-            raise IllegalTransition(job.state, "pause")
-        link = self.head.require_link()
-        run.busy = True
-        try:
-            link.pause()
-            if run.stream is not None:
-                run.stream.paused_at = time.monotonic()
-            job = self.records.transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
-            await link.send("M400", timeout=300)
-            # every acknowledged line has now been executed: an exact checkpoint
-            self.store.record_ack(job_id, self.state.acked)
-            self.store.checkpoint(job_id, f"{job.side or 'front'}_paused", self.state.acked)
-            pos = await link.query_position()
-            modal = modal_state(self.state.commands, max(self.state.acked, 0))
-            exact = {k: modal[k] if modal[k] is not None else getattr(pos, k) for k in ("x", "y", "z")}
-            nozzle = link.status.heaters.get("T")
-            if modal["nozzle"] is None and nozzle is not None and nozzle.target:
-                modal["nozzle"] = nozzle.target               # the program set it before the pause point
-            run.pause_snapshot = {**modal, **exact}
-            lay, mo, r = self.profile.layers, self.profile.motion, self.profile.retraction
-            x0, _, _, y1 = self.profile.frame.bounds
-            z = max(pos.z, lay.fabric_z) + self.profile.park_lift
-            async with self.head.lock:
-                for command in ("G90", "M83", f"G1 E{-r.length:.5f} F{mo.retract_speed * 60:.0f}",
-                                f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
-                                f"G0 X{x0:.3f} Y{y1:.3f} F{mo.travel_speed * 60:.0f}"):
-                    await link.send(command, timeout=120)
-                self.head.set((x0, y1, z))
-            run.heaters = await self.heaters.idle(job_id, "paused")
-        finally:
-            run.busy = False
-        self.records.publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)
-        return self.job(job_id)
-
-    async def resume(self, job_id: str, partial: str | None = None) -> JobRecord:
-        """Resume a paused print, or an interrupted one (``resume_interrupted``; ``partial``)."""
-        job = self.job(job_id)
-        if job.state is JobState.INTERRUPTED:
-            return self.resume_interrupted(job_id, partial)
-        if partial is not None:  # a request the job's state does not allow: 409, as other verbs
-            raise IllegalTransition(job.state, "resume", command=f"resume with partial={partial!r}",
-                                    hint="only an interrupted print has a partial part")
-        run = self.state.run
-        if job.state is JobState.PAUSED and run is not None and run.job_id == job_id and run.pause_snapshot is None:
-            raise IllegalTransition(job.state, "resume", hint="the head is still being parked: resume in a "
-                                    "moment, when the job's stage says 'paused (head parked)'")
-        if job.state is not JobState.PAUSED or run is None or run.job_id != job_id or run.pause_snapshot is None:
-            raise IllegalTransition(job.state, "resume")
-        link = self.head.require_link()
-        if run.heaters is not None:
-            run.heaters.cancel()
-            run.heaters = None
-        snap = run.pause_snapshot
-        mo, r = self.profile.motion, self.profile.retraction
-        commands = []
-        if snap.get("nozzle"):
-            commands += [f"M104 S{snap['nozzle']:.0f}", f"M109 S{snap['nozzle']:.0f}"]
-        if snap.get("bed"):
-            commands += [f"M140 S{snap['bed']:.0f}", f"M190 S{snap['bed']:.0f}"]
-        safe_z = max(snap["z"], self.profile.layers.fabric_z + self.profile.layers.safe_height)
-        commands += ["G90", f"G0 Z{safe_z:.3f} F{mo.z_speed * 60:.0f}",
-                     f"G0 X{snap['x']:.3f} Y{snap['y']:.3f} F{mo.travel_speed * 60:.0f}",
-                     f"G0 Z{snap['z']:.3f} F{mo.z_speed * 60:.0f}", "M83",
-                     f"G1 E{r.length:.5f} F{mo.retract_speed * 60:.0f}"]
-        commands.append("G90" if snap["absolute"] else "G91")
-        commands.append("M82" if snap["e_absolute"] else "M83")
-        if snap["fan"]:
-            commands.append(f"M106 S{snap['fan']}")
-        if snap.get("feed"):
-            commands.append(f"G0 F{snap['feed']:.0f}")
-        run.busy = True
-        try:
-            self.records.publish(self.store.update(job_id, stage="resuming: reheating"))
-            async with self.head.lock:
-                for command in commands:
-                    await link.send(command, timeout=1200)
-                self.head.forget()
-            back_to = job.paused_from or JobState.PRINTING_FRONT
-            job = self.records.transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
-            run.pause_snapshot = None
-            if run.stream is not None and run.stream.paused_at is not None:
-                run.stream.paused_s += time.monotonic() - run.stream.paused_at
-                run.stream.paused_at = None
-            link.resume()
-        finally:
-            run.busy = False
-        return job
-
-    # ------------------------------------------------------------------ resuming an interrupted print
-
-    def _side_program(self, job: JobRecord, side: str) -> list[str]:
-        """The lines of the program of ``side`` as last printed (the back: as corrected)."""
-        base = self.job_dir(job.id) / "back-corrected.gcode" if side == "back" else \
-            Path(job.design_dir or "") / "front.gcode"
-        if side == "back" and not base.is_file():
-            base = Path(job.design_dir or "") / "back.gcode"
-        return base.read_text(encoding="utf-8").splitlines()
-
-    def _resume_plan(self, job: JobRecord, partial: str | None) -> ResumePlan | None:
-        """Where the interrupted ``job`` goes on: the side it stood on, from the first part not
-        proven printed (a part begun and not proven: skipped or printed again, as ``partial`` says);
-        None: every part of the job was proven printed (or skipped)."""
-        if job.kind != "design" or not has_program(job):
-            raise ServiceError(f"cannot resume job {job.id}: only a compiled design is resumed at a part "
-                               f"boundary; print it again from the start: ribbonctl start {job.id}")
-        if partial is not None and partial not in ("skip", "reprint"):
-            raise ValueError(f"partial={partial!r}: 'skip' (leave the part begun as it is) or 'reprint'")
-        design = read_design_folder(Path(job.design_dir or "")).design
-        has_back = any(r.side == "back" for r in design.ribbons or [])
-        front_done = job.checkpoint in ("front_done", "flip")
-        side = "back" if job.side == "back" or front_done else "front"
-        if side == "back" and job.side != "back":
-            # the front is printed: align the back (a one-sided design is complete)
-            return ResumePlan(side="back", start=0, parts=0) if has_back else None
-        parts = program_parts(self._side_program(job, side))
-        unproven = [p.ordinal + 1 for p in parts if p.sync is None]
-        if unproven:
-            raise ServiceError(f"cannot resume job {job.id}: its {side} program has no sync point after "
-                               f"part(s) {unproven[:5]} (compiled by an older ribbond); start it again")
-        states = self.store.part_states(job.id, side)
-        first = next((p.ordinal for p in parts if states.get(p.ordinal) not in ("done", "skipped")), len(parts))
-        partial_at, choice = (first, partial or "skip") if states.get(first) == "started" else (None, None)
-        start = first + 1 if choice == "skip" else first
-        if start < len(parts):
-            return ResumePlan(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
-        if side == "front" and has_back:                     # every front part proven: the back
-            return ResumePlan(side="back", start=0, parts=0, partial=partial_at, choice=choice)
-        return ResumePlan(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
-
-    def resume_interrupted(self, job_id: str, partial: str | None = None) -> JobRecord:
-        """Resume an interrupted design print where it was proven to stand (issue 16).
-
-        The printer is homed and the heaters set, then the job waits in ``awaiting_check`` for the
-        operator to check the frame (``frame_ok``); then the side it stood on prints from the
-        first part not proven printed, and the rest of the job as usual. ``partial``: the part that
-        had begun and was not proven printed is ``skip``ped (the default: printing it again lays a
-        second bead over what was printed of it, the nozzle ploughing through it) or ``reprint``ed.
-
-        Raises
-        ------
-        IllegalTransition
-            the job is not interrupted.
-        ServiceError
-            not a design job, nothing left to print, the printer busy or not connected.
-        ValueError
-            ``partial`` is not ``skip`` or ``reprint``.
-        """
-        job = self.job(job_id)
-        if job.state is not JobState.INTERRUPTED:
-            raise IllegalTransition(job.state, "resume")
-        if self.state.run is not None or any(j.state is JobState.READY and j.start_when_ready for j in self.store.active()):
-            busy = self.state.run.job_id if self.state.run is not None else "queued jobs"
-            raise ServiceError(f"cannot resume job {job_id} now: the printer is busy ({busy}); resume it when "
-                               "it is free")
-        if not self.head.connected():
-            raise LinkError("the printer is not connected (or busy): resume when it is ready")
-        plan = self._resume_plan(job, partial)
-        if plan is None:
-            return self.records.transition(job_id, JobState.DONE, reason="resumed: every part was proven printed, "
-                                    "nothing is left to print", error=None, stage=None, start_when_ready=False)
-        if plan.partial is not None:
-            self.store.record_part(job_id, job.side or "front", plan.partial,
-                                   "skipped" if plan.choice == "skip" else "reprint")
-        if plan.start >= plan.parts > 0:                     # every part proven printed (or the last skipped)
-            return self.records.transition(job_id, JobState.DONE, reason="resumed: every part was proven printed or "
-                                    "skipped, nothing is left to print", error=None, stage=None,
-                                    start_when_ready=False)
-        where = (f"the {plan.side} from part {plan.start + 1} of {plan.parts}" if plan.parts
-                 else "the alignment of the back")
-        note = f"; part {plan.partial + 1} begun and not proven printed: {plan.choice}" \
-            if plan.partial is not None else ""
-        job = self.records.transition(job_id, JobState.AWAITING_CHECK, reason=f"resumed at {where}{note}",
-                               stage="homing", error=None, start_when_ready=False)
-        self.state.resumes[job_id] = plan
-        self.state.queue_print(job_id)
-        return job
-
-    def _resumed_text(self, text: str, side: str, start: int, resume: ResumePlan | None) -> str:
-        lines = text.splitlines()
-        cut = program_parts(lines)[start].begin
-        modal = modal_state(prepare_program(lines, f"{side}.gcode"), cut)
-        note = f"{side} from part {start + 1}" + (f" (part {resume.partial + 1}: {resume.choice})"
-                                                 if resume is not None and resume.partial is not None else "")
-        return "\n".join(resumed_program(lines, start, modal, self.profile, note)) + "\n"
-
-    async def _check_frame(self, job_id: str) -> None:
-        """Home, set the heaters (the idle policy applies while waiting), wait for ``frame_ok``."""
-        run = self.state.run
-        assert run is not None
-        link = self.head.require_link()
-        await self.heaters.cooled()                           # the heaters-off of the daemon's start first
-        t = self.profile.temperatures
-        async with self.head.lock:
-            await link.send("G28", timeout=300)
-            self.head.forget()
-            if t.bed > 0:
-                await link.send(f"M140 S{t.bed:.0f}")
-            await link.send(f"M104 S{t.nozzle:.0f}")
-        run.check()
-        self.records.publish(self.store.update(job_id, stage="check the frame"))
-        run.heaters = await self.heaters.idle(job_id, "awaiting the frame check")
-        try:
-            await run.checked.wait()
-        finally:
-            run.heaters.cancel()
-            run.heaters = None
-        run.check()
-
-    async def frame_ok(self, job_id: str, keep_alignment: bool = False) -> JobRecord:
-        """The operator checked the frame of a resumed print: go on (returns once it moved on).
-        ``keep_alignment``: the back was being printed and the frame was not moved: take the stored
-        correction instead of measuring the marks again."""
-        job = self.job(job_id)
-        run = self.state.run
-        if job.state is not JobState.AWAITING_CHECK or run is None or run.job_id != job_id or run.resume is None:
-            raise IllegalTransition(job.state, "frame-ok")
-        if keep_alignment and (run.resume.side != "back" or job.side != "back" or not job.correction):
-            raise ValueError("keep_alignment: there is no stored alignment of this print's back to keep "
-                             "(it is measured after the flip); leave it out")
-        run.keep_alignment = keep_alignment
-        run.checked.set()
-        return await self.records.wait_state(job_id, lambda s: s is not JobState.AWAITING_CHECK, 30)
