@@ -55,11 +55,11 @@ sys.path.insert(0, str(ROOT / "examples" / "meshes"))
 
 from stream import BALANCED_LOAD, FEED, mean_encoded_length, program  # noqa: E402  (bench/stream.py)
 
-from ribbond.printer import PrinterLink, Timeouts  # noqa: E402
-from ribbond.printer.sender import StreamProgress  # noqa: E402
 from ribbond.compiler import worker_command, worker_environment  # noqa: E402
 from ribbond.events import EventBus  # noqa: E402
-from ribbond.service import ACK_INTERVAL_S  # noqa: E402
+from ribbond.printer import PrinterLink, Timeouts  # noqa: E402
+from ribbond.printer.sender import StreamProgress  # noqa: E402
+from ribbond.printing import ACK_INTERVAL_S  # noqa: E402
 from ribbond.store import JobStore  # noqa: E402
 from sim.process import SimProcess  # noqa: E402
 

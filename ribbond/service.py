@@ -24,7 +24,6 @@ import asyncio
 import contextlib
 import hashlib
 import logging
-import os
 import re
 import shutil
 import sys
@@ -32,28 +31,23 @@ import time
 from pathlib import Path
 from typing import Any
 
-
 from .aligner import Aligner
-from .alignment import expected_marks
 from .calibrations import Calibrations
 from .compiler import COMPILE_STAGES, Compiler
 from .config import DaemonConfig
-from .design.folder import read_design_folder
 from .design.params import check_printable, settings_from_dict
 from .events import EventBus
 from .gcode.profiles import PrinterProfile
-from .gcode.program import Correction, SidePlan, render_side
 from .head import Head
 from .heaters import Heaters
 from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
 from .manual import MAX_MANUAL_COMMANDS, ManualControl
-from .printer.errors import LinkError, StreamCancelled
-from .printer.link import LinkState, PrinterLink, prepare_program
-from .printer.sender import StreamProgress
-from .programs import Part, Timeline, check_program, program_parts, program_timeline
+from .printer.link import LinkState, PrinterLink
+from .printing import PrintTask
+from .programs import Timeline, check_program, program_timeline
 from .records import JobRecords, NotFound, ServiceError, has_program
-from .resume import Resumer, modal_state, resumed_text
-from .run import PrintState, Run, Stream, stream_rate
+from .resume import Resumer, modal_state
+from .run import PrintState, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
 
@@ -63,15 +57,10 @@ __all__ = ["MAX_MANUAL_COMMANDS", "MAX_NAME_BYTES", "NotFound", "RibbonService",
 
 log = logging.getLogger(__name__)
 
-#: Acknowledged-line checkpoints are written at most this often while streaming, seconds.
-ACK_INTERVAL_S = 0.5
 #: Extensions of the mesh formats the engine reads.
 MESH_SUFFIXES = (".obj", ".off", ".stl", ".ply")
 #: Extensions of plain G-code programs.
 GCODE_SUFFIXES = (".gcode", ".gco", ".g", ".nc")
-#: How long a stop of the daemon waits for the safe stop before the emergency stop, seconds
-#: (systemd's TimeoutStopSec is 30).
-STOP_TIMEOUT_S = 20.0
 
 
 #: Longest stored mesh file name, bytes (file systems allow 255); longer names are shortened.
@@ -93,31 +82,6 @@ def mesh_file_name(name: str) -> str:
 
 #: How often the printer's status is checked for a change worth an event (seconds).
 PRINTER_EVENT_S = 0.5
-
-
-class _PartTracker:
-    """Records a streaming program's parts in the store as their lines are acknowledged."""
-
-    def __init__(self, store: JobStore, job_id: str, side: str, parts: list[Part], base: int) -> None:
-        self.store, self.job_id, self.side, self.parts, self.base = store, job_id, side, parts, base
-        self.barriers = frozenset(p.first_e for p in parts if p.first_e is not None)
-        self._next_start = self._next_done = 0
-
-    def acknowledged(self, count: int) -> None:
-        """The first ``count`` program lines are acknowledged (called before the sender sends more)."""
-        parts = self.parts
-        while self._next_start < len(parts) and (parts[self._next_start].first_e or 0) <= count:
-            part = parts[self._next_start]
-            if part.first_e is not None:
-                # not fsynced: it must be committed before the line goes out, and the printer waits
-                self.store.record_part(self.job_id, self.side, self.base + part.ordinal, "started",
-                                       part.first_e, durable=False)
-            self._next_start += 1
-        while self._next_done < len(parts) and parts[self._next_done].sync is not None \
-                and parts[self._next_done].sync < count:                           # type: ignore[operator]
-            part = parts[self._next_done]
-            self.store.record_part(self.job_id, self.side, self.base + part.ordinal, "done", part.sync)
-            self._next_done += 1
 
 
 def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[list[str], Timeline]:
@@ -145,6 +109,8 @@ class RibbonService:
         self.aligner = Aligner(self.head, profile, self.records, self.state, self.heaters,
                                lambda job: self.guidance(job)["instruction"])
         self.resumer = Resumer(self.head, profile, self.records, self.state, self.heaters)
+        self.printing = PrintTask(self.head, profile, self.records, self.state, self.heaters, self.aligner,
+                                  self.resumer, self.progress)
         self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
@@ -167,7 +133,7 @@ class RibbonService:
             elif job.state is JobState.READY and job.start_when_ready:
                 self.state.queue_print(job.id)
         self._tasks = [asyncio.create_task(self.compiler.run(), name="compile"),
-                       asyncio.create_task(self._print_loop(), name="print"),
+                       asyncio.create_task(self.printing.run(), name="print"),
                        asyncio.create_task(self._printer_events(), name="printer events")]
 
     async def _printer_events(self) -> None:
@@ -186,36 +152,9 @@ class RibbonService:
                 last = status
 
     async def shutdown(self, reason: str = "the daemon was stopped") -> None:
-        """Stop safely before the daemon exits: a job on the printer ends its stream at a line
-        boundary, the heaters go off, the head is lifted by the profile's park lift, and the job is
-        ``interrupted`` with an exact checkpoint. If that does not finish in ``STOP_TIMEOUT_S``,
-        the emergency stop (M112: heaters off in the firmware)."""
-        self.state.stopping = True
-        run = self.state.run
-        if run is None:
-            await self.heaters.off_if_on()
-            return
-        run.stop_reason = reason
-        self._interrupt(run)
-        try:
-            await asyncio.wait_for(run.done.wait(), STOP_TIMEOUT_S)
-        except asyncio.TimeoutError:
-            log.error("the safe stop did not finish in %.0f s: emergency stop", STOP_TIMEOUT_S)
-            with contextlib.suppress(Exception):
-                if self.head.link is not None:
-                    self.head.link.emergency_stop()
-
-    def _background(self, coroutine: Any, what: str) -> None:
-        """Run ``coroutine`` without waiting for it; its failure is logged."""
-        task = asyncio.ensure_future(coroutine)
-
-        def done(t: asyncio.Future[Any]) -> None:
-            if not t.cancelled() and t.exception() is not None:
-                log.warning("%s: %s", what, t.exception())
-
-        task.add_done_callback(done)
-        self._background_tasks.add(task)
-        task.add_done_callback(self._background_tasks.discard)
+        """Stop safely before the daemon exits (``PrintTask.shutdown``: the job on the printer
+        ``interrupted`` at an exact checkpoint, heaters off, head lifted)."""
+        await self.printing.shutdown(reason)
 
     async def close(self) -> None:
         self.compiler.stop_all()
@@ -224,21 +163,6 @@ class RibbonService:
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
-
-    def _interrupt(self, run: Run) -> None:
-        """Make the print task leave what it waits on (the stream, a heater wait, the flip, the marks)."""
-        link = self.head.link
-        if link is not None and link.state in (LinkState.STREAMING, LinkState.PAUSED):
-            with contextlib.suppress(NotFound):
-                if self.job(run.job_id).state is JobState.HEATING and link.capabilities.emergency_parser:
-                    self._background(self.heaters.break_waits(run, link), "M108")
-            with contextlib.suppress(LinkError):
-                link.cancel()
-        run.flip.set()
-        run.aligned.set()
-        run.checked.set()
-        if run.heaters is not None:
-            run.heaters.cancel()
 
     # ------------------------------------------------------------------ jobs
 
@@ -385,7 +309,7 @@ class RibbonService:
         run = self.state.run
         if run is not None and run.job_id == job_id:
             run.cancel_requested = True
-            self._interrupt(run)
+            self.printing.interrupt(run)
             # the printer task finishes the cancel (heaters off, head up)
             return await self.records.wait_state(job_id, lambda s: s.terminal, 60)
         return self.records.transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
@@ -554,218 +478,3 @@ class RibbonService:
                 and run.alignment.current > 0
         return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED) or (
             job.state is JobState.AWAITING_CHECK and job.stage == "check the frame")
-
-    # ------------------------------------------------------------------ printing
-
-    def _connected(self) -> bool:
-        return self.head.link is not None and self.head.link.state is LinkState.READY
-
-    async def _print_loop(self) -> None:
-        while True:
-            job_id = await self.state.queue.get()
-            try:
-                job = self.job(job_id)
-            except NotFound:
-                continue                                      # deleted while queued
-            resume = self.state.resumes.pop(job_id, None)
-            if resume is not None and job.state is JobState.AWAITING_CHECK:
-                self.state.run = run = Run(job_id, resume=resume)
-                await self._run_print(run, job)
-                continue
-            if job.state is not JobState.READY or not job.start_when_ready:
-                continue
-            if self.state.stopping:
-                continue                                      # the daemon stops: queued again at its next start
-            if not self.head.connected():                         # wait for the printer, do not fail
-                log.info("job %s waits for the printer to connect", job_id)
-                self.records.publish(self.store.update(job_id, stage="waiting for the printer"))
-                while not self.head.connected() and not self.state.stopping and self.records.exists(job_id) \
-                        and self.job(job_id).state is JobState.READY:
-                    await asyncio.sleep(0.2)
-                if not self.records.exists(job_id) or self.job(job_id).state is not JobState.READY or self.state.stopping:
-                    continue
-                job = self.store.update(job_id, stage=None)
-            self.state.run = run = Run(job_id)
-            await self._run_print(run, job)
-
-    async def _run_print(self, run: Run, job: JobRecord) -> None:
-        try:
-            await self._print(job)
-        except StreamCancelled:
-            await self._end_run_logged(run, None)
-        except Exception as exc:  # noqa: BLE001 - any fatal error of the print task: stop safely
-            log.exception("printing job %s", job.id)
-            kind = "printer" if isinstance(exc, (LinkError, OSError)) else "internal error"
-            await self._end_run_logged(run, f"{kind}: {exc}")
-        finally:
-            if run.heaters is not None:
-                run.heaters.cancel()
-            self.state.run = None
-            run.done.set()
-
-    async def _end_run_logged(self, run: Run, error: str | None) -> None:
-        try:
-            await self._end_run(run, error)
-        except Exception:  # noqa: BLE001 - the print queue goes on with the next job
-            log.exception("ending the run of job %s", run.job_id)
-
-    async def _end_run(self, run: Run, error: str | None) -> None:
-        """After the stream ended early: heaters off, head lifted; the job ``cancelled`` (asked for),
-        or ``interrupted`` (the daemon stops, or ``error``) with the exact checkpoint."""
-        stopped = await self._safe_stop()
-        job = self.job(run.job_id)
-        if job.state.terminal:
-            return
-        if run.cancel_requested and error is None:
-            self.records.transition(run.job_id, JobState.CANCELLED, reason="cancelled by the operator",
-                             start_when_ready=False, stage="cancelled: heaters off, head lifted" if stopped else None)
-            return
-        reason = error or run.stop_reason or "stopped"
-        if stopped and job.state in (JobState.HEATING, JobState.PRINTING_FRONT, JobState.PRINTING_BACK,
-                                     JobState.PAUSED):
-            # after M400 every acknowledged line has been executed: the checkpoint is exact
-            side = job.side or "front"
-            self.store.record_ack(run.job_id, self.state.acked)
-            self.store.checkpoint(run.job_id, f"{side}_stopped", self.state.acked)
-        self.records.transition(run.job_id, JobState.INTERRUPTED, reason=reason, start_when_ready=False,
-                         stage="stopped: heaters off, head lifted" if stopped else "stopped")
-
-    async def _print(self, job: JobRecord) -> None:
-        link = self.head.require_link()
-        run = self.state.run
-        assert run is not None
-        if job.kind == "gcode":
-            text = Path(job.mesh_path).read_text(encoding="utf-8")
-            self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
-            await self._stream(job.id, text, "front", JobState.PRINTING_FRONT, plain=True)
-            await link.send("M400", timeout=600)
-            self.records.publish(self.store.checkpoint(job.id, "program_done", self.state.acked))
-            run.check()
-            self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-            return
-        folder = read_design_folder(Path(job.design_dir or ""))
-        design = folder.design
-        has_back = any(r.side == "back" for r in design.ribbons or [])
-        resume = run.resume
-        if resume is not None:
-            await self.resumer.check_frame(job.id)
-        if resume is None or resume.side == "front":
-            front = (Path(job.design_dir or "") / "front.gcode").read_text(encoding="utf-8")
-            start = resume.start if resume is not None else 0
-            if start:
-                front = resumed_text(front, "front", start, resume, self.profile)
-            self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
-            await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start)
-            await link.send("M400", timeout=600)
-            self.records.publish(self.store.checkpoint(job.id, "front_done", self.state.acked))
-            run.check()
-            if not has_back:
-                self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-                return
-        expected = expected_marks(design.registration_marks or [], self.profile.frame)
-        if len(expected) < 2:
-            raise ValueError(f"the design has {len(expected)} registration marks: the back side cannot be "
-                             "aligned (at least 2 are needed)")
-        kept = resume is not None and resume.side == "back" and run.keep_alignment and job.correction
-        if kept:
-            correction = Correction.model_validate(job.correction)
-        else:
-            # a resumed back: the frame is back side up already (the operator checked it)
-            correction = await self.aligner.align(job.id, expected, flipped=resume is not None and resume.side == "back")
-        plan = SidePlan.load(self.job_dir(job.id) / "plans" / "back-plan.npz")
-        program = render_side(plan, self.profile, correction=correction)
-        corrected = self.job_dir(job.id) / "back-corrected.gcode"
-        tmp = corrected.with_suffix(".tmp")
-        tmp.write_text(program.text, encoding="utf-8")
-        os.replace(tmp, corrected)
-        start = resume.start if resume is not None and resume.side == "back" else 0
-        text = resumed_text(program.text, "back", start, resume, self.profile) if start else program.text
-        fields: dict[str, Any] = dict(side="back", correction=correction.model_dump(mode="json"), error=None,
-                                      estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
-        if kept:
-            self.records.transition(job.id, JobState.HEATING, stage="heating", **fields)
-            await self._stream(job.id, text, "back", JobState.PRINTING_BACK, part_base=start)
-        else:
-            self.records.transition(job.id, JobState.PRINTING_BACK, stage="printing back", **fields)
-            await self._stream(job.id, text, "back", None, part_base=start)
-        await link.send("M400", timeout=600)
-        self.records.publish(self.store.checkpoint(job.id, "back_done", self.state.acked))
-        run.check()
-        self.records.transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-
-    async def _stream(self, job_id: str, text: str, side: str, after_heating: JobState | None,
-                      plain: bool = False, part_base: int = 0) -> None:
-        """Stream one program; switch from ``heating`` to ``after_heating`` where it starts printing.
-
-        A design's program records its parts (numbered from ``part_base``: a resumed program starts
-        at a later part) in the store as they go: ``started`` before the first line that feeds
-        filament goes out (a barrier of the sender), ``done`` when the part's ``M400`` is
-        acknowledged: two writes a part, none a line."""
-        link = self.head.require_link()
-        run = self.state.run
-        assert run is not None
-        run.check()
-        lines = text.splitlines()
-        commands = prepare_program(lines, f"{side}.gcode")
-        timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
-        first_part = timeline.first
-        stream = run.stream = Stream(side=side, timeline=timeline)
-        self.state.commands = commands
-        self.state.acked = -1
-        self.head.forget()
-        self.records.publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
-        parts = [] if plain else program_parts(lines)
-        track = _PartTracker(self.store, job_id, side, parts, part_base)
-        last_write = 0.0
-        switched = after_heating is None
-        if switched:
-            stream.printing_since = time.monotonic()
-
-        def progress(p: StreamProgress) -> None:
-            nonlocal last_write, switched
-            now = time.monotonic()
-            self.state.acked = stream.acked = p.acknowledged
-            track.acknowledged(p.acknowledged)
-            if stream.printing_since is None and p.acknowledged >= first_part:
-                stream.printing_since = now
-            if not switched and p.acknowledged >= first_part:
-                switched = True
-                job = self.job(job_id)
-                if job.state is JobState.HEATING:
-                    self.records.transition(job_id, after_heating, stage=f"printing {side}")
-            if now - last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
-                last_write = now
-                self.store.record_ack(job_id, p.acknowledged)
-                info = self.progress(self.job(job_id))
-                self.bus.publish({"type": "progress", "job_id": job_id, "side": side, "line": p.acknowledged,
-                                  "lines": p.total, **info})
-
-        try:
-            await link.stream(commands, progress, track.barriers)
-        finally:
-            rate = stream_rate(stream)
-            if rate is not None and stream.acked >= len(commands) - 1:
-                self.state.rate = rate                             # what this printer does with an estimate
-            run.stream = None
-        if not switched and after_heating is not None:
-            self.records.transition(job_id, after_heating, stage=f"printing {side}")
-
-    def _safe_stop_commands(self) -> list[str]:
-        """Heaters off, fan off, the head lifted by the profile's park lift, motion finished, motors off."""
-        return ["M104 S0", "M140 S0", "M107", "G91",
-                f"G0 Z{self.profile.park_lift:.3f} F{self.profile.motion.z_speed * 60:.0f}", "G90", "M400", "M84"]
-
-    async def _safe_stop(self) -> bool:
-        """Heaters off, head lifted: after a cancel, a stop or a failure. Whether it was sent."""
-        link = self.head.link
-        if link is None or link.state not in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED):
-            return False
-        sent = True
-        async with self.head.lock:
-            for command in self._safe_stop_commands():
-                try:
-                    await link.send(command, timeout=60)
-                except (LinkError, asyncio.TimeoutError):
-                    sent = False
-            self.head.forget()
-        return sent
