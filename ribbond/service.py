@@ -1,21 +1,26 @@
-"""The daemon's business logic: jobs from upload to done, on one printer (issues 6 and 13).
+"""The daemon's job service: jobs from upload to done, on one printer (issues 6 and 13), and the
+one place where the daemon's components are wired together.
 
-``RibbonService`` owns the job store, the compile queue (each compile a ``ribbond.worker``
-subprocess, so the event loop that feeds the printer never computes a design) and the print queue
-(one job on the printer at a time). It drives each job through the states of ``ribbond.jobs``:
-heating and the front program, the host's own pause for the flip (the head parked, the heaters by
-the configured policy), the alignment check over the registration marks (the operator jogs the head
-onto each mark), the back program re-rendered with the fitted correction, done. Plain G-code jobs
-are checked against the profile at upload and printed the same way. Between and around prints it
-takes the operator's manual commands (home, jog, goto, G-code, heat, cool), never while a program
-streams. It knows nothing of HTTP (``api.py`` maps its methods and exceptions to routes and status
-codes) and parses no printer answers (``PrinterLink`` does).
+``RibbonService`` keeps the job life cycle: submit (a mesh, checked before anything is stored; a
+plain G-code program, checked line by line against the profile), start (again: a new run of the
+same design), cancel, delete, and what a person sees of a job (``status``: its progress, time left
+and the next thing to do). The rest is one component per concern, each given only what it needs:
 
-Every state change is committed to the store before it is published. What the printer
-acknowledged is queued, not executed: ``last_acked_line`` is recorded as streaming goes, and the
-synchronized checkpoints (after ``M400``: the front done, the flip, a safe stop) say exactly where an
-interrupted job stood. A stop of the daemon (SIGTERM) or a fatal error of the print task ends the
-stream at a line boundary, turns the heaters off and lifts the head (``shutdown``, ``_safe_stop``).
+- ``records.JobRecords``: reads and state changes of the store, each committed before it is published
+  on the ``events.EventBus``;
+- ``compiler.Compiler``: the compile queue (each compile a ``ribbond.worker`` subprocess, so the
+  event loop that feeds the printer never computes a design);
+- ``run.PrintState``: the print queue and the run on the printer (one job at a time);
+- ``printing.PrintTask``: the print task (heating, front, flip, back, done; the safe stops);
+- ``aligner.Aligner``: the flip and the alignment check over the registration marks;
+- ``resume.Resumer``: pause and resume, and the resume of an interrupted print at a part boundary;
+- ``heaters.Heaters``: the heaters the daemon sets on its own (idle policy, off after a crash);
+- ``manual.ManualControl``: home, jog, goto, G-code, heat, cool, never while a program streams;
+- ``head.Head``: the link, the lock of the head's moves and the head's commanded position;
+- ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans.
+
+It knows nothing of HTTP (``api.py`` maps the components' methods and exceptions to routes and
+status codes) and parses no printer answers (``PrinterLink`` does).
 """
 
 from __future__ import annotations
@@ -47,7 +52,7 @@ from .printing import PrintTask
 from .programs import Timeline, check_program, program_timeline
 from .records import JobRecords, NotFound, ServiceError, has_program
 from .resume import Resumer, modal_state
-from .run import PrintState, stream_rate
+from .run import MarkCheck, PrintState, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
 
@@ -89,6 +94,39 @@ def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tupl
     return check_program(lines, profile, source=source), program_timeline(lines, profile)
 
 
+def _aligning_guidance(j: str, al: MarkCheck | None) -> str:
+    if al is None or al.current == 0:
+        nxt = al.next_mark if al is not None else 1
+        return f"aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
+    k, n = al.current, len(al.expected)
+    return (f"mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
+            f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
+            f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
+
+
+def _fitted_guidance(j: str, fit: dict[str, Any] | None) -> str:
+    seen = (f"the fit turns the back by {fit['rotation_deg']:.2f}° and moves it by "
+            f"({fit['offset'][0]:.2f}, {fit['offset'][1]:.2f}) mm, {fit['max_residual_mm']:.2f} mm "
+            "off at the worst mark. ") if fit else ""
+    return (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
+            f"re-seat the frame and align again (ribbonctl re-seat {j})")
+
+
+def _ended_guidance(job: JobRecord) -> tuple[str, list[str] | None]:
+    """A run that ended (failed, cancelled, interrupted): resume, print again, or nothing to print."""
+    j, s = job.id, job.state
+    why = f" ({job.error})" if job.error else ""
+    if s is JobState.INTERRUPTED and job.kind == "design" and has_program(job) and job.side:
+        return (f"interrupted{why}; resume it where it was proven to stand: ribbonctl resume {j} "
+                f"[--partial skip|reprint] (the ribbon begun and not proven printed: skipped by "
+                f"default), print it again from the start: ribbonctl start {j}, or remove it: "
+                f"ribbonctl delete {j}"), None
+    if has_program(job):
+        return f"{s.value}{why}; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}", None
+    return (f"{s.value}{why}; nothing to print: submit the mesh again (ribbonctl delete {j} removes it)",
+            [f"ribbonctl delete {j}"])
+
+
 class RibbonService:
     """Jobs on one printer. Create it in the event loop; ``start()`` its tasks; ``close()``."""
 
@@ -115,7 +153,6 @@ class RibbonService:
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
         self._tasks: list[asyncio.Task[None]] = []
-        self._background_tasks: set[asyncio.Future[Any]] = set()
 
     # ------------------------------------------------------------------ life cycle
 
@@ -248,8 +285,8 @@ class RibbonService:
         program = folder / "program.gcode"
         shutil.move(str(upload), program)
         job = self.records.transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
-                               mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
-                               estimate_s={"front": timeline.total})
+                                      mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
+                                      estimate_s={"front": timeline.total})
         if start:
             self.state.queue_print(job.id)
         return job
@@ -266,30 +303,12 @@ class RibbonService:
                 and Path(job.mesh_path).is_file():
             # the daemon stopped during the compile: compile it again
             self.records.check_queue()
-            job = self.records.transition(job_id, JobState.SUBMITTED, reason="compiled again", start_when_ready=True,
-                                   error=None, stage=None, progress=None)
+            job = self.records.transition(job_id, JobState.SUBMITTED, reason="compiled again",
+                                          start_when_ready=True, error=None, stage=None, progress=None)
             self.compiler.queue(job_id)
             return job
         if job.state.terminal:
-            if not has_program(job):
-                raise ServiceError(f"cannot start: job {job_id} has no design to print"
-                                   + (f" (its compile failed: {job.error})" if job.error else "")
-                                   + "; submit the mesh again")
-            self.records.check_queue()
-            runs = list(job.runs)
-            started = [t.at for t in self.store.transitions(job_id) if t.to_state is JobState.HEATING]
-            if started:
-                runs.append({"run": len(runs) + 1, "started": started[-1], "ended": job.updated,
-                             "state": job.state.value, "error": job.error, "side": job.side,
-                             "lines_total": job.lines_total, "last_acked_line": job.last_acked_line,
-                             "checkpoint": job.checkpoint, "checkpoint_line": job.checkpoint_line,
-                             "correction": job.correction})
-            job = self.records.transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
-                                   runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
-                                   lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
-                                   side=None, correction=None, paused_from=None)
-            self.state.queue_print(job_id)
-            return job
+            return self._start_again(job)
         if job.state is not JobState.READY:
             raise IllegalTransition(job.state, "start")
         if job.start_when_ready:
@@ -300,27 +319,51 @@ class RibbonService:
         self.records.publish(job)
         return job
 
+    def _start_again(self, job: JobRecord) -> JobRecord:
+        """A new run of an ended job's design: the ended run (if it reached the printer) kept in
+        ``runs``, the job ``ready`` and queued."""
+        job_id = job.id
+        if not has_program(job):
+            raise ServiceError(f"cannot start: job {job_id} has no design to print"
+                               + (f" (its compile failed: {job.error})" if job.error else "")
+                               + "; submit the mesh again")
+        self.records.check_queue()
+        runs = list(job.runs)
+        started = [t.at for t in self.store.transitions(job_id) if t.to_state is JobState.HEATING]
+        if started:
+            runs.append({"run": len(runs) + 1, "started": started[-1], "ended": job.updated,
+                         "state": job.state.value, "error": job.error, "side": job.side,
+                         "lines_total": job.lines_total, "last_acked_line": job.last_acked_line,
+                         "checkpoint": job.checkpoint, "checkpoint_line": job.checkpoint_line,
+                         "correction": job.correction})
+        job = self.records.transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
+                                      runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
+                                      lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
+                                      side=None, correction=None, paused_from=None)
+        self.state.queue_print(job_id)
+        return job
+
     async def cancel(self, job_id: str) -> JobRecord:
         job = self.job(job_id)
         if JobState.CANCELLED not in TRANSITIONS[job.state]:
             raise IllegalTransition(job.state, "cancel")
         if self.compiler.stop(job_id):
             return await self.records.wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
-        run = self.state.run
-        if run is not None and run.job_id == job_id:
+        run = self.state.current(job_id)
+        if run is not None:
             run.cancel_requested = True
             self.printing.interrupt(run)
             # the printer task finishes the cancel (heaters off, head up)
             return await self.records.wait_state(job_id, lambda s: s.terminal, 60)
         return self.records.transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
-                                start_when_ready=False, stage=None)
+                                       start_when_ready=False, stage=None)
 
     def delete(self, job_id: str) -> None:
         """Remove a job and its files (uploads, design, programs); refused while it compiles or
         holds the printer."""
         job = self.job(job_id)
         if job.state.holds_printer or job.state in (JobState.SUBMITTED, JobState.COMPILING) \
-                or (self.state.run is not None and self.state.run.job_id == job_id):
+                or self.state.current(job_id) is not None:
             raise IllegalTransition(job.state, "delete", hint=f"cancel it first: ribbonctl cancel {job_id}")
         self.store.delete(job_id)
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
@@ -348,26 +391,8 @@ class RibbonService:
         totals = {k: float(v) for k, v in (job.estimate_s or {}).items() if v}
         if not totals:
             return out
-        run = self.state.run if self.state.run is not None and self.state.run.job_id == job.id else None
-        stream = run.stream if run is not None else None
-        rate = self.state.rate or 1.0
-        side = job.side or "front"
-        done_side: float | None = None
-        if stream is not None:
-            side = stream.side
-            totals[side] = stream.timeline.total or totals.get(side, 0.0)
-            # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
-            acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
-            done_side = stream.timeline.done_s(acked)
-            rate = stream_rate(stream) or rate
-            out["ribbon"] = stream.timeline.ribbon_at(acked) or None
-            out["ribbons"] = stream.timeline.ribbons or None
-        elif s is JobState.PRINTING_BACK:
-            done_side = 0.0     # the back's stream is not set up yet: the lines stored are the front's
-        elif job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,
-                                       JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
-            # not streaming now: where it stood, by the lines acknowledged
-            done_side = totals.get(side, 0.0) * min(1.0, max(job.last_acked_line, 0) / job.lines_total)
+        run = self.state.current(job.id)
+        side, done_side, rate = self._side_progress(job, totals, run.stream if run is not None else None, out)
         total = sum(totals.values()) or 1.0
         front = totals.get("front", 0.0)
         if s in (JobState.READY, JobState.SUBMITTED):
@@ -383,23 +408,39 @@ class RibbonService:
             out["elapsed_s"] = time.time() - run.started
         return out
 
+    def _side_progress(self, job: JobRecord, totals: dict[str, float], stream: Stream | None,
+                       out: dict[str, Any]) -> tuple[str, float | None, float]:
+        """The side printing, the estimated seconds of it done (None: not known from the lines) and
+        the rate; a stream puts its own total in ``totals`` and its ribbon in ``out``."""
+        s = job.state
+        rate = self.state.rate or 1.0
+        side = job.side or "front"
+        if stream is not None:
+            side = stream.side
+            totals[side] = stream.timeline.total or totals.get(side, 0.0)
+            # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
+            acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
+            out["ribbon"] = stream.timeline.ribbon_at(acked) or None
+            out["ribbons"] = stream.timeline.ribbons or None
+            return side, stream.timeline.done_s(acked), stream_rate(stream) or rate
+        if s is JobState.PRINTING_BACK:
+            return side, 0.0, rate  # the back's stream is not set up yet: the lines stored are the front's
+        if job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,
+                                     JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
+            # not streaming now: where it stood, by the lines acknowledged
+            return side, totals.get(side, 0.0) * min(1.0, max(job.last_acked_line, 0) / job.lines_total), rate
+        return side, None, rate
+
     def guidance(self, job: JobRecord) -> dict[str, Any]:
         """What the operator does next: an instruction and the exact commands, for every state."""
         j, s = job.id, job.state
-        run = self.state.run if self.state.run is not None and self.state.run.job_id == j else None
-        cmds: list[str] = [f"ribbonctl {c} {j}" for c in COMMANDS[s]]
+        run = self.state.current(j)
+        cmds: list[str] | None = None                    # None: the commands of the state (COMMANDS)
         if s in (JobState.SUBMITTED, JobState.COMPILING):
             text = "compiling; it prints when compiled" if job.start_when_ready else \
                 f"compiling; then print it with: ribbonctl start {j}"
         elif s is JobState.READY:
-            if job.start_when_ready:
-                connected = self.head.link is not None and self.head.link.state in (LinkState.READY, LinkState.STREAMING,
-                                                                          LinkState.PAUSED)
-                text = "queued: it prints when the printer is free" + (
-                    "" if connected else " (the printer is not connected: it prints once it is)")
-                cmds = [f"ribbonctl cancel {j}"]
-            else:
-                text = f"ready to print: ribbonctl start {j}"
+            text, cmds = self._ready_guidance(job)
         elif s is JobState.HEATING:
             text = "heating; the print starts when the nozzle is hot"
         elif s in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK):
@@ -408,53 +449,48 @@ class RibbonService:
             text = (f"paused, the head parked; move it with ribbonctl jog/goto/home if needed, then "
                     f"resume: ribbonctl resume {j} (it reheats first)")
         elif s is JobState.AWAITING_FLIP:
-            axis = self.profile.frame.flip_axis
-            other, c = ("x", self.profile.frame.center[0]) if axis == "y" else ("y", self.profile.frame.center[1])
-            refused = f"the alignment was refused ({job.error}); " if job.error else ""
-            text = (f"{refused}the front is printed. Turn the frame over about its {axis} axis (the line "
-                    f"{other} = {c:g}), seat it again, then run: ribbonctl flip-done {j}")
-            cmds = [f"ribbonctl flip-done {j}", f"ribbonctl cancel {j}"]
+            text, cmds = self._flip_guidance(job), [f"ribbonctl flip-done {j}", f"ribbonctl cancel {j}"]
         elif s is JobState.ALIGNING:
-            al = run.alignment if run is not None else None
-            if al is None or al.current == 0:
-                nxt = al.next_mark if al is not None else 1
-                text = f"aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
-            else:
-                k, n = al.current, len(al.expected)
-                text = (f"mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
-                        f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
-                        f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
-            cmds = [f"ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
+            text = _aligning_guidance(j, run.alignment if run is not None else None)
+            cmds = ["ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
         elif s is JobState.FITTED:
-            fit = run.alignment.fit if run is not None and run.alignment is not None else None
-            seen = (f"the fit turns the back by {fit['rotation_deg']:.2f}° and moves it by "
-                    f"({fit['offset'][0]:.2f}, {fit['offset'][1]:.2f}) mm, {fit['max_residual_mm']:.2f} mm "
-                    "off at the worst mark. ") if fit else ""
-            text = (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
-                    f"re-seat the frame and align again (ribbonctl re-seat {j})")
+            text = _fitted_guidance(j, run.alignment.fit if run is not None and run.alignment is not None else None)
         elif s is JobState.AWAITING_CHECK:
-            plan = run.resume if run is not None and run.resume is not None else self.state.resumes.get(j)
-            side = plan.side if plan is not None else job.side or "front"
-            keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
-                "stored alignment" if job.side == "back" and job.correction else ""
-            text = (f"resuming: check the frame is seated, {side} side up, and nothing is in the way, then "
-                    f"run: ribbonctl frame-ok {j}" + (" (the registration marks are measured again"
-                                                     f"{keep})" if side == "back" else ""))
+            text = self._check_guidance(job)
         elif s is JobState.DONE:
             text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
         else:
-            why = f" ({job.error})" if job.error else ""
-            if s is JobState.INTERRUPTED and job.kind == "design" and has_program(job) and job.side:
-                text = (f"interrupted{why}; resume it where it was proven to stand: ribbonctl resume {j} "
-                        f"[--partial skip|reprint] (the ribbon begun and not proven printed: skipped by "
-                        f"default), print it again from the start: ribbonctl start {j}, or remove it: "
-                        f"ribbonctl delete {j}")
-            elif has_program(job):
-                text = f"{s.value}{why}; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
-            else:
-                text = f"{s.value}{why}; nothing to print: submit the mesh again (ribbonctl delete {j} removes it)"
-                cmds = [f"ribbonctl delete {j}"]
-        return {"instruction": text, "commands": cmds}
+            text, cmds = _ended_guidance(job)
+        return {"instruction": text, "commands": cmds if cmds is not None else [f"ribbonctl {c} {j}"
+                                                                                for c in COMMANDS[s]]}
+
+    def _ready_guidance(self, job: JobRecord) -> tuple[str, list[str] | None]:
+        j = job.id
+        if not job.start_when_ready:
+            return f"ready to print: ribbonctl start {j}", None
+        link = self.head.link
+        connected = link is not None and link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
+        text = "queued: it prints when the printer is free" + (
+            "" if connected else " (the printer is not connected: it prints once it is)")
+        return text, [f"ribbonctl cancel {j}"]
+
+    def _flip_guidance(self, job: JobRecord) -> str:
+        frame = self.profile.frame
+        axis = frame.flip_axis
+        other, c = ("x", frame.center[0]) if axis == "y" else ("y", frame.center[1])
+        refused = f"the alignment was refused ({job.error}); " if job.error else ""
+        return (f"{refused}the front is printed. Turn the frame over about its {axis} axis (the line "
+                f"{other} = {c:g}), seat it again, then run: ribbonctl flip-done {job.id}")
+
+    def _check_guidance(self, job: JobRecord) -> str:
+        j, run = job.id, self.state.current(job.id)
+        plan = run.resume if run is not None and run.resume is not None else self.state.resumes.get(j)
+        side = plan.side if plan is not None else job.side or "front"
+        keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
+            "stored alignment" if job.side == "back" and job.correction else ""
+        return (f"resuming: check the frame is seated, {side} side up, and nothing is in the way, then "
+                f"run: ribbonctl frame-ok {j}" + (" (the registration marks are measured again"
+                                                 f"{keep})" if side == "back" else ""))
 
     def status(self, job: JobRecord) -> dict[str, Any]:
         """The job as people see it: the record, its progress and time left, what to do next."""
@@ -462,8 +498,8 @@ class RibbonService:
         info = self.progress(job)
         data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
                     compile_progress=job.progress, waits_for_operator=self._waits(job))
-        run = self.state.run
-        if job.state is JobState.FITTED and run is not None and run.job_id == job.id and run.alignment is not None:
+        run = self.state.current(job.id)
+        if job.state is JobState.FITTED and run is not None and run.alignment is not None:
             data["fit"] = run.alignment.fit
         return data
 
@@ -473,8 +509,7 @@ class RibbonService:
         if job.state is JobState.READY:
             return not job.start_when_ready
         if job.state is JobState.ALIGNING:
-            run = self.state.run
-            return run is not None and run.job_id == job.id and run.alignment is not None \
-                and run.alignment.current > 0
+            run = self.state.current(job.id)
+            return run is not None and run.alignment is not None and run.alignment.current > 0
         return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED) or (
             job.state is JobState.AWAITING_CHECK and job.stage == "check the frame")
