@@ -1,4 +1,6 @@
-"""The REST API: routes onto ``RibbonService`` methods, pydantic models in and out, no business logic.
+"""The REST API: routes onto ``RibbonService`` and its components (``service.manual``,
+``service.aligner``, ``service.resumer``, ``service.library``, ``service.calibrations``), pydantic
+models in and out, no business logic.
 
 OpenAPI at ``/docs`` (Swagger UI served from the package: it works on a host without internet); it
 documents every status a route answers with its body model (``ribbond.apierrors``) and links the
