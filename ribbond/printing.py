@@ -265,6 +265,8 @@ class PrintTask:
         lines = text.splitlines()
         commands = prepare_program(lines, f"{side}.gcode")
         timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
+        # asked while the time line was computed: the link had no stream to cancel, so none begins
+        run.check()
         first_part = timeline.first
         stream = run.stream = Stream(side=side, timeline=timeline)
         state.commands = commands
