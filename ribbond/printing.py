@@ -73,6 +73,41 @@ class _PartTracker:
             self._next_done += 1
 
 
+class _Acknowledgements:
+    """What each acknowledgement of a streaming program does (the sender's progress callback): the
+    parts recorded, the switch from ``heating`` to ``after_heating`` where the program starts
+    printing, ``last_acked_line`` stored and a progress event sent at most every ACK_INTERVAL_S."""
+
+    def __init__(self, records: JobRecords, state: PrintState, progress: Callable[[JobRecord], dict[str, Any]],
+                 job_id: str, stream: Stream, track: _PartTracker, after_heating: JobState | None) -> None:
+        self.records, self.state, self.progress, self.job_id = records, state, progress, job_id
+        self.stream, self.track, self.after_heating = stream, track, after_heating
+        self.switched = after_heating is None
+        self._last_write = 0.0
+        if self.switched:
+            stream.printing_since = time.monotonic()
+
+    def __call__(self, p: StreamProgress) -> None:
+        records, stream, job_id, side = self.records, self.stream, self.job_id, self.stream.side
+        first_part = stream.timeline.first
+        now = time.monotonic()
+        self.state.acked = stream.acked = p.acknowledged
+        self.track.acknowledged(p.acknowledged)
+        if stream.printing_since is None and p.acknowledged >= first_part:
+            stream.printing_since = now
+        if not self.switched and p.acknowledged >= first_part:
+            self.switched = True
+            job = records.get(job_id)
+            if job.state is JobState.HEATING and self.after_heating is not None:   # (not switched: it is set)
+                records.transition(job_id, self.after_heating, stage=f"printing {side}")
+        if now - self._last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
+            self._last_write = now
+            records.store.record_ack(job_id, p.acknowledged)
+            info = self.progress(records.get(job_id))
+            records.bus.publish({"type": "progress", "job_id": job_id, "side": side, "line": p.acknowledged,
+                                 "lines": p.total, **info})
+
+
 class PrintTask:
     """The print task and the stops of the job it prints. ``progress`` is how far a job is (the
     service's ``progress``), sent with the stream's progress events."""
@@ -267,46 +302,21 @@ class PrintTask:
         timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
         # asked while the time line was computed: the link had no stream to cancel, so none begins
         run.check()
-        first_part = timeline.first
         stream = run.stream = Stream(side=side, timeline=timeline)
         state.commands = commands
         state.acked = -1
         self.head.forget()
         records.publish(records.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
-        parts = [] if plain else program_parts(lines)
-        track = _PartTracker(records.store, job_id, side, parts, part_base)
-        last_write = 0.0
-        switched = after_heating is None
-        if switched:
-            stream.printing_since = time.monotonic()
-
-        def progress(p: StreamProgress) -> None:
-            nonlocal last_write, switched
-            now = time.monotonic()
-            state.acked = stream.acked = p.acknowledged
-            track.acknowledged(p.acknowledged)
-            if stream.printing_since is None and p.acknowledged >= first_part:
-                stream.printing_since = now
-            if not switched and p.acknowledged >= first_part:
-                switched = True
-                job = records.get(job_id)
-                if job.state is JobState.HEATING:
-                    records.transition(job_id, after_heating, stage=f"printing {side}")
-            if now - last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
-                last_write = now
-                records.store.record_ack(job_id, p.acknowledged)
-                info = self.progress(records.get(job_id))
-                records.bus.publish({"type": "progress", "job_id": job_id, "side": side, "line": p.acknowledged,
-                                     "lines": p.total, **info})
-
+        track = _PartTracker(records.store, job_id, side, [] if plain else program_parts(lines), part_base)
+        acks = _Acknowledgements(records, state, self.progress, job_id, stream, track, after_heating)
         try:
-            await link.stream(commands, progress, track.barriers)
+            await link.stream(commands, acks, track.barriers)
         finally:
             rate = stream_rate(stream)
             if rate is not None and stream.acked >= len(commands) - 1:
                 state.rate = rate                             # what this printer does with an estimate
             run.stream = None
-        if not switched and after_heating is not None:
+        if not acks.switched and after_heating is not None:
             records.transition(job_id, after_heating, stage=f"printing {side}")
 
     # ------------------------------------------------------------------ stops

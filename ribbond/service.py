@@ -414,7 +414,7 @@ class RibbonService:
         the rate; a stream puts its own total in ``totals`` and its ribbon in ``out``."""
         s = job.state
         rate = self.state.rate or 1.0
-        side = job.side or "front"
+        side: str = job.side or "front"
         if stream is not None:
             side = stream.side
             totals[side] = stream.timeline.total or totals.get(side, 0.0)
