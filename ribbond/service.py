@@ -139,6 +139,8 @@ class RibbonService:
         self.python = python
         self.jobs_dir = Path(config.state_dir) / "jobs"
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        # the wiring: each component gets what it uses; what it must ask of the service (how a job
+        # is shown, how far it is) is a callable, so no component holds the service itself
         self.library = TableLibrary(config.state_dir, store)
         self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
         self.state = PrintState()
