@@ -9,7 +9,7 @@ as its own process in real time (``--time-scale 1``) at 250000 baud:
   line's wire time, so the printer consumes lines at 95 % of what the link can carry; a host that
   stalls starves the planner) streamed with ``PrinterLink`` in this process's loop;
 * B (with compile): the same stream, and at its start the compile of a ~160k-face torus patch,
-  launched and read exactly as ``RibbonService._compile`` does (``create_subprocess_exec``, stdout
+  launched and read exactly as ``Compiler._run_worker`` does (``create_subprocess_exec``, stdout
   read line by line and parsed in the loop, stderr to a file).
 
 Both runs also do the daemon's bookkeeping on the loop: a SQLite job store (WAL, fsynced commits)
@@ -55,9 +55,11 @@ sys.path.insert(0, str(ROOT / "examples" / "meshes"))
 
 from stream import BALANCED_LOAD, FEED, mean_encoded_length, program  # noqa: E402  (bench/stream.py)
 
+from ribbond.compiler import worker_command, worker_environment  # noqa: E402
+from ribbond.events import EventBus  # noqa: E402
 from ribbond.printer import PrinterLink, Timeouts  # noqa: E402
 from ribbond.printer.sender import StreamProgress  # noqa: E402
-from ribbond.service import ACK_INTERVAL_S, EventBus, worker_command, worker_environment  # noqa: E402
+from ribbond.printing import ACK_INTERVAL_S  # noqa: E402
 from ribbond.store import JobStore  # noqa: E402
 from sim.process import SimProcess  # noqa: E402
 
@@ -127,7 +129,8 @@ class Bookkeeping:
         self._last_write = 0.0
 
     def progress(self, p: StreamProgress) -> None:
-        """As ``RibbonService._stream``'s callback: the acknowledged line every ACK_INTERVAL_S."""
+        """As ``PrintTask._stream``'s callback (``printing._Acknowledgements``): the acknowledged
+        line every ACK_INTERVAL_S."""
         now = time.monotonic()
         if now - self._last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
             self._last_write = now
@@ -137,7 +140,7 @@ class Bookkeeping:
                               "line": p.acknowledged, "lines": p.total, "eta_s": eta})
 
     def compile_event(self, event: dict) -> None:
-        """As ``RibbonService._compile``: a stage is committed and published, an iteration published."""
+        """As ``Compiler._run_worker``: a stage is committed and published, an iteration published."""
         if event.get("event") == "stage":
             job = self.store.update(self.compile_job, stage=event["stage"], progress=None)
             self.bus.publish({"type": "job", "job": job.model_dump(mode="json")})

@@ -1,4 +1,6 @@
-"""The REST API: routes onto ``RibbonService`` methods, pydantic models in and out, no business logic.
+"""The REST API: routes onto ``RibbonService`` and its components (``service.manual``,
+``service.aligner``, ``service.resumer``, ``service.library``, ``service.calibrations``), pydantic
+models in and out, no business logic.
 
 OpenAPI at ``/docs`` (Swagger UI served from the package: it works on a host without internet); it
 documents every status a route answers with its body model (``ribbond.apierrors``) and links the
@@ -32,7 +34,9 @@ from .apierrors import responses
 from .guard import Guard, HostRule, Policy
 from .jobs import JobState
 from .design.params import DesignParameters
-from .service import MAX_MANUAL_COMMANDS, NotFound, RibbonService
+from .manual import MAX_MANUAL_COMMANDS
+from .records import NotFound
+from .service import RibbonService
 from .store import JobRecord, Transition
 
 #: Files of a job that can be fetched.
@@ -47,7 +51,7 @@ MEDIA_TYPES = {".png": "image/png", ".svg": "image/svg+xml", ".json": "applicati
 _CHUNK = 1 << 20
 #: A job file's name in a path: one of ``JOB_FILES`` (the document lists them).
 JobFile = Enum("JobFile", {name: name for name in JOB_FILES}, type=str)  # type: ignore[misc]
-#: A calibration's files (``RibbonService.calibration_file``).
+#: A calibration's files (``Calibrations.calibration_file``).
 CalibrationFileName = Annotated[str, PathParam(pattern=r"^(plan\.json|coupons\.csv|sheet-[0-9]{1,3}\.(png|svg))$")]
 #: Ids and names in paths: longer ones cannot exist (job ids are 12 hex digits, table names at most
 #: 64 characters), and are refused without being echoed.
@@ -252,21 +256,21 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     async def calibrate(body: CalibrationRequest) -> dict[str, Any]:
         """A calibration plan for this printer: one ready two-sided job per sheet (issue 15)."""
         spec = body.model_dump(exclude_none=True, exclude={"start"})
-        return await service.submit_calibration(spec, body.start)
+        return await service.calibrations.submit_calibration(spec, body.start)
 
     @app.get("/calibrations/{cal_id}/files/{name}", response_class=FileResponse,
              responses={**responses(404, 422), **_file_content([".json", ".csv", ".png", ".svg"])})
     async def calibration_file(cal_id: Ident, name: CalibrationFileName) -> FileResponse:
-        return _file(service.calibration_file(cal_id, name))
+        return _file(service.calibrations.calibration_file(cal_id, name))
 
     @app.get("/tables", responses=responses())
     async def tables() -> list[dict[str, Any]]:
         """The curvature tables a design may name: shipped ones and the daemon's own."""
-        return service.tables()
+        return service.library.tables()
 
     @app.get("/tables/{name}", responses=responses(404, 422))
     async def table(name: Ident) -> dict[str, Any]:
-        return service.table(name)
+        return service.library.table(name)
 
     table_links = {201: {"links": _links("name=$response.body#/name", {"GetTable": "table",
                                                                         "RemoveTable": "remove_table"})}}
@@ -274,12 +278,12 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     @app.post("/tables", status_code=201, responses={**responses(409, mutating=True, body=True), **table_links})
     async def add_table(body: TableRequest) -> dict[str, Any]:
         """Add or replace a daemon table from the text of its TOML file (named by its ``name``)."""
-        return service.add_table(body.toml)
+        return service.library.add_table(body.toml)
 
     @app.delete("/tables/{name}", status_code=204, response_class=Response,
                 responses=responses(404, 409, 422, mutating=True))
     async def remove_table(name: Ident) -> Response:
-        service.remove_table(name)
+        service.library.remove_table(name)
         return Response(status_code=204)
 
     @app.get("/jobs", response_model=list[JobStatus], responses=responses(422))
@@ -325,17 +329,17 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/jobs/{job_id}/pause", response_model=JobStatus, responses=job_action)
     async def pause(job_id: Ident) -> JobStatus:
-        return status(await service.pause(job_id))
+        return status(await service.resumer.pause(job_id))
 
     @app.post("/jobs/{job_id}/resume", response_model=JobStatus,
               responses=responses(404, 409, 503, mutating=True, body=True))
     async def resume(job_id: Ident, body: ResumeRequest | None = None) -> JobStatus:
-        return status(await service.resume(job_id, body.partial if body is not None else None))
+        return status(await service.resumer.resume(job_id, body.partial if body is not None else None))
 
     @app.post("/jobs/{job_id}/frame-ok", response_model=JobStatus,
               responses=responses(404, 409, 503, mutating=True, body=True))
     async def frame_ok(job_id: Ident, body: FrameOkRequest | None = None) -> JobStatus:
-        return status(await service.frame_ok(job_id, body.keep_alignment if body is not None else False))
+        return status(await service.resumer.frame_ok(job_id, body.keep_alignment if body is not None else False))
 
     @app.post("/jobs/{job_id}/cancel", response_model=JobStatus, responses=job_action)
     async def cancel(job_id: Ident) -> JobStatus:
@@ -343,60 +347,60 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/jobs/{job_id}/flip-done", response_model=JobStatus, responses=job_action)
     async def flip_done(job_id: Ident) -> JobStatus:
-        return status(await service.flip_done(job_id))
+        return status(await service.aligner.flip_done(job_id))
 
     @app.post("/jobs/{job_id}/align", responses=responses(404, 409, 503, mutating=True, body=True))
     async def align(job_id: Ident, body: AlignRequest) -> dict[str, Any]:
-        return await service.align_mark(job_id, body.mark, body.jog, body.here, body.review)
+        return await service.aligner.align_mark(job_id, body.mark, body.jog, body.here, body.review)
 
     @app.post("/jobs/{job_id}/accept", response_model=JobStatus, responses=job_action)
     async def accept(job_id: Ident) -> JobStatus:
-        return status(await service.accept_fit(job_id))
+        return status(await service.aligner.accept_fit(job_id))
 
     @app.post("/jobs/{job_id}/re-seat", response_model=JobStatus, responses=job_action)
     async def re_seat(job_id: Ident) -> JobStatus:
-        return status(await service.re_seat(job_id))
+        return status(await service.aligner.re_seat(job_id))
 
     printer_action = responses(409, 422, 503, mutating=True)
     printer_body = responses(409, 503, mutating=True, body=True)
 
     @app.post("/printer/home", responses=printer_action)
     async def home() -> dict[str, Any]:
-        return await service.home()
+        return await service.manual.home()
 
     @app.post("/printer/jog", responses=printer_body)
     async def jog(body: JogRequest) -> dict[str, Any]:
-        return await service.jog(body.dx, body.dy, body.dz)
+        return await service.manual.jog(body.dx, body.dy, body.dz)
 
     @app.post("/printer/goto", responses=printer_body)
     async def goto(body: GotoRequest) -> dict[str, Any]:
-        return await service.goto(body.x, body.y)
+        return await service.manual.goto(body.x, body.y)
 
     @app.post("/printer/gcode", responses=printer_body)
     async def gcode(body: GcodeRequest) -> dict[str, Any]:
-        return await service.gcode(body.commands)
+        return await service.manual.gcode(body.commands)
 
     @app.post("/printer/heat", responses=printer_body)
     async def heat(body: HeatRequest) -> dict[str, Any]:
-        return await service.heat(body.nozzle, body.bed)
+        return await service.manual.heat(body.nozzle, body.bed)
 
     @app.post("/printer/cool", responses=printer_action)
     async def cool() -> dict[str, Any]:
-        return await service.cool()
+        return await service.manual.cool()
 
     @app.get("/printer", responses=responses(422, 503))
     async def printer(refresh: bool = False) -> dict[str, Any]:
         """Connection, firmware, temperatures, position; ``refresh=true`` asks the printer first."""
-        return await service.printer_status(refresh)
+        return await service.manual.printer_status(refresh)
 
     @app.post("/printer/emergency-stop", responses=printer_action)
     async def emergency_stop() -> dict[str, Any]:
-        service.emergency_stop()
-        return await service.printer_status()
+        service.manual.emergency_stop()
+        return await service.manual.printer_status()
 
     @app.post("/printer/recover", responses=printer_action)
     async def recover() -> dict[str, Any]:
-        return await service.recover()
+        return await service.manual.recover()
 
     @app.get("/events", response_class=StreamingResponse, responses={
         **responses(), 200: {"description": "server-sent events, a keep-alive comment every 15 s",

@@ -24,7 +24,7 @@ from .alignment import AlignmentRefused
 from .guard import ECHO_MAX, short
 from .jobs import IllegalTransition
 from .printer.errors import LinkError
-from .service import NotFound, ServiceError
+from .records import NotFound, ServiceError
 
 #: A message is cut to this many characters (a list of names can be long; an echo must not be).
 DETAIL_MAX = 2000

@@ -310,7 +310,7 @@ def resumed_program(lines: Sequence[str], start: int, modal: dict[str, object], 
     """The program that prints ``lines``' parts from ordinal ``start`` on (then its footer).
 
     The prelude restores what the skipped lines had set up: units, absolute positioning, relative
-    extrusion, the heaters (``modal``: ``service.modal_state`` at the part's first command), homing,
+    extrusion, the heaters (``modal``: ``resume.modal_state`` at the part's first command), homing,
     the fan, a retraction (the part's own travel primes the nozzle again, as after the part before
     it), the head at the safe height over the position the part starts from, then down to it, and
     ``G92 E0``. The profile's start G-code is not repeated (a purge line would land on the fabric).

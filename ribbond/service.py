@@ -1,21 +1,26 @@
-"""The daemon's business logic: jobs from upload to done, on one printer (issues 6 and 13).
+"""The daemon's job service: jobs from upload to done, on one printer (issues 6 and 13), and the
+one place where the daemon's components are wired together.
 
-``RibbonService`` owns the job store, the compile queue (each compile a ``ribbond.worker``
-subprocess, so the event loop that feeds the printer never computes a design) and the print queue
-(one job on the printer at a time). It drives each job through the states of ``ribbond.jobs``:
-heating and the front program, the host's own pause for the flip (the head parked, the heaters by
-the configured policy), the alignment check over the registration marks (the operator jogs the head
-onto each mark), the back program re-rendered with the fitted correction, done. Plain G-code jobs
-are checked against the profile at upload and printed the same way. Between and around prints it
-takes the operator's manual commands (home, jog, goto, G-code, heat, cool), never while a program
-streams. It knows nothing of HTTP (``api.py`` maps its methods and exceptions to routes and status
-codes) and parses no printer answers (``PrinterLink`` does).
+``RibbonService`` keeps the job life cycle: submit (a mesh, checked before anything is stored; a
+plain G-code program, checked line by line against the profile), start (again: a new run of the
+same design), cancel, delete, and what a person sees of a job (``status``: its progress, time left
+and the next thing to do). The rest is one component per concern, each given only what it needs:
 
-Every state change is committed to the store before it is published. What the printer
-acknowledged is queued, not executed: ``last_acked_line`` is recorded as streaming goes, and the
-synchronized checkpoints (after ``M400``: the front done, the flip, a safe stop) say exactly where an
-interrupted job stood. A stop of the daemon (SIGTERM) or a fatal error of the print task ends the
-stream at a line boundary, turns the heaters off and lifts the head (``shutdown``, ``_safe_stop``).
+- ``records.JobRecords``: reads and state changes of the store, each committed before it is published
+  on the ``events.EventBus``;
+- ``compiler.Compiler``: the compile queue (each compile a ``ribbond.worker`` subprocess, so the
+  event loop that feeds the printer never computes a design);
+- ``run.PrintState``: the print queue and the run on the printer (one job at a time);
+- ``printing.PrintTask``: the print task (heating, front, flip, back, done; the safe stops);
+- ``aligner.Aligner``: the flip and the alignment check over the registration marks;
+- ``resume.Resumer``: pause and resume, and the resume of an interrupted print at a part boundary;
+- ``heaters.Heaters``: the heaters the daemon sets on its own (idle policy, off after a crash);
+- ``manual.ManualControl``: home, jog, goto, G-code, heat, cool, never while a program streams;
+- ``head.Head``: the link, the lock of the head's moves and the head's commanded position;
+- ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans.
+
+It knows nothing of HTTP (``api.py`` maps the components' methods and exceptions to routes and
+status codes) and parses no printer answers (``PrinterLink`` does).
 """
 
 from __future__ import annotations
@@ -23,54 +28,44 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import hashlib
-import json
 import logging
-import os
 import re
 import shutil
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from pydantic import ValidationError
-
-from .alignment import AlignmentRefused, check_fit, expected_marks, fit_rigid
+from .aligner import Aligner
+from .calibrations import Calibrations
+from .compiler import COMPILE_STAGES, Compiler
 from .config import DaemonConfig
-from .design.folder import read_design_folder
 from .design.params import check_printable, settings_from_dict
-from .design.thickness import TABLE_NAME, CurvatureTable, available_tables, load_curvature_table
+from .events import EventBus
 from .gcode.profiles import PrinterProfile
-from .gcode.program import Correction, SidePlan, render_side
+from .head import Head
+from .heaters import Heaters
 from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
-from .printer import codec
-from .printer.errors import LinkError, StreamCancelled
-from .printer.link import LinkState, PrinterLink, prepare_program
-from .printer.sender import StreamProgress
-from .programs import Part, Timeline, check_program, program_parts, program_timeline, resumed_program
+from .manual import MAX_MANUAL_COMMANDS, ManualControl
+from .printer.link import LinkState, PrinterLink
+from .printing import PrintTask
+from .programs import Timeline, check_program, program_timeline
+from .records import JobRecords, NotFound, ServiceError, has_program
+from .resume import Resumer, modal_state
+from .run import MarkCheck, PrintState, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
+from .tables import TableLibrary
+
+#: What callers import from here: the service, and the names of its components they use.
+__all__ = ["MAX_MANUAL_COMMANDS", "MAX_NAME_BYTES", "NotFound", "RibbonService", "ServiceError", "mesh_file_name",
+           "modal_state"]
 
 log = logging.getLogger(__name__)
 
-#: Acknowledged-line checkpoints are written at most this often while streaming, seconds.
-ACK_INTERVAL_S = 0.5
 #: Extensions of the mesh formats the engine reads.
 MESH_SUFFIXES = (".obj", ".off", ".stl", ".ply")
 #: Extensions of plain G-code programs.
 GCODE_SUFFIXES = (".gcode", ".gco", ".g", ".nc")
-#: The compile's stages in order (``ribbond.design.pipeline``): a compile's progress.
-COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "deploy", "preview", "write")
-#: How long a stop of the daemon waits for the safe stop before the emergency stop, seconds
-#: (systemd's TimeoutStopSec is 30).
-STOP_TIMEOUT_S = 20.0
-#: At most this many commands in one manual G-code request.
-MAX_MANUAL_COMMANDS = 16
-#: Jogs and gotos move at most this fast in X/Y, mm/s (the profile's travel speed if slower).
-JOG_SPEED = 50.0
-#: Commands after which the head's position is no longer the one the daemon commanded.
-_MOVES_HEAD = frozenset({"G0", "G1", "G2", "G3", "G28", "G29", "G92", "G30", "M206", "M428"})
 
 
 #: Longest stored mesh file name, bytes (file systems allow 255); longer names are shortened.
@@ -90,198 +85,46 @@ def mesh_file_name(name: str) -> str:
     return f"{stem}-{hashlib.sha256(name.encode('utf-8', errors='surrogatepass')).hexdigest()[:8]}{suffix}"
 
 
-def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path,
-                   tables: Path | None = None, max_faces: int | None = None) -> list[str]:
-    """The command line of one compile (``python -m ribbond.worker``); ``parameters`` in the
-    ``--params`` layout (design parameters, an optional ``solver`` table), ``max_faces`` the
-    daemon's ``[limits] max_faces``."""
-    return [python, "-m", "ribbond.worker", mesh, str(out), "--params", json.dumps(parameters),
-            "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else []) \
-        + (["--max-faces", str(max_faces)] if max_faces is not None else [])
-
-
-def worker_environment() -> dict[str, str]:
-    """The compile's environment: its numeric libraries use all cores but one, which is left to
-    the event loop that feeds the printer (the worker also runs at nice +10)."""
-    threads = str(max(1, (os.cpu_count() or 2) - 1))
-    limits = {name: threads for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
-    return {**os.environ, **limits}
-
-
 #: How often the printer's status is checked for a change worth an event (seconds).
 PRINTER_EVENT_S = 0.5
-
-
-class ServiceError(Exception):
-    """A request that cannot be done now, with the reason (the API answers 409)."""
-
-
-class NotFound(ServiceError):
-    """No such job or file (the API answers 404)."""
-
-
-class EventBus:
-    """Fan-out of events to live subscribers (server-sent events); a slow one loses old events."""
-
-    def __init__(self) -> None:
-        self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
-
-    def subscribe(self) -> asyncio.Queue[dict[str, Any]]:
-        q: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=256)
-        self._subscribers.add(q)
-        return q
-
-    def unsubscribe(self, q: asyncio.Queue[dict[str, Any]]) -> None:
-        self._subscribers.discard(q)
-
-    def publish(self, event: dict[str, Any]) -> None:
-        for q in list(self._subscribers):
-            if q.full():
-                with contextlib.suppress(asyncio.QueueEmpty):
-                    q.get_nowait()
-            q.put_nowait(event)
-
-
-@dataclass
-class _Alignment:
-    """The alignment check of one job: expected mark positions (back-side) and what was measured."""
-
-    expected: np.ndarray
-    measured: dict[int, tuple[float, float]] = field(default_factory=dict)
-    correction: Correction | None = None        # the accepted fit, once every mark is in
-    refused: AlignmentRefused | None = None     # or why it was refused
-    fit: dict[str, Any] | None = None           # the fit shown for review (state fitted)
-    reseat: bool = False                        # the operator refused the fit under review
-
-    current: int = 0                            # the mark the head is above (from 1; 0: on its way)
-
-    @property
-    def next_mark(self) -> int | None:
-        """The first mark (numbered from 1) not measured yet."""
-        missing = [i for i in range(1, len(self.expected) + 1) if i not in self.measured]
-        return missing[0] if missing else None
-
-
-@dataclass(frozen=True)
-class _Resume:
-    """Where an interrupted print goes on (issue 16): ``side`` from part ``start`` (its place in the
-    side's program, from 0); ``partial`` the part begun and not proven printed, if any, and what
-    the operator chose for it."""
-
-    side: str
-    start: int
-    parts: int
-    partial: int | None = None
-    choice: str | None = None
-
-
-@dataclass
-class _Run:
-    """What the printer task knows of the job it is printing."""
-
-    job_id: str
-    flip: asyncio.Event = field(default_factory=asyncio.Event)
-    aligned: asyncio.Event = field(default_factory=asyncio.Event)
-    alignment: _Alignment | None = None
-    pause_snapshot: dict[str, Any] | None = None
-    cancel_requested: bool = False
-    stop_reason: str | None = None              # the daemon stops: interrupted, not cancelled
-    busy: bool = False                           # pausing or resuming (manual control waits)
-    done: asyncio.Event = field(default_factory=asyncio.Event)
-    heaters: asyncio.Task[None] | None = None   # the idle-heater policy while waiting
-    started: float = field(default_factory=time.time)
-    stream: _Stream | None = None
-    resume: _Resume | None = None               # an interrupted print resumed (issue 16)
-    checked: asyncio.Event = field(default_factory=asyncio.Event)   # the operator checked the frame
-    keep_alignment: bool = False                # ... and it was not moved: the stored correction holds
-
-    def check(self) -> None:
-        """Raise ``StreamCancelled`` once a cancel or a stop was asked for."""
-        if self.cancel_requested or self.stop_reason is not None:
-            raise StreamCancelled(self.stop_reason or "cancelled by the operator")
-
-
-@dataclass
-class _Stream:
-    """The program being streamed: its time line and the measured rate."""
-
-    side: str
-    timeline: Timeline
-    acked: int = -1
-    printing_since: float | None = None         # monotonic, when the first line after heating was acked
-    paused_s: float = 0.0
-    paused_at: float | None = None
-
-
-def modal_state(commands: list[str], upto: int) -> dict[str, Any]:
-    """The modal state after ``commands[:upto]``: positioning and extrusion modes, feed rate,
-    fan and heater targets, and the last commanded X, Y, Z (what a resumed program must restore;
-    the commanded position is exact, where ``M114`` reports it rounded to 10 µm)."""
-    state: dict[str, Any] = {"absolute": True, "e_absolute": True, "feed": None, "fan": 0,
-                             "nozzle": None, "bed": None, "x": None, "y": None, "z": None}
-    for cmd in commands[:upto]:
-        words = cmd.split()
-        code = words[0].upper()
-        args = {w[0].upper(): w[1:] for w in words[1:] if w}
-        if code == "G90":
-            state["absolute"] = state["e_absolute"] = True
-        elif code == "G91":
-            state["absolute"] = state["e_absolute"] = False
-        elif code == "M82":
-            state["e_absolute"] = True
-        elif code == "M83":
-            state["e_absolute"] = False
-        elif code in ("G0", "G1"):
-            if "F" in args:
-                state["feed"] = float(args["F"])
-            for axis in "XYZ":                     # last commanded position (absolute moves only)
-                if axis in args:
-                    key = axis.lower()
-                    if state["absolute"]:
-                        state[key] = float(args[axis])
-                    elif state[key] is not None:
-                        state[key] += float(args[axis])
-        elif code == "G28":
-            state["x"] = state["y"] = state["z"] = None
-        elif code == "M106":
-            state["fan"] = int(float(args.get("S", "255")))
-        elif code == "M107":
-            state["fan"] = 0
-        elif code in ("M104", "M109") and "S" in args:
-            state["nozzle"] = float(args["S"])
-        elif code in ("M140", "M190") and "S" in args:
-            state["bed"] = float(args["S"])
-    return state
-
-
-class _PartTracker:
-    """Records a streaming program's parts in the store as their lines are acknowledged."""
-
-    def __init__(self, store: JobStore, job_id: str, side: str, parts: list[Part], base: int) -> None:
-        self.store, self.job_id, self.side, self.parts, self.base = store, job_id, side, parts, base
-        self.barriers = frozenset(p.first_e for p in parts if p.first_e is not None)
-        self._next_start = self._next_done = 0
-
-    def acknowledged(self, count: int) -> None:
-        """The first ``count`` program lines are acknowledged (called before the sender sends more)."""
-        parts = self.parts
-        while self._next_start < len(parts) and (parts[self._next_start].first_e or 0) <= count:
-            part = parts[self._next_start]
-            if part.first_e is not None:
-                # not fsynced: it must be committed before the line goes out, and the printer waits
-                self.store.record_part(self.job_id, self.side, self.base + part.ordinal, "started",
-                                       part.first_e, durable=False)
-            self._next_start += 1
-        while self._next_done < len(parts) and parts[self._next_done].sync is not None \
-                and parts[self._next_done].sync < count:                           # type: ignore[operator]
-            part = parts[self._next_done]
-            self.store.record_part(self.job_id, self.side, self.base + part.ordinal, "done", part.sync)
-            self._next_done += 1
 
 
 def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[list[str], Timeline]:
     lines = text.splitlines()
     return check_program(lines, profile, source=source), program_timeline(lines, profile)
+
+
+def _aligning_guidance(j: str, al: MarkCheck | None) -> str:
+    if al is None or al.current == 0:
+        nxt = al.next_mark if al is not None else 1
+        return f"aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
+    k, n = al.current, len(al.expected)
+    return (f"mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
+            f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
+            f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
+
+
+def _fitted_guidance(j: str, fit: dict[str, Any] | None) -> str:
+    seen = (f"the fit turns the back by {fit['rotation_deg']:.2f}° and moves it by "
+            f"({fit['offset'][0]:.2f}, {fit['offset'][1]:.2f}) mm, {fit['max_residual_mm']:.2f} mm "
+            "off at the worst mark. ") if fit else ""
+    return (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
+            f"re-seat the frame and align again (ribbonctl re-seat {j})")
+
+
+def _ended_guidance(job: JobRecord) -> tuple[str, list[str] | None]:
+    """A run that ended (failed, cancelled, interrupted): resume, print again, or nothing to print."""
+    j, s = job.id, job.state
+    why = f" ({job.error})" if job.error else ""
+    if s is JobState.INTERRUPTED and job.kind == "design" and has_program(job) and job.side:
+        return (f"interrupted{why}; resume it where it was proven to stand: ribbonctl resume {j} "
+                f"[--partial skip|reprint] (the ribbon begun and not proven printed: skipped by "
+                f"default), print it again from the start: ribbonctl start {j}, or remove it: "
+                f"ribbonctl delete {j}"), None
+    if has_program(job):
+        return f"{s.value}{why}; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}", None
+    return (f"{s.value}{why}; nothing to print: submit the mesh again (ribbonctl delete {j} removes it)",
+            [f"ribbonctl delete {j}"])
 
 
 class RibbonService:
@@ -292,26 +135,26 @@ class RibbonService:
         self.config = config
         self.profile = profile
         self.store = store
-        self.link = link
         self.bus = EventBus()
         self.python = python
         self.jobs_dir = Path(config.state_dir) / "jobs"
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
-        self._compile_queue: asyncio.Queue[str] = asyncio.Queue()
-        self._print_queue: asyncio.Queue[str] = asyncio.Queue()
+        # the wiring: each component gets what it uses; what it must ask of the service (how a job
+        # is shown, how far it is) is a callable, so no component holds the service itself
+        self.library = TableLibrary(config.state_dir, store)
+        self.records = JobRecords(store, self.bus, self.jobs_dir, config.limits.max_jobs, self.status)
+        self.state = PrintState()
+        self.head = Head(link)
+        self.heaters = Heaters(self.head, config.flip, self.records, self.state)
+        self.aligner = Aligner(self.head, profile, self.records, self.state, self.heaters,
+                               lambda job: self.guidance(job)["instruction"])
+        self.resumer = Resumer(self.head, profile, self.records, self.state, self.heaters)
+        self.printing = PrintTask(self.head, profile, self.records, self.state, self.heaters, self.aligner,
+                                  self.resumer, self.progress)
+        self.manual = ManualControl(self.head, profile, self.records, self.state)
+        self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
+        self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
         self._tasks: list[asyncio.Task[None]] = []
-        self._compiling: dict[str, asyncio.subprocess.Process] = {}
-        self._run: _Run | None = None
-        self._acked = -1                 # program lines acknowledged in the current stream
-        self._run_commands: list[str] = []
-        self._rate: float | None = None  # measured seconds per estimated second, from the last stream
-        self._manual = asyncio.Lock()    # one sequence of moves at a time (manual, marks, pause)
-        self._head: tuple[float, float, float] | None = None   # commanded position (exact)
-        self._head_sender: object = None # the link's sender the position was commanded through
-        self._stopping = False
-        self._background_tasks: set[asyncio.Future[Any]] = set()
-        self._resumes: dict[str, _Resume] = {}    # interrupted jobs resumed, waiting for the print task
-        self._cooling: asyncio.Task[None] | None = None
 
     # ------------------------------------------------------------------ life cycle
 
@@ -319,19 +162,17 @@ class RibbonService:
         """Mark jobs the last daemon left holding the printer as interrupted; start the queues."""
         interrupted = self.store.mark_interrupted("the daemon stopped while this job was running")
         for job in interrupted:
-            self._publish(job)
+            self.records.publish(job)
         self._remove_orphan_folders()
         if any(j.state is JobState.INTERRUPTED and j.side is not None for j in interrupted):
-            # the last daemon died with a job on the printer: a board that does not reset when the
-            # port opens would still be hot over the fabric
-            self._cooling = asyncio.create_task(self._cool_after_interruption(), name="cool")
+            self.heaters.cool_after_interruption()
         for job in self.store.active():
             if job.state is JobState.SUBMITTED:
-                self._compile_queue.put_nowait(job.id)
+                self.compiler.queue(job.id)
             elif job.state is JobState.READY and job.start_when_ready:
-                self._print_queue.put_nowait(job.id)
-        self._tasks = [asyncio.create_task(self._compile_loop(), name="compile"),
-                       asyncio.create_task(self._print_loop(), name="print"),
+                self.state.queue_print(job.id)
+        self._tasks = [asyncio.create_task(self.compiler.run(), name="compile"),
+                       asyncio.create_task(self.printing.run(), name="print"),
                        asyncio.create_task(self._printer_events(), name="printer events")]
 
     async def _printer_events(self) -> None:
@@ -341,7 +182,7 @@ class RibbonService:
         while True:
             await asyncio.sleep(PRINTER_EVENT_S)
             try:
-                status = await self.printer_status()
+                status = await self.manual.printer_status()
             except Exception:  # noqa: BLE001 - a status that cannot be read is not worth a stop
                 log.debug("printer status for the events", exc_info=True)
                 continue
@@ -350,141 +191,29 @@ class RibbonService:
                 last = status
 
     async def shutdown(self, reason: str = "the daemon was stopped") -> None:
-        """Stop safely before the daemon exits: a job on the printer ends its stream at a line
-        boundary, the heaters go off, the head is lifted by the profile's park lift, and the job is
-        ``interrupted`` with an exact checkpoint. If that does not finish in ``STOP_TIMEOUT_S``,
-        the emergency stop (M112: heaters off in the firmware)."""
-        self._stopping = True
-        run = self._run
-        if run is None:
-            await self._heaters_off_if_on()
-            return
-        run.stop_reason = reason
-        self._interrupt(run)
-        try:
-            await asyncio.wait_for(run.done.wait(), STOP_TIMEOUT_S)
-        except asyncio.TimeoutError:
-            log.error("the safe stop did not finish in %.0f s: emergency stop", STOP_TIMEOUT_S)
-            with contextlib.suppress(Exception):
-                if self.link is not None:
-                    self.link.emergency_stop()
-
-    async def _break_heater_waits(self, run: _Run, link: PrinterLink) -> None:
-        """M109/M190 hold the firmware's queue until hot, and the lines in flight may hold more
-        than one: M108 ends each wait (the emergency parser acts on it at arrival, ahead of the
-        queue), again until the stream has ended."""
-        while not run.done.is_set() and link.state in (LinkState.STREAMING, LinkState.PAUSED) \
-                and run.stream is not None:
-            await link.send("M108", timeout=30)
-            await asyncio.sleep(0.3)
-
-    def _background(self, coroutine: Any, what: str) -> None:
-        """Run ``coroutine`` without waiting for it; its failure is logged."""
-        task = asyncio.ensure_future(coroutine)
-
-        def done(t: asyncio.Future[Any]) -> None:
-            if not t.cancelled() and t.exception() is not None:
-                log.warning("%s: %s", what, t.exception())
-
-        task.add_done_callback(done)
-        self._background_tasks.add(task)
-        task.add_done_callback(self._background_tasks.discard)
-
-    async def _cool_after_interruption(self) -> None:
-        """Once the printer is connected: heaters and fan off, whatever the last daemon left on."""
-        while not self._connected():
-            if self._stopping:
-                return
-            await asyncio.sleep(0.1)
-        link = self._require_link()
-        with contextlib.suppress(LinkError, asyncio.TimeoutError):
-            async with self._manual:
-                for command in ("M104 S0", "M140 S0", "M107"):
-                    await link.send(command, timeout=10)
-            log.info("heaters off: the last daemon stopped with a job on the printer")
-
-    async def _heaters_off_if_on(self) -> None:
-        """No job on the printer, but heaters the operator turned on (``heat``): off before leaving."""
-        link = self.link
-        if link is None or link.state is not LinkState.READY:
-            return
-        with contextlib.suppress(LinkError, asyncio.TimeoutError):
-            temps = await asyncio.wait_for(link.query_temperatures(), 10)
-            if any((h.target or 0) > 0 for h in temps.heaters):
-                log.info("heaters off before stopping")
-                async with self._manual:
-                    for command in ("M104 S0", "M140 S0"):
-                        await link.send(command, timeout=10)
+        """Stop safely before the daemon exits (``PrintTask.shutdown``: the job on the printer
+        ``interrupted`` at an exact checkpoint, heaters off, head lifted)."""
+        await self.printing.shutdown(reason)
 
     async def close(self) -> None:
-        for proc in self._compiling.values():
-            with contextlib.suppress(ProcessLookupError):
-                proc.kill()
+        self.compiler.stop_all()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
 
-    def _interrupt(self, run: _Run) -> None:
-        """Make the print task leave what it waits on (the stream, a heater wait, the flip, the marks)."""
-        link = self.link
-        if link is not None and link.state in (LinkState.STREAMING, LinkState.PAUSED):
-            with contextlib.suppress(NotFound):
-                if self.job(run.job_id).state is JobState.HEATING and link.capabilities.emergency_parser:
-                    self._background(self._break_heater_waits(run, link), "M108")
-            with contextlib.suppress(LinkError):
-                link.cancel()
-        run.flip.set()
-        run.aligned.set()
-        run.checked.set()
-        if run.heaters is not None:
-            run.heaters.cancel()
-
-    # ------------------------------------------------------------------ events
-
-    def _publish(self, job: JobRecord, **extra: Any) -> None:
-        self.bus.publish({"type": "job", "job": self.status(job), **extra})
-
-    def _transition(self, job_id: str, new: JobState, **fields: Any) -> JobRecord:
-        job = self.store.transition(job_id, new, **fields)     # committed before it is published
-        log.info("job %s -> %s%s", job_id, new.value, f" ({fields['reason']})" if fields.get("reason") else "")
-        self._publish(job)
-        return job
-
-    async def _wait_state(self, job_id: str, done: Any, timeout: float) -> JobRecord:
-        """The job once ``done(state)`` holds (or after ``timeout`` s, as it is then)."""
-        deadline = time.monotonic() + timeout
-        while True:
-            job = self.job(job_id)
-            if done(job.state) or time.monotonic() > deadline:
-                return job
-            await asyncio.sleep(0.02)
-
     # ------------------------------------------------------------------ jobs
 
     def job(self, job_id: str) -> JobRecord:
-        try:
-            return self.store.get(job_id)
-        except KeyError:
-            raise NotFound(f"no job {job_id!r}") from None
+        return self.records.get(job_id)
 
     def jobs(self, states: list[JobState] | None = None, limit: int | None = None,
              offset: int = 0) -> list[JobRecord]:
         return self.store.list(states, limit=limit, offset=offset)
 
     def job_dir(self, job_id: str) -> Path:
-        return self.jobs_dir / job_id
-
-    def _queued(self) -> int:
-        """Jobs that count against ``limits.max_jobs``: compiling or waiting to, printing or queued
-        to print (a ``ready`` design nobody started does not count)."""
-        return sum(1 for j in self.store.active() if j.state is not JobState.READY or j.start_when_ready)
-
-    def _check_queue(self) -> None:
-        if self._queued() >= self.config.limits.max_jobs:
-            raise ServiceError(f"{self.config.limits.max_jobs} jobs are already queued or printing "
-                               "(limits.max_jobs); wait for some to finish, or cancel some")
+        return self.records.dir(job_id)
 
     def submit(self, upload: Path, name: str, parameters: dict[str, Any], start: bool) -> JobRecord:
         """Take an uploaded mesh (``upload``, moved into the job's folder) and queue its compile.
@@ -498,7 +227,7 @@ class RibbonService:
         if Path(safe).suffix.lower() not in MESH_SUFFIXES:
             raise ValueError(f"{name!r}: not a mesh file the engine reads ({', '.join(MESH_SUFFIXES)})")
         self._check_settings(parameters)
-        self._check_queue()
+        self.records.check_queue()
         job_id = new_id()
         folder = self.job_dir(job_id)
         try:
@@ -510,8 +239,8 @@ class RibbonService:
         except BaseException:
             shutil.rmtree(folder, ignore_errors=True)
             raise
-        self._publish(job)
-        self._compile_queue.put_nowait(job.id)
+        self.records.publish(job)
+        self.compiler.queue(job.id)
         return job
 
     def _check_settings(self, parameters: dict[str, Any]) -> None:
@@ -523,7 +252,7 @@ class RibbonService:
             raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
                              "printer; leave printer_profile out (designs are made for the daemon's printer)")
         check_printable(settings.parameters, self.profile.frame.size, self.profile.extruder.nozzle_diameter)
-        self.check_table_name(settings.parameters.curvature_table)
+        self.library.check_table_name(settings.parameters.curvature_table)
         limit = self.config.limits.max_faces
         if settings.solver.max_faces > limit and "max_faces" in settings.solver.model_fields_set:
             raise ValueError(f"solver.max_faces = {settings.solver.max_faces}: above this daemon's limit "
@@ -550,25 +279,19 @@ class RibbonService:
         # checked and estimated beside the loop: a long program must not hold up the printer's stream
         commands, timeline = await asyncio.to_thread(_check_and_estimate, text, self.profile, safe)
         if start:
-            self._check_queue()
+            self.records.check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
                                 kind="gcode")
         folder = self.job_dir(job.id)
         folder.mkdir(parents=True, exist_ok=True)
         program = folder / "program.gcode"
         shutil.move(str(upload), program)
-        job = self._transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
-                               mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
-                               estimate_s={"front": timeline.total})
+        job = self.records.transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
+                                      mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
+                                      estimate_s={"front": timeline.total})
         if start:
-            self._print_queue.put_nowait(job.id)
+            self.state.queue_print(job.id)
         return job
-
-    def _has_program(self, job: JobRecord) -> bool:
-        if not job.design_dir:
-            return False
-        folder = Path(job.design_dir)
-        return (folder / ("program.gcode" if job.kind == "gcode" else "front.gcode")).is_file()
 
     def start_job(self, job_id: str) -> JobRecord:
         """Queue a job for printing: a compiled one, one still compiling (it prints when ready), or
@@ -576,223 +299,78 @@ class RibbonService:
         job = self.job(job_id)
         if job.state in (JobState.SUBMITTED, JobState.COMPILING):
             job = self.store.update(job_id, start_when_ready=True)
-            self._publish(job)
+            self.records.publish(job)
             return job
-        if job.state is JobState.INTERRUPTED and job.kind == "design" and not self._has_program(job) \
+        if job.state is JobState.INTERRUPTED and job.kind == "design" and not has_program(job) \
                 and Path(job.mesh_path).is_file():
             # the daemon stopped during the compile: compile it again
-            self._check_queue()
-            job = self._transition(job_id, JobState.SUBMITTED, reason="compiled again", start_when_ready=True,
-                                   error=None, stage=None, progress=None)
-            self._compile_queue.put_nowait(job_id)
+            self.records.check_queue()
+            job = self.records.transition(job_id, JobState.SUBMITTED, reason="compiled again",
+                                          start_when_ready=True, error=None, stage=None, progress=None)
+            self.compiler.queue(job_id)
             return job
         if job.state.terminal:
-            if not self._has_program(job):
-                raise ServiceError(f"cannot start: job {job_id} has no design to print"
-                                   + (f" (its compile failed: {job.error})" if job.error else "")
-                                   + "; submit the mesh again")
-            self._check_queue()
-            runs = list(job.runs)
-            started = [t.at for t in self.store.transitions(job_id) if t.to_state is JobState.HEATING]
-            if started:
-                runs.append({"run": len(runs) + 1, "started": started[-1], "ended": job.updated,
-                             "state": job.state.value, "error": job.error, "side": job.side,
-                             "lines_total": job.lines_total, "last_acked_line": job.last_acked_line,
-                             "checkpoint": job.checkpoint, "checkpoint_line": job.checkpoint_line,
-                             "correction": job.correction})
-            job = self._transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
-                                   runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
-                                   lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
-                                   side=None, correction=None, paused_from=None)
-            self._print_queue.put_nowait(job_id)
-            return job
+            return self._start_again(job)
         if job.state is not JobState.READY:
             raise IllegalTransition(job.state, "start")
         if job.start_when_ready:
             return job                                        # already queued
-        self._check_queue()
+        self.records.check_queue()
         job = self.store.update(job_id, start_when_ready=True)
-        self._print_queue.put_nowait(job_id)
-        self._publish(job)
+        self.state.queue_print(job_id)
+        self.records.publish(job)
+        return job
+
+    def _start_again(self, job: JobRecord) -> JobRecord:
+        """A new run of an ended job's design: the ended run (if it reached the printer) kept in
+        ``runs``, the job ``ready`` and queued."""
+        job_id = job.id
+        if not has_program(job):
+            raise ServiceError(f"cannot start: job {job_id} has no design to print"
+                               + (f" (its compile failed: {job.error})" if job.error else "")
+                               + "; submit the mesh again")
+        self.records.check_queue()
+        runs = list(job.runs)
+        started = [t.at for t in self.store.transitions(job_id) if t.to_state is JobState.HEATING]
+        if started:
+            runs.append({"run": len(runs) + 1, "started": started[-1], "ended": job.updated,
+                         "state": job.state.value, "error": job.error, "side": job.side,
+                         "lines_total": job.lines_total, "last_acked_line": job.last_acked_line,
+                         "checkpoint": job.checkpoint, "checkpoint_line": job.checkpoint_line,
+                         "correction": job.correction})
+        job = self.records.transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
+                                      runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
+                                      lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
+                                      side=None, correction=None, paused_from=None)
+        self.state.queue_print(job_id)
         return job
 
     async def cancel(self, job_id: str) -> JobRecord:
         job = self.job(job_id)
         if JobState.CANCELLED not in TRANSITIONS[job.state]:
             raise IllegalTransition(job.state, "cancel")
-        proc = self._compiling.get(job_id)
-        if proc is not None:
-            with contextlib.suppress(ProcessLookupError):
-                proc.kill()
-            return await self._wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
-        run = self._run
-        if run is not None and run.job_id == job_id:
+        if self.compiler.stop(job_id):
+            return await self.records.wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
+        run = self.state.current(job_id)
+        if run is not None:
             run.cancel_requested = True
-            self._interrupt(run)
+            self.printing.interrupt(run)
             # the printer task finishes the cancel (heaters off, head up)
-            return await self._wait_state(job_id, lambda s: s.terminal, 60)
-        return self._transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
-                                start_when_ready=False, stage=None)
+            return await self.records.wait_state(job_id, lambda s: s.terminal, 60)
+        return self.records.transition(job_id, JobState.CANCELLED, reason="cancelled by the operator",
+                                       start_when_ready=False, stage=None)
 
     def delete(self, job_id: str) -> None:
         """Remove a job and its files (uploads, design, programs); refused while it compiles or
         holds the printer."""
         job = self.job(job_id)
         if job.state.holds_printer or job.state in (JobState.SUBMITTED, JobState.COMPILING) \
-                or (self._run is not None and self._run.job_id == job_id):
+                or self.state.current(job_id) is not None:
             raise IllegalTransition(job.state, "delete", hint=f"cancel it first: ribbonctl cancel {job_id}")
         self.store.delete(job_id)
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
         log.info("job %s deleted", job_id)
         self.bus.publish({"type": "deleted", "job_id": job_id})
-
-    # ------------------------------------------------------------------ curvature tables (issue 15)
-
-    @property
-    def tables_dir(self) -> Path:
-        """The daemon's own curvature tables, ``<state_dir>/tables/NAME.toml``."""
-        return Path(self.config.state_dir) / "tables"
-
-    def table_names(self) -> dict[str, str]:
-        """Every table a design may name: ``name -> "shipped" | "daemon"``."""
-        names = {n: "shipped" for n in available_tables()}
-        if self.tables_dir.is_dir():
-            names.update({p.stem: "daemon" for p in self.tables_dir.glob("*.toml") if TABLE_NAME.match(p.stem)})
-        return dict(sorted(names.items()))
-
-    def check_table_name(self, name: Any) -> None:
-        """A design's ``curvature_table`` must name a known table: a path is refused (the daemon reads no
-        file a client points at)."""
-        known = self.table_names()
-        if not isinstance(name, str) or name not in known:
-            what = "is a path, not a table name" if isinstance(name, str) and ("/" in name or "\\" in name
-                                                                              or name.endswith(".toml")) else "is unknown"
-            raise ValueError(f"curvature_table {name!r} {what}; the daemon's tables: {', '.join(known)} "
-                             "(add one with 'ribbonctl tables add FILE')")
-
-    def _table(self, name: str) -> tuple[CurvatureTable, str]:
-        source = self.table_names().get(name)
-        if source is None:
-            raise NotFound(f"no curvature table {name!r}; tables: {', '.join(self.table_names())}")
-        return load_curvature_table(name, tables_dir=self.tables_dir), source
-
-    def tables(self) -> list[dict[str, Any]]:
-        out = []
-        for name, source in self.table_names().items():
-            try:
-                t, _ = self._table(name)
-                out.append({"name": name, "source": source, "material": t.material, "fabric": t.fabric,
-                            "prestretch": t.prestretch, "description": t.description})
-            except ValueError as exc:
-                out.append({"name": name, "source": source, "error": str(exc)})
-        return out
-
-    def table(self, name: str) -> dict[str, Any]:
-        t, source = self._table(name)
-        return {"source": source, **t.model_dump(mode="json")}
-
-    def add_table(self, text: str) -> dict[str, Any]:
-        """Add (or replace) a daemon table from the text of its TOML file; its ``name`` names it.
-
-        Raises ValueError for an invalid table (the field named), a name that is not a plain name, or
-        the name of a shipped table."""
-        import tomllib
-
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"the curvature table is not valid TOML: {exc}") from None
-        try:
-            table = CurvatureTable(**data)
-        except ValidationError as exc:
-            problems = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or '(file)'}: {e['msg']}" for e in exc.errors())
-            raise ValueError(f"invalid curvature table: {problems}") from None
-        if not TABLE_NAME.match(table.name):
-            raise ValueError(f"table name {table.name!r}: letters, digits, '-' and '_' only (at most 64)")
-        if table.name in available_tables():
-            raise ValueError(f"{table.name!r} is a shipped table: give yours another name")
-        self.tables_dir.mkdir(parents=True, exist_ok=True)
-        path = self.tables_dir / f"{table.name}.toml"
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-        log.info("curvature table %s added", table.name)
-        return {"source": "daemon", **table.model_dump(mode="json")}
-
-    def remove_table(self, name: str) -> None:
-        source = self.table_names().get(name)
-        if source is None:
-            raise NotFound(f"no curvature table {name!r}")
-        if source == "shipped":
-            raise ServiceError(f"{name!r} is a shipped table: it cannot be removed")
-        users = [j.id for j in self.store.active() if j.state in (JobState.SUBMITTED, JobState.COMPILING)
-                 and j.parameters.get("curvature_table") == name]
-        if users:
-            raise ServiceError(f"table {name!r} is used by job(s) {', '.join(users)} being compiled")
-        (self.tables_dir / f"{name}.toml").unlink()
-
-    # ------------------------------------------------------------------ calibration plans (issue 15)
-
-    @property
-    def calibrations_dir(self) -> Path:
-        return Path(self.config.state_dir) / "calibrations"
-
-    async def submit_calibration(self, spec: dict[str, Any], start: bool) -> dict[str, Any]:
-        """Make a calibration plan (``python -m ribbond.calibration plan``, its own process) for this
-        daemon's printer and one ``ready`` two-sided job per sheet (the first queued if ``start``)."""
-        from .calibration.spec import CalibrationSpec
-
-        asked = spec.get("printer_profile")
-        if asked is not None and asked != self.config.printer_profile:
-            raise ValueError(f"printer_profile {asked!r}: this daemon drives a {self.config.printer_profile!r} "
-                             "printer; leave printer_profile out")
-        base = spec.get("base_table", CalibrationSpec().base_table)
-        if base not in available_tables():
-            raise ValueError(f"base_table {base!r}: give a shipped table ({', '.join(available_tables())})")
-        cal = CalibrationSpec.model_validate({**spec, "printer_profile": self.config.printer_profile})
-        if start:
-            self._check_queue()
-        cal_id = "cal-" + os.urandom(4).hex()
-        folder = self.calibrations_dir / cal_id
-        folder.parent.mkdir(parents=True, exist_ok=True)
-        proc = await asyncio.create_subprocess_exec(
-            self.python, "-m", "ribbond.calibration", "plan", "--spec", cal.model_dump_json(), "-o", str(folder),
-            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, env=worker_environment())
-        out, err = await proc.communicate()
-        if proc.returncode != 0:
-            tail = (err.decode(errors="replace").strip().splitlines() or ["no output"])[-1]
-            shutil.rmtree(folder, ignore_errors=True)
-            raise ValueError(f"the calibration plan cannot be made: {tail}")
-        plan = json.loads((folder / "plan.json").read_text(encoding="utf-8"))
-        jobs = []
-        for sheet in plan["sheets"]:
-            k = sheet["sheet"]
-            job = self.store.create(mesh_name=f"{cal_id}-sheet-{k}", mesh_path=str(folder),
-                                    parameters={"calibration": cal_id, "sheet": k}, start_when_ready=start and k == 1)
-            (self.job_dir(job.id) / "plans").mkdir(parents=True, exist_ok=True)
-            for side in ("front", "back"):
-                shutil.copyfile(folder / "plans" / f"sheet-{k}-{side}-plan.npz",
-                                self.job_dir(job.id) / "plans" / f"{side}-plan.npz")
-            job = self._transition(job.id, JobState.READY,
-                                   reason=f"calibration {cal_id}: sheet {k} of {len(plan['sheets'])}, coupons "
-                                          f"{sheet['coupons'][0]}-{sheet['coupons'][-1]}",
-                                   design_dir=str(folder / f"sheet-{k}"), estimate_s=sheet["time_s"])
-            if job.start_when_ready:
-                self._print_queue.put_nowait(job.id)
-            jobs.append(job.id)
-        return {"calibration": cal_id, "sheets": len(plan["sheets"]), "coupons": len(plan["coupons"]),
-                "jobs": jobs, "folder": str(folder)}
-
-    def calibration_file(self, cal_id: str, name: str) -> Path:
-        """A file of a calibration plan: plan.json, coupons.csv, sheet-K.png or sheet-K.svg."""
-        if not re.fullmatch(r"cal-[0-9a-f]{8}", cal_id) or not (self.calibrations_dir / cal_id).is_dir():
-            raise NotFound(f"no calibration {cal_id!r}")
-        if not re.fullmatch(r"plan\.json|coupons\.csv|sheet-[0-9]{1,3}\.(png|svg)", name):
-            raise NotFound(f"{name!r} is not a calibration file; files: plan.json, coupons.csv, sheet-K.png, sheet-K.svg")
-        path = self.calibrations_dir / cal_id / name
-        if not path.is_file():
-            raise NotFound(f"calibration {cal_id} has no {name}")
-        return path
 
     # ------------------------------------------------------------------ what a person sees
 
@@ -815,26 +393,8 @@ class RibbonService:
         totals = {k: float(v) for k, v in (job.estimate_s or {}).items() if v}
         if not totals:
             return out
-        run = self._run if self._run is not None and self._run.job_id == job.id else None
-        stream = run.stream if run is not None else None
-        rate = self._rate or 1.0
-        side = job.side or "front"
-        done_side: float | None = None
-        if stream is not None:
-            side = stream.side
-            totals[side] = stream.timeline.total or totals.get(side, 0.0)
-            # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
-            acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
-            done_side = stream.timeline.done_s(acked)
-            rate = self._stream_rate(stream) or rate
-            out["ribbon"] = stream.timeline.ribbon_at(acked) or None
-            out["ribbons"] = stream.timeline.ribbons or None
-        elif s is JobState.PRINTING_BACK:
-            done_side = 0.0     # the back's stream is not set up yet: the lines stored are the front's
-        elif job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,
-                                       JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
-            # not streaming now: where it stood, by the lines acknowledged
-            done_side = totals.get(side, 0.0) * min(1.0, max(job.last_acked_line, 0) / job.lines_total)
+        run = self.state.current(job.id)
+        side, done_side, rate = self._side_progress(job, totals, run.stream if run is not None else None, out)
         total = sum(totals.values()) or 1.0
         front = totals.get("front", 0.0)
         if s in (JobState.READY, JobState.SUBMITTED):
@@ -850,36 +410,39 @@ class RibbonService:
             out["elapsed_s"] = time.time() - run.started
         return out
 
-    @staticmethod
-    def _stream_rate(stream: _Stream) -> float | None:
-        """Measured seconds per estimated second since the stream passed its heating (pauses left out)."""
-        if stream.printing_since is None:
-            return None
-        tl = stream.timeline
-        estimated = tl.done_s(stream.acked) - tl.done_s(tl.first)
-        now = stream.paused_at if stream.paused_at is not None else time.monotonic()
-        measured = now - stream.printing_since - stream.paused_s
-        if estimated < 0.5 or measured <= 0:
-            return None
-        return measured / estimated
+    def _side_progress(self, job: JobRecord, totals: dict[str, float], stream: Stream | None,
+                       out: dict[str, Any]) -> tuple[str, float | None, float]:
+        """The side printing, the estimated seconds of it done (None: not known from the lines) and
+        the rate; a stream puts its own total in ``totals`` and its ribbon in ``out``."""
+        s = job.state
+        rate = self.state.rate or 1.0
+        side: str = job.side or "front"
+        if stream is not None:
+            side = stream.side
+            totals[side] = stream.timeline.total or totals.get(side, 0.0)
+            # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
+            acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
+            out["ribbon"] = stream.timeline.ribbon_at(acked) or None
+            out["ribbons"] = stream.timeline.ribbons or None
+            return side, stream.timeline.done_s(acked), stream_rate(stream) or rate
+        if s is JobState.PRINTING_BACK:
+            return side, 0.0, rate  # the back's stream is not set up yet: the lines stored are the front's
+        if job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,
+                                     JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
+            # not streaming now: where it stood, by the lines acknowledged
+            return side, totals.get(side, 0.0) * min(1.0, max(job.last_acked_line, 0) / job.lines_total), rate
+        return side, None, rate
 
     def guidance(self, job: JobRecord) -> dict[str, Any]:
         """What the operator does next: an instruction and the exact commands, for every state."""
         j, s = job.id, job.state
-        run = self._run if self._run is not None and self._run.job_id == j else None
-        cmds: list[str] = [f"ribbonctl {c} {j}" for c in COMMANDS[s]]
+        run = self.state.current(j)
+        cmds: list[str] | None = None                    # None: the commands of the state (COMMANDS)
         if s in (JobState.SUBMITTED, JobState.COMPILING):
             text = "compiling; it prints when compiled" if job.start_when_ready else \
                 f"compiling; then print it with: ribbonctl start {j}"
         elif s is JobState.READY:
-            if job.start_when_ready:
-                connected = self.link is not None and self.link.state in (LinkState.READY, LinkState.STREAMING,
-                                                                          LinkState.PAUSED)
-                text = "queued: it prints when the printer is free" + (
-                    "" if connected else " (the printer is not connected: it prints once it is)")
-                cmds = [f"ribbonctl cancel {j}"]
-            else:
-                text = f"ready to print: ribbonctl start {j}"
+            text, cmds = self._ready_guidance(job)
         elif s is JobState.HEATING:
             text = "heating; the print starts when the nozzle is hot"
         elif s in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK):
@@ -888,53 +451,48 @@ class RibbonService:
             text = (f"paused, the head parked; move it with ribbonctl jog/goto/home if needed, then "
                     f"resume: ribbonctl resume {j} (it reheats first)")
         elif s is JobState.AWAITING_FLIP:
-            axis = self.profile.frame.flip_axis
-            other, c = ("x", self.profile.frame.center[0]) if axis == "y" else ("y", self.profile.frame.center[1])
-            refused = f"the alignment was refused ({job.error}); " if job.error else ""
-            text = (f"{refused}the front is printed. Turn the frame over about its {axis} axis (the line "
-                    f"{other} = {c:g}), seat it again, then run: ribbonctl flip-done {j}")
-            cmds = [f"ribbonctl flip-done {j}", f"ribbonctl cancel {j}"]
+            text, cmds = self._flip_guidance(job), [f"ribbonctl flip-done {j}", f"ribbonctl cancel {j}"]
         elif s is JobState.ALIGNING:
-            al = run.alignment if run is not None else None
-            if al is None or al.current == 0:
-                nxt = al.next_mark if al is not None else 1
-                text = f"aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
-            else:
-                k, n = al.current, len(al.expected)
-                text = (f"mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
-                        f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
-                        f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
-            cmds = [f"ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
+            text = _aligning_guidance(j, run.alignment if run is not None else None)
+            cmds = ["ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
         elif s is JobState.FITTED:
-            fit = run.alignment.fit if run is not None and run.alignment is not None else None
-            seen = (f"the fit turns the back by {fit['rotation_deg']:.2f}° and moves it by "
-                    f"({fit['offset'][0]:.2f}, {fit['offset'][1]:.2f}) mm, {fit['max_residual_mm']:.2f} mm "
-                    "off at the worst mark. ") if fit else ""
-            text = (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
-                    f"re-seat the frame and align again (ribbonctl re-seat {j})")
+            text = _fitted_guidance(j, run.alignment.fit if run is not None and run.alignment is not None else None)
         elif s is JobState.AWAITING_CHECK:
-            plan = run.resume if run is not None and run.resume is not None else self._resumes.get(j)
-            side = plan.side if plan is not None else job.side or "front"
-            keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
-                "stored alignment" if job.side == "back" and job.correction else ""
-            text = (f"resuming: check the frame is seated, {side} side up, and nothing is in the way, then "
-                    f"run: ribbonctl frame-ok {j}" + (" (the registration marks are measured again"
-                                                     f"{keep})" if side == "back" else ""))
+            text = self._check_guidance(job)
         elif s is JobState.DONE:
             text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
         else:
-            why = f" ({job.error})" if job.error else ""
-            if s is JobState.INTERRUPTED and job.kind == "design" and self._has_program(job) and job.side:
-                text = (f"interrupted{why}; resume it where it was proven to stand: ribbonctl resume {j} "
-                        f"[--partial skip|reprint] (the ribbon begun and not proven printed: skipped by "
-                        f"default), print it again from the start: ribbonctl start {j}, or remove it: "
-                        f"ribbonctl delete {j}")
-            elif self._has_program(job):
-                text = f"{s.value}{why}; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
-            else:
-                text = f"{s.value}{why}; nothing to print: submit the mesh again (ribbonctl delete {j} removes it)"
-                cmds = [f"ribbonctl delete {j}"]
-        return {"instruction": text, "commands": cmds}
+            text, cmds = _ended_guidance(job)
+        return {"instruction": text, "commands": cmds if cmds is not None else [f"ribbonctl {c} {j}"
+                                                                                for c in COMMANDS[s]]}
+
+    def _ready_guidance(self, job: JobRecord) -> tuple[str, list[str] | None]:
+        j = job.id
+        if not job.start_when_ready:
+            return f"ready to print: ribbonctl start {j}", None
+        link = self.head.link
+        connected = link is not None and link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
+        text = "queued: it prints when the printer is free" + (
+            "" if connected else " (the printer is not connected: it prints once it is)")
+        return text, [f"ribbonctl cancel {j}"]
+
+    def _flip_guidance(self, job: JobRecord) -> str:
+        frame = self.profile.frame
+        axis = frame.flip_axis
+        other, c = ("x", frame.center[0]) if axis == "y" else ("y", frame.center[1])
+        refused = f"the alignment was refused ({job.error}); " if job.error else ""
+        return (f"{refused}the front is printed. Turn the frame over about its {axis} axis (the line "
+                f"{other} = {c:g}), seat it again, then run: ribbonctl flip-done {job.id}")
+
+    def _check_guidance(self, job: JobRecord) -> str:
+        j, run = job.id, self.state.current(job.id)
+        plan = run.resume if run is not None and run.resume is not None else self.state.resumes.get(j)
+        side = plan.side if plan is not None else job.side or "front"
+        keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
+            "stored alignment" if job.side == "back" and job.correction else ""
+        return (f"resuming: check the frame is seated, {side} side up, and nothing is in the way, then "
+                f"run: ribbonctl frame-ok {j}" + (" (the registration marks are measured again"
+                                                 f"{keep})" if side == "back" else ""))
 
     def status(self, job: JobRecord) -> dict[str, Any]:
         """The job as people see it: the record, its progress and time left, what to do next."""
@@ -942,8 +500,8 @@ class RibbonService:
         info = self.progress(job)
         data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
                     compile_progress=job.progress, waits_for_operator=self._waits(job))
-        run = self._run
-        if job.state is JobState.FITTED and run is not None and run.job_id == job.id and run.alignment is not None:
+        run = self.state.current(job.id)
+        if job.state is JobState.FITTED and run is not None and run.alignment is not None:
             data["fit"] = run.alignment.fit
         return data
 
@@ -953,921 +511,7 @@ class RibbonService:
         if job.state is JobState.READY:
             return not job.start_when_ready
         if job.state is JobState.ALIGNING:
-            run = self._run
-            return run is not None and run.job_id == job.id and run.alignment is not None \
-                and run.alignment.current > 0
+            run = self.state.current(job.id)
+            return run is not None and run.alignment is not None and run.alignment.current > 0
         return job.state in (JobState.AWAITING_FLIP, JobState.FITTED, JobState.PAUSED) or (
             job.state is JobState.AWAITING_CHECK and job.stage == "check the frame")
-
-    # ------------------------------------------------------------------ compiling
-
-    async def _compile_loop(self) -> None:
-        while True:
-            job_id = await self._compile_queue.get()
-            try:
-                await self._compile(job_id)
-            except NotFound:
-                continue
-            except Exception:  # noqa: BLE001 - one job's failure never stops the daemon
-                log.exception("compiling job %s", job_id)
-                with contextlib.suppress(Exception):
-                    self._transition(job_id, JobState.FAILED, reason="internal error while compiling (see the log)")
-
-    async def _compile(self, job_id: str) -> None:
-        job = self.job(job_id)
-        if job.state is not JobState.SUBMITTED:
-            return
-        folder = self.job_dir(job_id)
-        if not Path(job.mesh_path).is_file() or not folder.is_dir():
-            # a job an older daemon left without its upload (its row was written first)
-            self._transition(job_id, JobState.FAILED, reason="the uploaded mesh is missing",
-                             error=f"the uploaded mesh {job.mesh_name!r} was never stored (the submit failed "
-                                   "part way); submit it again")
-            return
-        params = {**job.parameters, "printer_profile": self.config.printer_profile}
-        self._transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
-        log_path = folder / "compile.log"
-        with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
-            proc = await asyncio.create_subprocess_exec(
-                *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans",
-                                self.tables_dir, self.config.limits.max_faces),
-                stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
-        self._compiling[job_id] = proc
-        last: dict[str, Any] = {}
-        try:
-            assert proc.stdout is not None
-            async for raw in proc.stdout:
-                try:
-                    event = json.loads(raw)
-                except ValueError:
-                    continue
-                last = event
-                if event.get("event") == "stage":
-                    self._publish(self.store.update(job_id, stage=event["stage"], progress=None))
-                elif event.get("event") == "iteration":
-                    self._publish(self.job(job_id), progress_event=event)
-            code = await proc.wait()
-        finally:
-            self._compiling.pop(job_id, None)
-        if self.job(job_id).state is not JobState.COMPILING:
-            return                                            # cancelled meanwhile
-        if code == 0 and last.get("event") == "done":
-            printed = (last.get("report") or {}).get("print") or {}
-            estimate = {side: float((printed.get(side) or {}).get("time_s") or 0.0) for side in ("front", "back")}
-            job = self._transition(job_id, JobState.READY, design_dir=last["design_dir"], stage=None, progress=None,
-                                   estimate_s=estimate)
-            if job.start_when_ready:
-                self._print_queue.put_nowait(job_id)
-        elif last.get("event") == "error":
-            self._transition(job_id, JobState.FAILED, reason=last["message"], error=last["message"])
-        elif code < 0:
-            self._transition(job_id, JobState.CANCELLED, reason="the compile was stopped")
-        else:
-            tail = log_path.read_text(errors="replace").strip().splitlines()[-1:] or ["no output"]
-            self._transition(job_id, JobState.FAILED, reason=f"the compiler stopped ({code}): {tail[0]}",
-                             error=tail[0])
-
-    # ------------------------------------------------------------------ printing
-
-    def _connected(self) -> bool:
-        return self.link is not None and self.link.state is LinkState.READY
-
-    async def _print_loop(self) -> None:
-        while True:
-            job_id = await self._print_queue.get()
-            try:
-                job = self.job(job_id)
-            except NotFound:
-                continue                                      # deleted while queued
-            resume = self._resumes.pop(job_id, None)
-            if resume is not None and job.state is JobState.AWAITING_CHECK:
-                self._run = run = _Run(job_id, resume=resume)
-                await self._run_print(run, job)
-                continue
-            if job.state is not JobState.READY or not job.start_when_ready:
-                continue
-            if self._stopping:
-                continue                                      # the daemon stops: queued again at its next start
-            if not self._connected():                         # wait for the printer, do not fail
-                log.info("job %s waits for the printer to connect", job_id)
-                self._publish(self.store.update(job_id, stage="waiting for the printer"))
-                while not self._connected() and not self._stopping and self._job_exists(job_id) \
-                        and self.job(job_id).state is JobState.READY:
-                    await asyncio.sleep(0.2)
-                if not self._job_exists(job_id) or self.job(job_id).state is not JobState.READY or self._stopping:
-                    continue
-                job = self.store.update(job_id, stage=None)
-            self._run = run = _Run(job_id)
-            await self._run_print(run, job)
-
-    async def _run_print(self, run: _Run, job: JobRecord) -> None:
-        try:
-            await self._print(job)
-        except StreamCancelled:
-            await self._end_run_logged(run, None)
-        except Exception as exc:  # noqa: BLE001 - any fatal error of the print task: stop safely
-            log.exception("printing job %s", job.id)
-            kind = "printer" if isinstance(exc, (LinkError, OSError)) else "internal error"
-            await self._end_run_logged(run, f"{kind}: {exc}")
-        finally:
-            if run.heaters is not None:
-                run.heaters.cancel()
-            self._run = None
-            run.done.set()
-
-    def _job_exists(self, job_id: str) -> bool:
-        try:
-            self.store.get(job_id)
-        except KeyError:
-            return False
-        return True
-
-    async def _end_run_logged(self, run: _Run, error: str | None) -> None:
-        try:
-            await self._end_run(run, error)
-        except Exception:  # noqa: BLE001 - the print queue goes on with the next job
-            log.exception("ending the run of job %s", run.job_id)
-
-    async def _end_run(self, run: _Run, error: str | None) -> None:
-        """After the stream ended early: heaters off, head lifted; the job ``cancelled`` (asked for),
-        or ``interrupted`` (the daemon stops, or ``error``) with the exact checkpoint."""
-        stopped = await self._safe_stop()
-        job = self.job(run.job_id)
-        if job.state.terminal:
-            return
-        if run.cancel_requested and error is None:
-            self._transition(run.job_id, JobState.CANCELLED, reason="cancelled by the operator",
-                             start_when_ready=False, stage="cancelled: heaters off, head lifted" if stopped else None)
-            return
-        reason = error or run.stop_reason or "stopped"
-        if stopped and job.state in (JobState.HEATING, JobState.PRINTING_FRONT, JobState.PRINTING_BACK,
-                                     JobState.PAUSED):
-            # after M400 every acknowledged line has been executed: the checkpoint is exact
-            side = job.side or "front"
-            self.store.record_ack(run.job_id, self._acked)
-            self.store.checkpoint(run.job_id, f"{side}_stopped", self._acked)
-        self._transition(run.job_id, JobState.INTERRUPTED, reason=reason, start_when_ready=False,
-                         stage="stopped: heaters off, head lifted" if stopped else "stopped")
-
-    async def _print(self, job: JobRecord) -> None:
-        link = self._require_link()
-        run = self._run
-        assert run is not None
-        if job.kind == "gcode":
-            text = Path(job.mesh_path).read_text(encoding="utf-8")
-            self._transition(job.id, JobState.HEATING, side="front", stage="heating")
-            await self._stream(job.id, text, "front", JobState.PRINTING_FRONT, plain=True)
-            await link.send("M400", timeout=600)
-            self._publish(self.store.checkpoint(job.id, "program_done", self._acked))
-            run.check()
-            self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-            return
-        folder = read_design_folder(Path(job.design_dir or ""))
-        design = folder.design
-        has_back = any(r.side == "back" for r in design.ribbons or [])
-        resume = run.resume
-        if resume is not None:
-            await self._check_frame(job.id)
-        if resume is None or resume.side == "front":
-            front = (Path(job.design_dir or "") / "front.gcode").read_text(encoding="utf-8")
-            start = resume.start if resume is not None else 0
-            if start:
-                front = self._resumed_text(front, "front", start, resume)
-            self._transition(job.id, JobState.HEATING, side="front", stage="heating")
-            await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start)
-            await link.send("M400", timeout=600)
-            self._publish(self.store.checkpoint(job.id, "front_done", self._acked))
-            run.check()
-            if not has_back:
-                self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-                return
-        expected = expected_marks(design.registration_marks or [], self.profile.frame)
-        if len(expected) < 2:
-            raise ValueError(f"the design has {len(expected)} registration marks: the back side cannot be "
-                             "aligned (at least 2 are needed)")
-        kept = resume is not None and resume.side == "back" and run.keep_alignment and job.correction
-        if kept:
-            correction = Correction.model_validate(job.correction)
-        else:
-            # a resumed back: the frame is back side up already (the operator checked it)
-            correction = await self._align(job.id, expected, flipped=resume is not None and resume.side == "back")
-        plan = SidePlan.load(self.job_dir(job.id) / "plans" / "back-plan.npz")
-        program = render_side(plan, self.profile, correction=correction)
-        corrected = self.job_dir(job.id) / "back-corrected.gcode"
-        tmp = corrected.with_suffix(".tmp")
-        tmp.write_text(program.text, encoding="utf-8")
-        os.replace(tmp, corrected)
-        start = resume.start if resume is not None and resume.side == "back" else 0
-        text = self._resumed_text(program.text, "back", start, resume) if start else program.text
-        fields: dict[str, Any] = dict(side="back", correction=correction.model_dump(mode="json"), error=None,
-                                      estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
-        if kept:
-            self._transition(job.id, JobState.HEATING, stage="heating", **fields)
-            await self._stream(job.id, text, "back", JobState.PRINTING_BACK, part_base=start)
-        else:
-            self._transition(job.id, JobState.PRINTING_BACK, stage="printing back", **fields)
-            await self._stream(job.id, text, "back", None, part_base=start)
-        await link.send("M400", timeout=600)
-        self._publish(self.store.checkpoint(job.id, "back_done", self._acked))
-        run.check()
-        self._transition(job.id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
-
-    async def _align(self, job_id: str, expected: np.ndarray, *, flipped: bool) -> Correction:
-        """The flip (unless ``flipped``: the frame is turned already) and the alignment check over the
-        registration marks, again after a refused fit; the accepted correction."""
-        link = self._require_link()
-        run = self._run
-        assert run is not None
-        while True:
-            if not flipped:
-                await self._await_flip(job_id)
-            flipped = False
-            run.alignment = _Alignment(expected=expected)
-            self._transition(job_id, JobState.ALIGNING, stage="aligning")
-            # the front program ended with the motors off (M84) and the frame was handled: home again
-            async with self._manual:
-                await link.send("G28", timeout=300)
-                self._head = None
-            run.check()
-            await self._go_to_mark(1)
-            await run.aligned.wait()
-            run.check()
-            correction, refused = run.alignment.correction, run.alignment.refused
-            if refused is None and correction is not None:
-                return correction
-            run.flip.clear()
-            run.aligned.clear()
-            reseat = run.alignment.reseat
-            self._transition(job_id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
-                             reason="the operator chose to re-seat the frame" if reseat
-                             else f"alignment refused: {refused}")
-
-    async def _stream(self, job_id: str, text: str, side: str, after_heating: JobState | None,
-                      plain: bool = False, part_base: int = 0) -> None:
-        """Stream one program; switch from ``heating`` to ``after_heating`` where it starts printing.
-
-        A design's program records its parts (numbered from ``part_base``: a resumed program starts
-        at a later part) in the store as they go: ``started`` before the first line that feeds
-        filament goes out (a barrier of the sender), ``done`` when the part's ``M400`` is
-        acknowledged: two writes a part, none a line."""
-        link = self._require_link()
-        run = self._run
-        assert run is not None
-        run.check()
-        lines = text.splitlines()
-        commands = prepare_program(lines, f"{side}.gcode")
-        timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
-        first_part = timeline.first
-        stream = run.stream = _Stream(side=side, timeline=timeline)
-        self._run_commands = commands
-        self._acked = -1
-        self._head = None
-        self._publish(self.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
-        parts = [] if plain else program_parts(lines)
-        track = _PartTracker(self.store, job_id, side, parts, part_base)
-        last_write = 0.0
-        switched = after_heating is None
-        if switched:
-            stream.printing_since = time.monotonic()
-
-        def progress(p: StreamProgress) -> None:
-            nonlocal last_write, switched
-            now = time.monotonic()
-            self._acked = stream.acked = p.acknowledged
-            track.acknowledged(p.acknowledged)
-            if stream.printing_since is None and p.acknowledged >= first_part:
-                stream.printing_since = now
-            if not switched and p.acknowledged >= first_part:
-                switched = True
-                job = self.job(job_id)
-                if job.state is JobState.HEATING:
-                    self._transition(job_id, after_heating, stage=f"printing {side}")
-            if now - last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
-                last_write = now
-                self.store.record_ack(job_id, p.acknowledged)
-                info = self.progress(self.job(job_id))
-                self.bus.publish({"type": "progress", "job_id": job_id, "side": side, "line": p.acknowledged,
-                                  "lines": p.total, **info})
-
-        try:
-            await link.stream(commands, progress, track.barriers)
-        finally:
-            rate = self._stream_rate(stream)
-            if rate is not None and stream.acked >= len(commands) - 1:
-                self._rate = rate                             # what this printer does with an estimate
-            run.stream = None
-        if not switched and after_heating is not None:
-            self._transition(job_id, after_heating, stage=f"printing {side}")
-
-    def _safe_stop_commands(self) -> list[str]:
-        """Heaters off, fan off, the head lifted by the profile's park lift, motion finished, motors off."""
-        return ["M104 S0", "M140 S0", "M107", "G91",
-                f"G0 Z{self.profile.park_lift:.3f} F{self.profile.motion.z_speed * 60:.0f}", "G90", "M400", "M84"]
-
-    async def _safe_stop(self) -> bool:
-        """Heaters off, head lifted: after a cancel, a stop or a failure. Whether it was sent."""
-        link = self.link
-        if link is None or link.state not in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED):
-            return False
-        sent = True
-        async with self._manual:
-            for command in self._safe_stop_commands():
-                try:
-                    await link.send(command, timeout=60)
-                except (LinkError, asyncio.TimeoutError):
-                    sent = False
-            self._head = None
-        return sent
-
-    # ------------------------------------------------------------------ waiting heaters
-
-    async def _wait_heaters(self, job_id: str, why: str) -> asyncio.Task[None]:
-        """While the job waits for the operator: the heaters follow ``[flip]`` (keep, lower, off)
-        now, and all go off after ``off_after_s`` (the task returned; cancel it to keep them)."""
-        policy = self.config.flip
-        link = self._require_link()
-        if policy.heaters == "off":
-            await link.send("M104 S0")
-        elif policy.heaters == "lower":
-            await link.send(f"M104 S{policy.lower_to:.0f}")
-        return asyncio.create_task(self._heaters_off_later(job_id, why))
-
-    async def _heaters_off_later(self, job_id: str, why: str) -> None:
-        policy = self.config.flip
-        if policy.off_after_s <= 0:
-            return
-        link = self._require_link()
-        try:
-            await asyncio.sleep(policy.off_after_s)
-            await link.send("M104 S0")
-            await link.send("M140 S0")
-        except (LinkError, asyncio.TimeoutError) as exc:
-            log.warning("job %s: idle heaters: %s", job_id, exc)
-            return
-        message = f"heaters off after {policy.off_after_s:.0f} s {why}"
-        log.info("job %s: %s", job_id, message)
-        with contextlib.suppress(NotFound, ValueError):
-            self._publish(self.store.update(job_id, stage=message))
-        self.bus.publish({"type": "notice", "job_id": job_id, "message": message})
-
-    # ------------------------------------------------------------------ the flip
-
-    async def _await_flip(self, job_id: str) -> None:
-        run = self._run
-        assert run is not None
-        job = self.job(job_id)
-        if job.state is not JobState.AWAITING_FLIP:
-            self._transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
-                             reason="the front is printed: turn the frame over, then flip-done")
-        self._publish(self.store.checkpoint(job_id, "flip", self._acked))
-        run.heaters = await self._wait_heaters(job_id, "awaiting the flip")
-        try:
-            await run.flip.wait()
-        finally:
-            run.heaters.cancel()
-            run.heaters = None
-        run.check()
-
-    async def flip_done(self, job_id: str) -> JobRecord:
-        """The operator turned the frame over: go on to the alignment (returns once aligning)."""
-        job = self.job(job_id)
-        run = self._run
-        if job.state is not JobState.AWAITING_FLIP or run is None or run.job_id != job_id:
-            raise IllegalTransition(job.state, "flip-done")
-        run.flip.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.AWAITING_FLIP, 30)
-
-    async def _go_to_mark(self, mark: int) -> None:
-        """Move the head above where mark ``mark`` (from 1) should be now, at the safe height."""
-        run = self._run
-        assert run is not None and run.alignment is not None
-        al = run.alignment
-        link = self._require_link()
-        lay, mo = self.profile.layers, self.profile.motion
-        x, y = (float(v) for v in al.expected[mark - 1])
-        z = lay.fabric_z + lay.safe_height
-        al.current = 0
-        async with self._manual:
-            for command in ("G90", f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
-                            f"G0 X{x:.3f} Y{y:.3f} F{mo.travel_speed * 60:.0f}", "M400"):
-                await link.send(command, timeout=120)
-            self._set_head((x, y, z))
-        al.current = mark
-        job = self.job(run.job_id)
-        self._publish(job)
-        self.bus.publish({"type": "alignment", "job_id": run.job_id, "mark": mark, "marks": len(al.expected),
-                          "expected": [x, y], "message": self.guidance(job)["instruction"]})
-
-    async def align_mark(self, job_id: str, mark: int | None, jog: tuple[float, float] | None,
-                         here: bool = False, review: bool = False) -> dict[str, Any]:
-        """Measure registration mark ``mark`` (numbered from 1; None: the one the head was sent to):
-        ``here`` takes the head's commanded position (the operator jogged the nozzle onto the mark),
-        else ``jog`` (dx, dy) is the offset of the mark from where the head was sent (None: it was
-        on the mark). Returns the alignment's status; the last mark ends the check. With
-        ``review``, a fit within the limits waits in ``fitted`` for ``accept`` or ``re_seat``."""
-        run = self._run
-        job = self.job(job_id)
-        if job.state is not JobState.ALIGNING or run is None or run.job_id != job_id or run.alignment is None:
-            raise IllegalTransition(job.state, "align")
-        al = run.alignment
-        k = len(al.expected)
-        if al.current == 0 and (here or mark is None):
-            raise ServiceError(f"cannot align yet: the head is on its way above mark {al.next_mark}; "
-                               f"wait for the prompt (ribbonctl watch {job_id})")
-        mark = al.current if mark is None else mark
-        if not 1 <= mark <= k:
-            raise ValueError(f"mark {mark} does not exist: the design has marks 1 to {k}")
-        expected = (float(al.expected[mark - 1][0]), float(al.expected[mark - 1][1]))
-        if here:
-            if jog is not None:
-                raise ValueError("give either --here (the head is on the mark) or a jog, not both")
-            async with self._manual:
-                x, y, _ = await self._where(self._require_link())
-            measured = (x, y)
-        else:
-            dx, dy = jog or (0.0, 0.0)
-            if not (np.isfinite(dx) and np.isfinite(dy)):
-                raise ValueError("the jog must be two finite numbers (mm)")
-            measured = (expected[0] + float(dx), expected[1] + float(dy))
-        al.measured[mark] = measured
-        nxt = al.next_mark
-        status: dict[str, Any] = {"mark": mark, "marks": k, "next_mark": nxt,
-                                  "offset": [measured[0] - expected[0], measured[1] - expected[1]],
-                                  "measured": {str(i): v for i, v in sorted(al.measured.items())}}
-        if nxt is not None:
-            await self._go_to_mark(nxt)
-            return status
-        # the fit is made once, here; the printer task takes its result from ``al``
-        fit = fit_rigid(al.expected, np.array([al.measured[i] for i in range(1, k + 1)]))
-        status["fit"] = {"rotation_deg": fit.rotation_deg, "offset": list(fit.offset),
-                         "rms_mm": fit.rms, "max_residual_mm": fit.max_residual}
-        tol = self.profile.alignment
-        try:
-            check_fit(fit, max_residual=tol.max_residual, max_rotation_deg=tol.max_rotation_deg,
-                      max_offset=tol.max_offset)
-        except BaseException as exc:  # refused, or the check itself failed: the printer task decides
-            if isinstance(exc, AlignmentRefused):
-                al.refused = exc
-            run.aligned.set()
-            raise
-        al.correction = fit.correction()
-        if review:
-            al.fit = status["fit"]
-            self._transition(job_id, JobState.FITTED, stage="the fit is ready: accept or re-seat")
-            status["review"] = True
-            return status
-        status["accepted"] = True
-        run.aligned.set()
-        return status
-
-    def _fitted_run(self, job_id: str, command: str) -> _Run:
-        run = self._run
-        job = self.job(job_id)
-        if job.state is not JobState.FITTED or run is None or run.job_id != job_id or run.alignment is None:
-            raise IllegalTransition(job.state, command)
-        return run
-
-    async def accept_fit(self, job_id: str) -> JobRecord:
-        """The operator accepts the fit under review: the back prints with it (returns once printing)."""
-        run = self._fitted_run(job_id, "accept")
-        run.aligned.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
-
-    async def re_seat(self, job_id: str) -> JobRecord:
-        """The operator refuses the fit under review: back to the flip step, to seat the frame again."""
-        run = self._fitted_run(job_id, "re-seat")
-        al = run.alignment
-        assert al is not None
-        al.correction = None
-        al.reseat = True
-        run.aligned.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
-
-    # ------------------------------------------------------------------ pause and resume
-
-    async def pause(self, job_id: str) -> JobRecord:
-        job = self.job(job_id)
-        run = self._run
-        if job.state not in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK) or run is None or run.job_id != job_id:
-            raise IllegalTransition(job.state, "pause")
-        link = self._require_link()
-        run.busy = True
-        try:
-            link.pause()
-            if run.stream is not None:
-                run.stream.paused_at = time.monotonic()
-            job = self._transition(job_id, JobState.PAUSED, paused_from=job.state, stage="paused")
-            await link.send("M400", timeout=300)
-            # every acknowledged line has now been executed: an exact checkpoint
-            self.store.record_ack(job_id, self._acked)
-            self.store.checkpoint(job_id, f"{job.side or 'front'}_paused", self._acked)
-            pos = await link.query_position()
-            modal = modal_state(self._run_commands, max(self._acked, 0))
-            exact = {k: modal[k] if modal[k] is not None else getattr(pos, k) for k in ("x", "y", "z")}
-            nozzle = link.status.heaters.get("T")
-            if modal["nozzle"] is None and nozzle is not None and nozzle.target:
-                modal["nozzle"] = nozzle.target               # the program set it before the pause point
-            run.pause_snapshot = {**modal, **exact}
-            lay, mo, r = self.profile.layers, self.profile.motion, self.profile.retraction
-            x0, _, _, y1 = self.profile.frame.bounds
-            z = max(pos.z, lay.fabric_z) + self.profile.park_lift
-            async with self._manual:
-                for command in ("G90", "M83", f"G1 E{-r.length:.5f} F{mo.retract_speed * 60:.0f}",
-                                f"G0 Z{z:.3f} F{mo.z_speed * 60:.0f}",
-                                f"G0 X{x0:.3f} Y{y1:.3f} F{mo.travel_speed * 60:.0f}"):
-                    await link.send(command, timeout=120)
-                self._set_head((x0, y1, z))
-            run.heaters = await self._wait_heaters(job_id, "paused")
-        finally:
-            run.busy = False
-        self._publish(self.store.update(job_id, stage="paused (head parked)"), snapshot=run.pause_snapshot)
-        return self.job(job_id)
-
-    async def resume(self, job_id: str, partial: str | None = None) -> JobRecord:
-        """Resume a paused print, or an interrupted one (``resume_interrupted``; ``partial``)."""
-        job = self.job(job_id)
-        if job.state is JobState.INTERRUPTED:
-            return self.resume_interrupted(job_id, partial)
-        if partial is not None:  # a request the job's state does not allow: 409, as other verbs
-            raise IllegalTransition(job.state, "resume", command=f"resume with partial={partial!r}",
-                                    hint="only an interrupted print has a partial part")
-        run = self._run
-        if job.state is JobState.PAUSED and run is not None and run.job_id == job_id and run.pause_snapshot is None:
-            raise IllegalTransition(job.state, "resume", hint="the head is still being parked: resume in a "
-                                    "moment, when the job's stage says 'paused (head parked)'")
-        if job.state is not JobState.PAUSED or run is None or run.job_id != job_id or run.pause_snapshot is None:
-            raise IllegalTransition(job.state, "resume")
-        link = self._require_link()
-        if run.heaters is not None:
-            run.heaters.cancel()
-            run.heaters = None
-        snap = run.pause_snapshot
-        mo, r = self.profile.motion, self.profile.retraction
-        commands = []
-        if snap.get("nozzle"):
-            commands += [f"M104 S{snap['nozzle']:.0f}", f"M109 S{snap['nozzle']:.0f}"]
-        if snap.get("bed"):
-            commands += [f"M140 S{snap['bed']:.0f}", f"M190 S{snap['bed']:.0f}"]
-        safe_z = max(snap["z"], self.profile.layers.fabric_z + self.profile.layers.safe_height)
-        commands += ["G90", f"G0 Z{safe_z:.3f} F{mo.z_speed * 60:.0f}",
-                     f"G0 X{snap['x']:.3f} Y{snap['y']:.3f} F{mo.travel_speed * 60:.0f}",
-                     f"G0 Z{snap['z']:.3f} F{mo.z_speed * 60:.0f}", "M83",
-                     f"G1 E{r.length:.5f} F{mo.retract_speed * 60:.0f}"]
-        commands.append("G90" if snap["absolute"] else "G91")
-        commands.append("M82" if snap["e_absolute"] else "M83")
-        if snap["fan"]:
-            commands.append(f"M106 S{snap['fan']}")
-        if snap.get("feed"):
-            commands.append(f"G0 F{snap['feed']:.0f}")
-        run.busy = True
-        try:
-            self._publish(self.store.update(job_id, stage="resuming: reheating"))
-            async with self._manual:
-                for command in commands:
-                    await link.send(command, timeout=1200)
-                self._head = None
-            back_to = job.paused_from or JobState.PRINTING_FRONT
-            job = self._transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
-            run.pause_snapshot = None
-            if run.stream is not None and run.stream.paused_at is not None:
-                run.stream.paused_s += time.monotonic() - run.stream.paused_at
-                run.stream.paused_at = None
-            link.resume()
-        finally:
-            run.busy = False
-        return job
-
-    # ------------------------------------------------------------------ resuming an interrupted print
-
-    def _side_program(self, job: JobRecord, side: str) -> list[str]:
-        """The lines of the program of ``side`` as last printed (the back: as corrected)."""
-        base = self.job_dir(job.id) / "back-corrected.gcode" if side == "back" else \
-            Path(job.design_dir or "") / "front.gcode"
-        if side == "back" and not base.is_file():
-            base = Path(job.design_dir or "") / "back.gcode"
-        return base.read_text(encoding="utf-8").splitlines()
-
-    def _resume_plan(self, job: JobRecord, partial: str | None) -> _Resume | None:
-        """Where the interrupted ``job`` goes on: the side it stood on, from the first part not
-        proven printed (a part begun and not proven: skipped or printed again, as ``partial`` says);
-        None: every part of the job was proven printed (or skipped)."""
-        if job.kind != "design" or not self._has_program(job):
-            raise ServiceError(f"cannot resume job {job.id}: only a compiled design is resumed at a part "
-                               f"boundary; print it again from the start: ribbonctl start {job.id}")
-        if partial is not None and partial not in ("skip", "reprint"):
-            raise ValueError(f"partial={partial!r}: 'skip' (leave the part begun as it is) or 'reprint'")
-        design = read_design_folder(Path(job.design_dir or "")).design
-        has_back = any(r.side == "back" for r in design.ribbons or [])
-        front_done = job.checkpoint in ("front_done", "flip")
-        side = "back" if job.side == "back" or front_done else "front"
-        if side == "back" and job.side != "back":
-            # the front is printed: align the back (a one-sided design is complete)
-            return _Resume(side="back", start=0, parts=0) if has_back else None
-        parts = program_parts(self._side_program(job, side))
-        unproven = [p.ordinal + 1 for p in parts if p.sync is None]
-        if unproven:
-            raise ServiceError(f"cannot resume job {job.id}: its {side} program has no sync point after "
-                               f"part(s) {unproven[:5]} (compiled by an older ribbond); start it again")
-        states = self.store.part_states(job.id, side)
-        first = next((p.ordinal for p in parts if states.get(p.ordinal) not in ("done", "skipped")), len(parts))
-        partial_at, choice = (first, partial or "skip") if states.get(first) == "started" else (None, None)
-        start = first + 1 if choice == "skip" else first
-        if start < len(parts):
-            return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
-        if side == "front" and has_back:                     # every front part proven: the back
-            return _Resume(side="back", start=0, parts=0, partial=partial_at, choice=choice)
-        return _Resume(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
-
-    def resume_interrupted(self, job_id: str, partial: str | None = None) -> JobRecord:
-        """Resume an interrupted design print where it was proven to stand (issue 16).
-
-        The printer is homed and the heaters set, then the job waits in ``awaiting_check`` for the
-        operator to check the frame (``frame_ok``); then the side it stood on prints from the
-        first part not proven printed, and the rest of the job as usual. ``partial``: the part that
-        had begun and was not proven printed is ``skip``ped (the default: printing it again lays a
-        second bead over what was printed of it, the nozzle ploughing through it) or ``reprint``ed.
-
-        Raises
-        ------
-        IllegalTransition
-            the job is not interrupted.
-        ServiceError
-            not a design job, nothing left to print, the printer busy or not connected.
-        ValueError
-            ``partial`` is not ``skip`` or ``reprint``.
-        """
-        job = self.job(job_id)
-        if job.state is not JobState.INTERRUPTED:
-            raise IllegalTransition(job.state, "resume")
-        if self._run is not None or any(j.state is JobState.READY and j.start_when_ready for j in self.store.active()):
-            busy = self._run.job_id if self._run is not None else "queued jobs"
-            raise ServiceError(f"cannot resume job {job_id} now: the printer is busy ({busy}); resume it when "
-                               "it is free")
-        if not self._connected():
-            raise LinkError("the printer is not connected (or busy): resume when it is ready")
-        plan = self._resume_plan(job, partial)
-        if plan is None:
-            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed, "
-                                    "nothing is left to print", error=None, stage=None, start_when_ready=False)
-        if plan.partial is not None:
-            self.store.record_part(job_id, job.side or "front", plan.partial,
-                                   "skipped" if plan.choice == "skip" else "reprint")
-        if plan.start >= plan.parts > 0:                     # every part proven printed (or the last skipped)
-            return self._transition(job_id, JobState.DONE, reason="resumed: every part was proven printed or "
-                                    "skipped, nothing is left to print", error=None, stage=None,
-                                    start_when_ready=False)
-        where = (f"the {plan.side} from part {plan.start + 1} of {plan.parts}" if plan.parts
-                 else "the alignment of the back")
-        note = f"; part {plan.partial + 1} begun and not proven printed: {plan.choice}" \
-            if plan.partial is not None else ""
-        job = self._transition(job_id, JobState.AWAITING_CHECK, reason=f"resumed at {where}{note}",
-                               stage="homing", error=None, start_when_ready=False)
-        self._resumes[job_id] = plan
-        self._print_queue.put_nowait(job_id)
-        return job
-
-    def _resumed_text(self, text: str, side: str, start: int, resume: _Resume | None) -> str:
-        lines = text.splitlines()
-        cut = program_parts(lines)[start].begin
-        modal = modal_state(prepare_program(lines, f"{side}.gcode"), cut)
-        note = f"{side} from part {start + 1}" + (f" (part {resume.partial + 1}: {resume.choice})"
-                                                 if resume is not None and resume.partial is not None else "")
-        return "\n".join(resumed_program(lines, start, modal, self.profile, note)) + "\n"
-
-    async def _check_frame(self, job_id: str) -> None:
-        """Home, set the heaters (the idle policy applies while waiting), wait for ``frame_ok``."""
-        run = self._run
-        assert run is not None
-        link = self._require_link()
-        if self._cooling is not None:
-            await self._cooling                               # the heaters-off of the daemon's start first
-        t = self.profile.temperatures
-        async with self._manual:
-            await link.send("G28", timeout=300)
-            self._head = None
-            if t.bed > 0:
-                await link.send(f"M140 S{t.bed:.0f}")
-            await link.send(f"M104 S{t.nozzle:.0f}")
-        run.check()
-        self._publish(self.store.update(job_id, stage="check the frame"))
-        run.heaters = await self._wait_heaters(job_id, "awaiting the frame check")
-        try:
-            await run.checked.wait()
-        finally:
-            run.heaters.cancel()
-            run.heaters = None
-        run.check()
-
-    async def frame_ok(self, job_id: str, keep_alignment: bool = False) -> JobRecord:
-        """The operator checked the frame of a resumed print: go on (returns once it moved on).
-        ``keep_alignment``: the back was being printed and the frame was not moved: take the stored
-        correction instead of measuring the marks again."""
-        job = self.job(job_id)
-        run = self._run
-        if job.state is not JobState.AWAITING_CHECK or run is None or run.job_id != job_id or run.resume is None:
-            raise IllegalTransition(job.state, "frame-ok")
-        if keep_alignment and (run.resume.side != "back" or job.side != "back" or not job.correction):
-            raise ValueError("keep_alignment: there is no stored alignment of this print's back to keep "
-                             "(it is measured after the flip); leave it out")
-        run.keep_alignment = keep_alignment
-        run.checked.set()
-        return await self._wait_state(job_id, lambda s: s is not JobState.AWAITING_CHECK, 30)
-
-    # ------------------------------------------------------------------ manual control
-
-    def _manual_link(self, what: str) -> PrinterLink:
-        """The link, if the operator may move the printer now: no program streaming (a job paused,
-        awaiting the flip or aligning, or no job at all)."""
-        run = self._run
-        if run is not None:
-            job = self.job(run.job_id)
-            if job.state.streams or job.state not in (JobState.PAUSED, JobState.AWAITING_FLIP, JobState.ALIGNING,
-                                                      JobState.FITTED, JobState.AWAITING_CHECK):
-                hint = f"pause it first: ribbonctl pause {job.id}" if job.state in (
-                    JobState.PRINTING_FRONT, JobState.PRINTING_BACK) else f"wait, or cancel it: ribbonctl cancel {job.id}"
-                raise ServiceError(f"cannot {what}: job {job.id} is {job.state.value} (a program is streaming "
-                                   f"to the printer); {hint}")
-            if run.busy:
-                raise ServiceError(f"cannot {what}: job {job.id} is pausing or resuming; try again in a moment")
-        link = self._require_link()
-        if link.state is LinkState.STREAMING:
-            raise ServiceError(f"cannot {what}: a program is streaming to the printer")
-        return link
-
-    def _set_head(self, xyz: tuple[float, float, float]) -> None:
-        self._head = xyz
-        self._head_sender = self.link.sender if self.link is not None else None
-
-    async def _where(self, link: PrinterLink) -> tuple[float, float, float]:
-        """The head's commanded position, else (first time, after homing, after typed G-code, after a
-        reconnect) the printer's own (``M400``, ``M114``)."""
-        if self._head is not None and self._head_sender is link.sender:
-            return self._head
-        await link.send("M400", timeout=300)
-        pos = await link.query_position()
-        self._set_head((pos.x, pos.y, pos.z))
-        assert self._head is not None
-        return self._head
-
-    def _inside(self, x: float, y: float, z: float, what: str) -> None:
-        x0, y0, x1, y1 = self.profile.frame.bounds
-        fabric = self.profile.layers.fabric_z
-        eps = 1e-6
-        if not (x0 - eps <= x <= x1 + eps and y0 - eps <= y <= y1 + eps):
-            raise ValueError(f"{what} would take the head to x {x:.3f}, y {y:.3f}: outside the frame "
-                             f"(x {x0:g} to {x1:g}, y {y0:g} to {y1:g} mm)")
-        if z < fabric - eps:
-            raise ValueError(f"{what} would take the nozzle down to z {z:.3f}, below the fabric (z {fabric:g} mm)")
-
-    async def _move_to(self, link: PrinterLink, x: float, y: float, z: float) -> None:
-        here = await self._where(link)
-        xy_feed = min(JOG_SPEED, self.profile.motion.travel_speed) * 60
-        z_feed = self.profile.motion.z_speed * 60
-        xy = f"G0 X{x:.3f} Y{y:.3f} F{xy_feed:.0f}"
-        zz = f"G0 Z{z:.3f} F{z_feed:.0f}"
-        # up before moving across, down after: never dragged over the fabric
-        moves = [zz, xy] if z >= here[2] else [xy, zz]
-        for command in ("G90", *moves, "M400"):
-            await link.send(command, timeout=300)
-        self._set_head((x, y, z))
-
-    def _position_status(self) -> dict[str, Any]:
-        return {"position": list(self._head) if self._head is not None else None}
-
-    async def home(self) -> dict[str, Any]:
-        """Home all axes (``G28``); the head's position is then the printer's."""
-        async with self._manual:
-            link = self._manual_link("home")
-            await link.send("G28", timeout=300)
-            self._head = None
-            await self._where(link)
-            return self._position_status()
-
-    async def jog(self, dx: float, dy: float, dz: float = 0.0) -> dict[str, Any]:
-        """Move the head by (dx, dy, dz) mm at a safe feed, within the frame and above the fabric."""
-        for name, v in (("dx", dx), ("dy", dy), ("dz", dz)):
-            if not np.isfinite(v):
-                raise ValueError(f"{name} must be a finite number of mm")
-        async with self._manual:
-            link = self._manual_link("jog")
-            x, y, z = await self._where(link)
-            target = (x + dx, y + dy, z + dz)
-            self._inside(*target, what=f"jog {dx:g} {dy:g} {dz:g}")
-            await self._move_to(link, *target)
-            return self._position_status()
-
-    async def goto(self, x: float, y: float) -> dict[str, Any]:
-        """Move the head to (x, y) in the frame, at least at the safe height above the fabric."""
-        if not (np.isfinite(x) and np.isfinite(y)):
-            raise ValueError("x and y must be finite numbers of mm")
-        async with self._manual:
-            link = self._manual_link("goto")
-            _, _, z = await self._where(link)
-            z = max(z, self.profile.layers.fabric_z + self.profile.layers.safe_height)
-            self._inside(x, y, z, what=f"goto {x:g} {y:g}")
-            await self._move_to(link, x, y, z)
-            return self._position_status()
-
-    async def gcode(self, commands: list[str]) -> dict[str, Any]:
-        """Send typed G-code (one command or a short list) and return what the printer answered."""
-        clean = [c.strip() for c in commands if c.strip()]
-        if not clean:
-            raise ValueError("no G-code command given")
-        if len(clean) > MAX_MANUAL_COMMANDS:
-            raise ValueError(f"{len(clean)} commands: at most {MAX_MANUAL_COMMANDS} at a time "
-                             "(print a longer program as a job: ribbonctl print FILE)")
-        for i, command in enumerate(clean, start=1):
-            word = command.split()[0].upper()
-            if word == "M112":
-                raise ValueError("M112 is the emergency stop: use ribbonctl stop")
-            prepare_program([command], f"command {i}")       # M110, too long, not ASCII: refused
-            codec.check_sendable(codec.strip_comment(command) or command)
-        async with self._manual:
-            link = self._manual_link("send G-code")
-            answers = []
-            for command in clean:
-                _, lines = await link.send_collecting(command, timeout=600)
-                if command.split()[0].upper() in _MOVES_HEAD:
-                    self._head = None
-                answers.append({"command": command, "answer": lines})
-            return {"answers": answers}
-
-    async def heat(self, nozzle: float | None, bed: float | None) -> dict[str, Any]:
-        """Set heater targets (no wait); defaults: the profile's nozzle temperature, the bed as it is."""
-        t = self.profile.temperatures
-        nozzle = t.nozzle if nozzle is None and bed is None else nozzle
-        if nozzle is not None and not 0 <= nozzle <= t.nozzle_max:
-            raise ValueError(f"nozzle {nozzle:g} °C: must be 0 to the profile's nozzle_max ({t.nozzle_max:g} °C)")
-        if bed is not None and not 0 <= bed <= t.bed_max:
-            raise ValueError(f"bed {bed:g} °C: must be 0 to the profile's bed_max ({t.bed_max:g} °C)")
-        async with self._manual:
-            link = self._manual_link("heat")
-            if nozzle is not None:
-                await link.send(f"M104 S{nozzle:.0f}")
-            if bed is not None:
-                await link.send(f"M140 S{bed:.0f}")
-        return await self.printer_status(refresh=True)
-
-    async def cool(self) -> dict[str, Any]:
-        """Heaters off."""
-        async with self._manual:
-            link = self._manual_link("cool")
-            await link.send("M104 S0")
-            await link.send("M140 S0")
-        return await self.printer_status(refresh=True)
-
-    # ------------------------------------------------------------------ the printer
-
-    def _require_link(self) -> PrinterLink:
-        if self.link is None or self.link.state is LinkState.DISCONNECTED:
-            raise LinkError("the printer is not connected")
-        if self.link.state is LinkState.HALTED:
-            raise LinkError("the printer is halted (emergency stop or a firmware error): ribbonctl recover")
-        if self.link.state is LinkState.CONNECTING:
-            raise LinkError("the printer is connecting; try again in a moment")
-        return self.link
-
-    async def printer_status(self, refresh: bool = False) -> dict[str, Any]:
-        """What the link knows; with ``refresh``, the temperatures and position asked for first
-        (``M105``, ``M114``: answered ahead of a running program). Halted or disconnected, no
-        temperatures or position are shown: the last ones known would be stale."""
-        if self.link is None:
-            return {"state": "disconnected", "heaters": {}, "position": None, "profile": self._profile_info()}
-        live = self.link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
-        if refresh and live:
-            with contextlib.suppress(LinkError, asyncio.TimeoutError):
-                await asyncio.wait_for(self.link.query_temperatures(), 10)
-                await asyncio.wait_for(self.link.query_position(), 10)
-        status = self.link.status.model_dump(mode="json")
-        if not live:
-            status["heaters"], status["position"] = {}, None
-            status["note"] = {"halted": "halted: temperatures unknown; ribbonctl recover restarts the firmware",
-                              "disconnected": "not connected: temperatures unknown",
-                              "connecting": "connecting"}.get(status["state"])
-        status["head"] = list(self._head) if self._head is not None else None
-        status["profile"] = self._profile_info()
-        return status
-
-    def _profile_info(self) -> dict[str, Any]:
-        """The daemon's printer profile as a person choosing a design's size needs it: its name and
-        frame (the printable rectangle, its centre, the axis the frame is flipped about)."""
-        frame = self.profile.frame
-        return {"name": self.profile.name, "frame": {"bounds": list(frame.bounds), "center": list(frame.center),
-                                                     "size": list(frame.size), "flip_axis": frame.flip_axis}}
-
-    def emergency_stop(self) -> None:
-        link = self.link
-        if link is None or link.state is LinkState.DISCONNECTED:
-            raise LinkError("the printer is not connected")
-        link.emergency_stop()
-
-    async def recover(self) -> dict[str, Any]:
-        """After an emergency stop or a halt: restart the firmware (``M999``) and shake hands again."""
-        link = self.link
-        if link is None or link.state is LinkState.DISCONNECTED:
-            raise LinkError("the printer is not connected")
-        if link.state is not LinkState.HALTED:
-            raise ServiceError(f"cannot recover: the printer is {link.state.value}, not halted; nothing to recover")
-        await link.recover()
-        self._head = None
-        return await self.printer_status()
