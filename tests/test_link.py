@@ -427,6 +427,9 @@ async def test_a_window_too_large_for_the_board_is_found_and_shrunk(make_sim, ca
     assert sim.stats().dropped_bytes > 0, "the board must have lost bytes for the test to mean anything"
     assert result.window_verdict == "overflow" and result.window_bytes == 63, (result, sim.stats())
     assert "set [serial] rx_buffer = 63" in caplog.text
+    status = link.status
+    assert status.window_bytes == 63 and "set [serial] rx_buffer = 63" in (status.window_advice or ""), \
+        "the status says so too (the dashboard shows it)"
     await link.close()
 
 

@@ -32,6 +32,7 @@ def test_overflow_shrinks_the_window_and_keeps_it() -> None:
     stream(governor, 2000, overflow, random.Random(1))
     assert governor.verdict is Verdict.OVERFLOW
     assert governor.window == SAFE_WINDOW
+    assert governor.advice is not None and "rx_buffer = 63" in governor.advice and "127" in governor.advice
 
 
 def test_noise_leaves_the_window_as_configured() -> None:
@@ -39,6 +40,7 @@ def test_noise_leaves_the_window_as_configured() -> None:
         governor = WindowGovernor(127)
         stream(governor, 4000, noise, random.Random(seed))
         assert governor.verdict in (Verdict.NOISE, Verdict.TRIAL), seed
+        assert governor.advice is None, "nothing to configure against noise"
         if governor.verdict is Verdict.NOISE:
             assert governor.window == 127
 

@@ -64,6 +64,10 @@ class PrinterStatus(BaseModel):
     last_error: str | None = None
     busy: str | None = None
     lines_acknowledged: int = -1
+    #: The sender's byte window now (smaller than configured once overflow was proven), and what
+    #: to configure then.
+    window_bytes: int | None = None
+    window_advice: str | None = None
 
 
 def prepare_program(lines: Iterable[str], source: str = "program") -> list[str]:
@@ -179,6 +183,8 @@ class PrinterLink:
         status.firmware = self.capabilities.firmware_name
         if self._sender is not None:
             status.lines_acknowledged = self._sender.last_acknowledged_line
+            status.window_bytes = self._sender.window.window
+            status.window_advice = self._sender.window.advice
         return status
 
     @property

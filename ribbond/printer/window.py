@@ -102,6 +102,15 @@ class WindowGovernor:
         log.info("line errors beyond %d bytes in flight (%.1f %% of those lines): trying a %d-byte window "
                  "for %d lines", SAFE_WINDOW, 100 * rate, SAFE_WINDOW, lines)
 
+    @property
+    def advice(self) -> str | None:
+        """What the owner should configure, once a trial proved overflow (else None)."""
+        if self.verdict is not Verdict.OVERFLOW:
+            return None
+        return (f"the printer lost bytes of lines sent beyond {SAFE_WINDOW} bytes in flight: its receive "
+                f"buffer is smaller than the configured {self.configured} bytes. The window stays at "
+                f"{SAFE_WINDOW} bytes; set [serial] rx_buffer = {SAFE_WINDOW}")
+
     def _judge(self) -> None:
         rate = self._trial_errors_seen / max(1, self._trial_sent)
         self._beyond_sent = self._beyond_errors = 0
@@ -109,11 +118,8 @@ class WindowGovernor:
         # is a rate cut by four or more.
         if self._trial_errors_seen <= self._trial_errors / self._overflow_ratio:
             self.verdict = Verdict.OVERFLOW
-            log.warning("the printer lost bytes of lines sent beyond %d bytes in flight (error rate %.1f %% "
-                        "before, %.1f %% with the smaller window): its receive buffer is smaller than the "
-                        "configured %d bytes. The window stays at %d bytes; set [serial] rx_buffer = %d",
-                        SAFE_WINDOW, 100 * self._rate_before, 100 * rate, self.configured, SAFE_WINDOW,
-                        SAFE_WINDOW)
+            log.warning("%s (error rate %.1f %% before, %.1f %% with the smaller window)", self.advice,
+                        100 * self._rate_before, 100 * rate)
             return
         self.verdict = Verdict.NOISE
         self.window = self.configured

@@ -101,6 +101,7 @@ function renderPrinter() {
   $("t-nozzle").textContent = heater(p?.heaters?.T);
   $("t-bed").textContent = heater(p?.heaters?.B);
   $("p-note").textContent = p?.note || "";
+  $("p-link").textContent = p?.window_advice || "";   // the link found the board's buffer smaller
   const prof = p?.profile;
   if (prof) {
     const [x0, y0, x1, y1] = prof.frame.bounds;
