@@ -73,12 +73,7 @@ class Aligner:
             self.records.transition(job_id, JobState.AWAITING_FLIP, stage="awaiting the flip",
                                     reason="the front is printed: turn the frame over, then flip-done")
         self.records.publish(self.records.store.checkpoint(job_id, "flip", self.state.acked))
-        run.heaters = await self.heaters.idle(job_id, "awaiting the flip")
-        try:
-            await run.flip.wait()
-        finally:
-            run.heaters.cancel()
-            run.heaters = None
+        await self.heaters.idle_until(run, job_id, "awaiting the flip", run.flip)
         run.check()
 
     async def _go_to_mark(self, mark: int) -> None:

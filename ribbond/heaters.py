@@ -37,6 +37,16 @@ class Heaters:
             await link.send(f"M104 S{policy.lower_to:.0f}")
         return asyncio.create_task(self._off_later(job_id, why))
 
+    async def idle_until(self, run: Run, job_id: str, why: str, event: asyncio.Event) -> None:
+        """Wait for ``event`` (the operator's) with the heaters on the idle policy meanwhile; the
+        timer that turns them off is dropped once it is set."""
+        run.heaters = await self.idle(job_id, why)
+        try:
+            await event.wait()
+        finally:
+            run.heaters.cancel()
+            run.heaters = None
+
     async def _off_later(self, job_id: str, why: str) -> None:
         policy = self.policy
         if policy.off_after_s <= 0:

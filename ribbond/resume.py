@@ -295,12 +295,7 @@ class Resumer:
             await link.send(f"M104 S{t.nozzle:.0f}")
         run.check()
         self.records.publish(self.records.store.update(job_id, stage="check the frame"))
-        run.heaters = await self.heaters.idle(job_id, "awaiting the frame check")
-        try:
-            await run.checked.wait()
-        finally:
-            run.heaters.cancel()
-            run.heaters = None
+        await self.heaters.idle_until(run, job_id, "awaiting the frame check", run.checked)
         run.check()
 
     async def frame_ok(self, job_id: str, keep_alignment: bool = False) -> JobRecord:
