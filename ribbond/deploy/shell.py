@@ -503,6 +503,7 @@ class ShellEnergy:
         self.abar = np.asarray(abar, dtype=float)
         self.stretch_coef = np.asarray(stretch_coef, dtype=float)
         self._stretch_forms = quadratic_form(_inverse_2x2(self.abar))      # fixed: once, not per call
+        self._last_hinges: tuple[np.ndarray, _HingeGeometry] | None = None  # (X, its hinges): ``_hinges``
         self.nu = float(nu)
         self.bending = bending_quadratic(self.topo, self.abar, np.asarray(bbar, dtype=float),
                                          np.asarray(bend_coef, dtype=float), self.nu)
@@ -527,7 +528,7 @@ class ShellEnergy:
     def _hinges(self, X: np.ndarray) -> "_HingeGeometry":
         """The hinges' geometry at X, kept for the next call: Newton's line search evaluates the
         energy at the point it accepts, whose gradient and Hessians come next."""
-        last = getattr(self, "_last_hinges", None)
+        last = self._last_hinges
         if last is not None and last[0].shape == X.shape and np.array_equal(last[0], X):
             return last[1]
         hinges = _HingeGeometry(X, self.topo.hinge)

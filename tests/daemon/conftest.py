@@ -250,6 +250,18 @@ def running(state_dir: Path, port: str, **options: Any) -> Iterator[Daemon]:
         daemon.stop()
 
 
+@contextlib.contextmanager
+def own_printer(state_dir: Path, **options: Any) -> Iterator[tuple[Sim, Daemon]]:
+    """A simulator of its own and a daemon on it (``running``), for tests that kill, restart or
+    stop the daemon; both stopped after (stopping a killed daemon is a no-op)."""
+    sim = Sim()
+    try:
+        with running(state_dir, sim.port, **options) as daemon:
+            yield sim, daemon
+    finally:
+        sim.stop()
+
+
 @pytest.fixture(scope="module")
 def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
     with running(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port) as daemon:

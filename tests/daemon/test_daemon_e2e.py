@@ -22,7 +22,7 @@ from ribbond.gcode.profiles import load_profile
 from sim.config import FrameConfig
 from sim.frame import Frame, FramePose
 
-from .conftest import CENTER, PARAMETERS, Daemon, Sim, submit, wait_for
+from .conftest import CENTER, PARAMETERS, Daemon, Sim, own_printer, submit, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -426,11 +426,7 @@ def test_two_submissions_at_once(api: httpx.Client, shared_daemon: Daemon, meshe
 def test_daemon_killed_mid_print_and_restarted(tmp_path: Path, meshes: dict[str, Path]) -> None:
     """The daemon killed mid-print and started again shows the job interrupted with its last
     acknowledged line, and nothing in the store is lost."""
-    sim = Sim()
-    daemon = Daemon(tmp_path / "state", sim.port)
-    try:
-        daemon.start()
-        daemon.wait_printer()
+    with own_printer(tmp_path / "state") as (sim, daemon):
         assert daemon.client is not None
         other = submit(daemon.client, meshes["two_sided"], start=False)
         wait_for(daemon.client, other, "ready", timeout=60)
@@ -476,9 +472,6 @@ def test_daemon_killed_mid_print_and_restarted(tmp_path: Path, meshes: dict[str,
         assert r.json()["state"] == "ready" and r.json()["allowed"] == ["start", "cancel", "delete"]
         r = client.post(f"/jobs/{job}/cancel")
         assert r.status_code == 200 and r.json()["state"] == "cancelled"
-    finally:
-        daemon.stop()
-        sim.stop()
 
 
 def test_api_token_and_upload_limit(tmp_path: Path, meshes: dict[str, Path]) -> None:

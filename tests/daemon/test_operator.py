@@ -21,7 +21,7 @@ import pytest
 from ribbond.gcode.profiles import load_profile
 from ribbond.printer.link import prepare_program
 
-from .conftest import CENTER, HOST_COMMANDS, Daemon, Sim, submit, wait_for
+from .conftest import CENTER, HOST_COMMANDS, Daemon, Sim, own_printer, submit, wait_for
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -77,11 +77,8 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
     and type G-code, resume reheats. SIGTERM mid-print: no program line after the stop, heaters off,
     the nozzle lifted by the park lift; the job interrupted with the exact checkpoint; started again
     it is a new run that prints to the end."""
-    sim = Sim()
-    daemon = Daemon(tmp_path / "state", sim.port, extra='[flip]\nheaters = "lower"\nlower_to = 150\noff_after_s = 1\n')
-    try:
-        daemon.start()
-        daemon.wait_printer()
+    idle = '[flip]\nheaters = "lower"\nlower_to = 150\noff_after_s = 1\n'
+    with own_printer(tmp_path / "state", extra=idle) as (sim, daemon):
         api = daemon.client
         assert api is not None
         job = submit(api, meshes["one_sided"], start=True)
@@ -187,19 +184,12 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
         assert replay(executed(sim))["nozzle"] == 80.0
         daemon.stop()
         assert replay(executed(sim))["nozzle"] == 0.0 and replay(executed(sim))["bed"] == 0.0
-    finally:
-        daemon.stop()
-        sim.stop()
 
 
 def test_a_stop_while_heating_ends_the_heater_wait(tmp_path: Path) -> None:
     """SIGTERM while the firmware waits for the bed (M190 holds its queue, M109 is in flight
     behind it): M108 ends the waits, so the safe stop runs at once, without the emergency stop."""
-    sim = Sim()
-    daemon = Daemon(tmp_path / "state", sim.port)
-    try:
-        daemon.start()
-        daemon.wait_printer()
+    with own_printer(tmp_path / "state") as (sim, daemon):
         api = daemon.client
         assert api is not None
         x0, y0, _, _ = PROFILE.frame.bounds
@@ -225,9 +215,6 @@ def test_a_stop_while_heating_ends_the_heater_wait(tmp_path: Path) -> None:
         assert daemon.client is not None
         record = daemon.client.get(f"/jobs/{job}").json()
         assert record["state"] == "interrupted" and "SIGTERM" in record["error"]
-    finally:
-        daemon.stop()
-        sim.stop()
 
 
 def test_a_job_started_while_the_printer_is_away_waits_for_it(tmp_path: Path, meshes: dict[str, Path]) -> None:

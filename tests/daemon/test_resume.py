@@ -26,7 +26,7 @@ from sim import FaultConfig
 
 from ..conftest import HOST_COMMANDS as LINK_COMMANDS
 from ..conftest import moves
-from .conftest import HOST_COMMANDS, ROOT, Daemon, Sim, submit, wait_for
+from .conftest import HOST_COMMANDS, ROOT, Daemon, Sim, own_printer, submit, wait_for
 from .deposits import executed, integrity, outcome, part_events, program_parts
 from .test_daemon_e2e import flip_and_align
 
@@ -95,11 +95,7 @@ def test_interrupted_front_and_back_resume_after_the_last_proven_part(tmp_path: 
     """Killed on the front and resumed skipping the part begun, then killed on the back and resumed
     reprinting it (the alignment kept): every part of both sides printed, none twice except the
     reprinted one, no part left partial except the skipped one, each named by the store's events."""
-    sim = Sim()
-    daemon = Daemon(tmp_path / "state", sim.port)
-    try:
-        daemon.start()
-        daemon.wait_printer()
+    with own_printer(tmp_path / "state") as (sim, daemon):
         api = daemon.client
         assert api is not None
         job = submit(api, meshes["two_sided"], start=True)
@@ -157,9 +153,6 @@ def test_interrupted_front_and_back_resume_after_the_last_proven_part(tmp_path: 
         preludes = sum(1 for e in events if e["event"] in ("skipped", "reprint") and e["part"] > 0)
         assert preludes >= 1, "the kill on the front must have left proven parts behind it"
         assert resumed_at.count("G92 E0") >= preludes
-    finally:
-        daemon.stop()
-        sim.stop()
 
 
 @pytest.mark.parametrize("faults", [FaultConfig(), FaultConfig(corrupt_rate=0.03, drop_ok_rate=0.03)],

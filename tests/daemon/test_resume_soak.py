@@ -21,7 +21,7 @@ from typing import Any
 import httpx
 import pytest
 
-from .conftest import Daemon, Sim, submit
+from .conftest import Sim, own_printer, submit
 from .deposits import executed, integrity, outcome, part_events, program_parts
 from .test_daemon_e2e import operator_jogs
 from .test_resume import restart
@@ -69,13 +69,9 @@ def test_killed_at_random_and_resumed_every_part_printed_once(tmp_path: Path, me
     seed = int(os.environ.get("RIBBOND_SOAK_SEED", random.randrange(1 << 30)))
     print(f"resume soak: seed {seed} (RIBBOND_SOAK_SEED={seed} repeats it)")
     rng = random.Random(seed)
-    sim = Sim()
-    daemon = Daemon(tmp_path / "state", sim.port)
     started = time.monotonic()
     kills: list[tuple[str, int, int]] = []
-    try:
-        daemon.start()
-        daemon.wait_printer()
+    with own_printer(tmp_path / "state") as (sim, daemon):
         api = daemon.client
         assert api is not None
         job = submit(api, meshes["two_sided"], start=True)
@@ -141,6 +137,3 @@ def test_killed_at_random_and_resumed_every_part_printed_once(tmp_path: Path, me
             ribbons = [i for i, p in enumerate(parts) if p.kind == "RIBBON"]
             assert ribbons and sum(result[i] == "full" for i in ribbons) >= len(ribbons) - len(skipped)
         assert skipped_total <= len(kills), (seed, skipped_total, kills)
-    finally:
-        daemon.stop()
-        sim.stop()

@@ -131,7 +131,7 @@ def test_watch_shows_progress_and_stops_at_the_flip_with_the_command_to_run(
 
     status = ctl(shared_daemon, "status", job)
     assert status.returncode == 0 and "%" in status.stdout.splitlines()[0]
-    assert f"next: " in status.stdout and f"ribbonctl flip-done {job}" in status.stdout
+    assert "next: " in status.stdout and f"ribbonctl flip-done {job}" in status.stdout
     resume = ctl(shared_daemon, "resume", job)
     assert resume.returncode == 1 and len(resume.stderr.strip().splitlines()) == 1
     assert "cannot resume: the job is awaiting_flip; possible now: flip-done, cancel" in resume.stderr
