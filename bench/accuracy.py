@@ -8,10 +8,12 @@ vertices of each field. Then whole designs of the torus patch and the saddles: t
 centerlines carried back onto the target (length-weighted) against the exact k1, and the report's
 spacing errors (across: gap to the next centerline against the harmonic mean of μ2 over it).
 
-    python bench/accuracy.py [--quick] [--ribbons-only] [--integrability W ...]
+    python bench/accuracy.py [--quick] [--ribbons-only] [--integrability W ...] [--sweep]
 
 ``--integrability`` runs the designs once per weight given ([solver]
-spacing_integrability_weight; default: the settings' own), and the ribbon table also gives the
+spacing_integrability_weight, the flattening's row-count phase; default: the settings' own, 0
+turns the phase off); ``--sweep`` adds the torus patch at five resolutions with the phase off and
+on (the across median jumps with the resolution without it). The ribbon table also gives the
 flattening's σ1 and σ2 ranges (2nd–98th percentile) against the bounds, the share of faces outside
 them, and the median angle of the stretch direction off k1 (Table 1's column; 0 where Eq. 3 is 0).
 
@@ -84,14 +86,13 @@ def field_table(quick: bool) -> None:
         print(row, flush=True)
 
 
-def ribbon_table(weights: list[float | None]) -> None:
-    from ribbond.design.folder import read_design_folder
-    from ribbond.design.mesh_io import write_obj
-    from ribbond.design.params import DesignParameters, SolverSettings
-    from ribbond.design.report import BAD_TOLERANCE, bounds_deviation
-    from ribbond.design.pipeline import design_mesh, write_design
+def torus(nu: int) -> tuple[str, tuple[np.ndarray, np.ndarray], Exact]:
+    return (f"torus 60°×60°, {nu}×{nu // 2}", S.torus_patch(50, 20, (0, 60), (-30, 30), nu, nu // 2),
+            lambda P: S.torus_curvature(P, 50, 20))
 
-    cases = [
+
+def design_cases() -> list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]:
+    return [
         ("torus patch 60°×60°", S.torus_patch(50, 20, (0, 60), (-30, 30), 60, 30), lambda P: S.torus_curvature(P, 50, 20)),
         ("torus patch 90°×90°", S.torus_patch(50, 20, (0, 90), (-45, 45), 90, 45), lambda P: S.torus_curvature(P, 50, 20)),
         ("saddle z=(x²−y²)/120", S.saddle(150.0, 1 / 60, 1 / 60, rings=30),
@@ -101,6 +102,15 @@ def ribbon_table(weights: list[float | None]) -> None:
         ("saddle κ 1/30, 1/60", S.saddle(100.0, 1 / 30, 1 / 60, rings=24),
          lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
     ]
+
+
+def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]) -> None:
+    from ribbond.design.folder import read_design_folder
+    from ribbond.design.mesh_io import write_obj
+    from ribbond.design.params import DesignParameters, SolverSettings
+    from ribbond.design.report import BAD_TOLERANCE, bounds_deviation
+    from ribbond.design.pipeline import design_mesh, write_design
+
     params = DesignParameters()
     (lo1, hi1), (lo2, hi2) = params.bounds
     print(f"\n{'design (size: the frame)':<26} {'weight':>6} {'ribbons':>7} {'front':>5} | {'vs exact k1: median':>19} "
@@ -145,10 +155,14 @@ def main() -> int:
     ap.add_argument("--ribbons-only", action="store_true", help="skip the line-field table")
     ap.add_argument("--integrability", type=float, nargs="+", default=None, metavar="W",
                     help="[solver] spacing_integrability_weight values to run the designs with")
+    ap.add_argument("--sweep", action="store_true", help="also the torus patch at five resolutions, "
+                    "without the row-count phase (weight 0) and with the settings' own")
     args = ap.parse_args()
     if not args.ribbons_only:
         field_table(args.quick)
-    ribbon_table(args.integrability or [None])
+    ribbon_table(args.integrability or [None], design_cases())
+    if args.sweep:
+        ribbon_table([0.0, None], [torus(nu) for nu in (50, 60, 70, 80, 110)])
     return 0
 
 

@@ -96,15 +96,16 @@ def local_step(JRt: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], sigma
 
 
 def row_curl_operator(F: np.ndarray, frames: FaceFrames, k1_angle: np.ndarray,
-                      n_vertices: int) -> tuple[sp.csr_matrix, np.ndarray]:
+                      n_vertices: int, defined: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
     """The discrete curl of per-face tangent fields g_f k2_f at the interior vertices.
 
     Row v of C holds, for each face f around v, ⟨k2_f, e⟩ with e the edge of f opposite v
     (counter-clockwise): (C g)_v is half the circulation ∮ g k2 · dl around v's star, ≈ A_v curl(g k2).
     k2 (k1 turned by +90° in the face frame) is a line field; each face's k2 is signed to agree
     with its vertex's mean line (the principal axis of Σ A_f k2 k2ᵀ). Boundary vertices (no closed
-    star) and vertices whose faces disagree by more than 45° with that line (a singularity) get
-    empty rows.
+    star), vertices whose faces disagree by more than 45° with that line (a singularity) and, when
+    ``defined`` (m,) bool is given, vertices with a face outside it (k1 not defined there: the
+    ribbons follow the smoothed field, not a curvature line) get empty rows.
 
     Returns
     -------
@@ -130,6 +131,10 @@ def row_curl_operator(F: np.ndarray, frames: FaceFrames, k1_angle: np.ndarray,
     worst = np.full(n_vertices, np.inf)
     np.minimum.at(worst, F.ravel(), np.abs(agree).ravel())
     keep = ~on_boundary & (worst > np.cos(np.pi / 4))
+    if defined is not None:
+        all_defined = np.ones(n_vertices, dtype=bool)
+        np.logical_and.at(all_defined, F.ravel(), np.repeat(np.asarray(defined, dtype=bool), 3))
+        keep &= all_defined
     rows, cols = F.ravel(), np.repeat(np.arange(m), 3)
     sel = keep[rows]
     C = sp.csr_matrix((vals.ravel()[sel], (rows[sel], cols[sel])), shape=(n_vertices, m))
@@ -154,21 +159,25 @@ class RowCountCoupling:
     """
 
     def __init__(self, F: np.ndarray, frames: FaceFrames, k1_angle: np.ndarray, n_vertices: int,
-                 prestretch: float, weight: float) -> None:
+                 prestretch: float, weight: float, defined: np.ndarray | None = None) -> None:
         if not weight > 0:
             raise ValueError(f"spacing_integrability_weight = {weight}: the coupling needs a weight > 0")
         if not prestretch > 1:
             raise ValueError(f"prestretch = {prestretch}: must be > 1 (Eq. 10)")
-        C, vertex_area = row_curl_operator(F, frames, k1_angle, n_vertices)
+        C, vertex_area = row_curl_operator(F, frames, k1_angle, n_vertices, defined)
         inv_area = np.where(vertex_area > 0, 1.0 / np.maximum(vertex_area, 1e-300), 0.0)
         self.beta = float(weight * frames.area.sum())
-        self.C = C
-        self.H = (self.beta * (C.T @ sp.diags(inv_area) @ C)).tocsc()              # (m, m)
+        self.C = C.tocsr()
         self._inv_area = inv_area
         self.area = frames.area
         self.prestretch = float(prestretch)
-        self._Hs = self.H @ np.full(len(F), self.prestretch)
-        self._factor = SymmetricFactor(sp.diags(self.area) + self.H)
+        # (D + β Cᵀ W C)⁻¹ by Woodbury, D = diag(A_f), W = diag(1/A_v): the factorized matrix is
+        # the (n, n) W⁻¹/β + C D⁻¹ Cᵀ, with a vertex's 1-ring pattern, instead of an (m, m) one
+        # coupling every face with the faces around its corners (6 s to factorize at 160k faces)
+        self._Ct = self.C.T.tocsr()
+        w_inv = np.where(vertex_area > 0, vertex_area, 1.0) / self.beta
+        self._schur = SymmetricFactor(sp.diags(w_inv) + self.C @ sp.diags(1.0 / self.area) @ self._Ct)
+        self._Hs = self.beta * (self._Ct @ (inv_area * (self.C @ np.full(len(F), self.prestretch))))
 
     def energy(self, sigma2: np.ndarray) -> float:
         """E_c at the stretches ``sigma2`` (m,)."""
@@ -177,11 +186,14 @@ class RowCountCoupling:
 
     def gradient(self, sigma2: np.ndarray) -> np.ndarray:
         """∂E_c / ∂σ2 (m,)."""
-        return -2.0 * (self.H @ (self.prestretch - sigma2))
+        return -2.0 * self.beta * (self._Ct @ (self._inv_area * (self.C @ (self.prestretch - sigma2))))
 
     def step(self, hat2: np.ndarray) -> np.ndarray:
-        """argmin over σ2 of Σ_f A_f (σ2 − σ̂2)² + E_c(σ2), before the clamp."""
-        return self._factor.solve(self.area * hat2 + self._Hs)
+        """argmin over σ2 of Σ_f A_f (σ2 − σ̂2)² + E_c(σ2), before the clamp: the solve of
+        (D + H) σ2 = D σ̂2 + H s with H = β Cᵀ W C."""
+        b = self.area * hat2 + self._Hs
+        y = b / self.area
+        return y - (self._Ct @ self._schur.solve(self.C @ y)) / self.area
 
 
 @dataclass
@@ -196,9 +208,11 @@ class FlatteningResult:
         direction is nearer k1, σ2 the other.
     deviation : (m,) angle (radians) between k1 and the principal stretch direction of σ1.
     ribbon_direction : (m, 2) k̄1 = J k1 normalized, in flat coordinates (§6).
-    energy : Eq. 3 at the end; iterations; converged: the tolerance was met before the cap.
+    energy : Eq. 3 at the end; iterations (phases 2 and 3 of ``solve``); converged: the tolerance
+        was met before the cap.
     folded : (m,) True where the flat triangle is reversed (det J ≤ 0).
     mid_bounds_iterations : iterations of the first phase (Σ fixed at the middle of the bounds).
+    coupled_iterations : iterations of the second (Eq. 3 with the row-count coupling).
     """
 
     uv: np.ndarray
@@ -216,6 +230,7 @@ class FlatteningResult:
     time_iterations_s: float = 0.0
     history: list[tuple[float, float, float]] = field(default_factory=list)
     mid_bounds_iterations: int = 0
+    coupled_iterations: int = 0
 
 
 ProgressCallback = Callable[[int, float, float], None]   # (iteration, mean dσ, energy)
@@ -233,12 +248,14 @@ class BoundedFlattener:
     settings : solver settings (tolerance, cap, Anderson window, SLIM iterations).
     frames : the faces' isometric frames, if already computed.
     prestretch : the fabric's s (Eq. 10); used only by ``settings.spacing_integrability_weight``.
+    k1_defined : (m,) bool, faces where k1 is defined (anisotropy above the threshold): the
+        row-count phase counts rows only there (default: everywhere).
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, k1_angle: np.ndarray,
                  bounds: tuple[tuple[float, float], tuple[float, float]],
                  settings: SolverSettings | None = None, frames: FaceFrames | None = None,
-                 prestretch: float = 1.6) -> None:
+                 prestretch: float = 1.6, k1_defined: np.ndarray | None = None) -> None:
         self.V = np.ascontiguousarray(V, dtype=np.float64)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
         self.settings = settings or SolverSettings()
@@ -250,6 +267,9 @@ class BoundedFlattener:
         self.frames = frames or face_frames(self.V, self.F)
         self.k1_angle = np.asarray(k1_angle, dtype=np.float64)
         self.prestretch = float(prestretch)
+        if k1_defined is not None and np.shape(k1_defined) != (len(F),):
+            raise ValueError(f"k1_defined has shape {np.shape(k1_defined)}, expected ({len(F)},)")
+        self.k1_defined = None if k1_defined is None else np.asarray(k1_defined, dtype=bool)
         self._ct, self._st = np.cos(self.k1_angle), np.sin(self.k1_angle)
         n, m = len(self.V), len(self.F)
         self.G = gradient_operator(self.F, self.frames, n)
@@ -262,10 +282,17 @@ class BoundedFlattener:
         self._factor = SymmetricFactor(L[: n - 1, : n - 1])
         self.area = self.frames.area
         self._m = m
-        self.coupling: RowCountCoupling | None = None
-        if self.settings.spacing_integrability_weight > 0:
-            self.coupling = RowCountCoupling(self.F, self.frames, self.k1_angle, n, prestretch,
-                                             self.settings.spacing_integrability_weight)
+        self._coupling: RowCountCoupling | None = None
+
+    @property
+    def coupling(self) -> RowCountCoupling | None:
+        """The row-count coupling of ``spacing_integrability_weight`` (None at weight 0), built
+        (one factorization) when the coupled phase first needs it."""
+        w = self.settings.spacing_integrability_weight
+        if w > 0 and self._coupling is None:
+            self._coupling = RowCountCoupling(self.F, self.frames, self.k1_angle, len(self.V),
+                                              self.prestretch, w, self.k1_defined)
+        return self._coupling if w > 0 else None
 
     # -- the pieces of one iteration ---------------------------------------------------------
 
@@ -274,8 +301,10 @@ class BoundedFlattener:
         return jacobians(self.G, uv)
 
     def local(self, uv: np.ndarray, sigma1: np.ndarray, sigma2: np.ndarray,
-              bounds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """Local step at the flat map ``uv`` (n, 2); ``bounds`` (2, 2) replaces the design's.
+              bounds: np.ndarray | None = None, coupled: RowCountCoupling | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Local step at the flat map ``uv`` (n, 2); ``bounds`` (2, 2) replaces the design's;
+        ``coupled``: the σ2 step and the energy also take the row-count coupling.
 
         Returns
         -------
@@ -287,8 +316,6 @@ class BoundedFlattener:
         m, ct, st = self._m, self._ct, self._st
         a, b, c, d = g[:m, 0], g[m:, 0], g[:m, 1], g[m:, 1]        # J = [[a, b], [c, d]]
         JRt = (a * ct + b * st, b * ct - a * st, c * ct + d * st, d * ct - c * st)
-        # the coupling acts with the design's bounds only (not in the fixed-Σ first phase)
-        coupled = self.coupling if bounds is None else None
         cos, sin, sigma1, sigma2 = local_step(JRt, sigma1, sigma2,
                                               self.bounds if bounds is None else bounds,
                                               self.settings.local_passes,
@@ -357,11 +384,12 @@ class BoundedFlattener:
     def coarse_start(self) -> np.ndarray:
         """A start from a decimated copy of the mesh, flattened and prolonged (coarse to fine).
 
-        The coarse mesh (``settings.coarse_faces`` faces, libigl's edge-collapse decimation)
-        takes the ribbon direction of the face each of its faces was born from, is flattened
-        from its own Tutte + SLIM start, and every fine vertex is placed by the barycentric
-        coordinates of its closest point on the coarse surface. Low-frequency error, which the
-        local/global iteration removes slowly on a fine mesh, is gone from this start.
+        The coarse mesh (``settings.coarse_faces`` faces, libigl's edge-collapse decimation) takes
+        the ribbon direction of the face each of its faces was born from, is flattened by ``solve``
+        from its own Tutte + SLIM start (without the row-count phase: on the decimated mesh's
+        irregular faces it spread the rows more, not less), and every fine vertex is placed by the
+        barycentric coordinates of its closest point on the coarse surface. Low-frequency error,
+        which the local/global iteration removes slowly on a fine mesh, is gone from this start.
 
         A few fine faces near the boundary can start folded (a fine boundary vertex lands on the
         coarse boundary edge next to it); the iterations unfold them, and ``solve`` starts again
@@ -376,8 +404,8 @@ class BoundedFlattener:
         direction = self.frames.to_world(np.column_stack([self._ct, self._st]))[birth_face]
         local = coarse_frames.to_local(direction)
         coarse = BoundedFlattener(U, G, np.arctan2(local[:, 1], local[:, 0]), self.bounds,
-                                  st.model_copy(update={"coarse_faces": 0}), frames=coarse_frames,
-                                  prestretch=self.prestretch)
+                                  st.model_copy(update={"coarse_faces": 0, "spacing_integrability_weight": 0.0}),
+                                  frames=coarse_frames, prestretch=self.prestretch)
         uv_coarse = coarse.solve().uv
         _, face, closest = igl.point_mesh_squared_distance(V, U, G)
         corners = G[face]
@@ -395,46 +423,68 @@ class BoundedFlattener:
         """Iterate local/global steps (Anderson-accelerated) until the mean change of σ1 and of
         σ2 falls below the tolerance, or the iteration cap.
 
-        From Tutte + SLIM, a first phase aims every face at the middle of the bounds (Σ fixed,
-        R by Eq. 7) until the map settles: inside the bounds Eq. 3 has a whole family of
-        zero-energy minimizers, and this start leads to the most uniform one, so the ribbon
-        spacing (Eq. 10) varies no more than the surface asks for; a developable surface
-        flattens with one uniform Σ. The paper's iteration (§4.3) follows from there.
+        From Tutte + SLIM, up to three phases, each from where the last one stopped:
+        1. every face aimed at the middle of the bounds (Σ fixed, R by Eq. 7) until the map
+           settles: inside the bounds Eq. 3 has a whole family of zero-energy minimizers, and this
+           start leads to the most uniform one; a developable surface flattens with one uniform Σ;
+        2. Eq. 3 plus the row-count coupling (``spacing_integrability_weight``, ``RowCountCoupling``)
+           for at most ``spacing_integrability_iterations`` and ``spacing_integrability_budget`` /
+           faces (never fewer than 100): σ2 moves off the k1 lines' direction,
+           so that Eq. 10's rows can be counted along them (the ribbons both follow k1 and keep
+           their spacing);
+        3. the paper's iteration (§4.3, Eq. 3 alone) to its stop, so the result is a minimizer of
+           Eq. 3 and the bounds hold as well as Eq. 3 allows: phase 2 only chose which one.
+        From a coarse start (a mesh of 4× ``coarse_faces`` or more) the coarse flattening ran
+        phase 1 and the fine mesh runs phases 2 and 3; from ``uv0`` only phase 3 runs.
         """
         t0 = time.perf_counter()
-        coarse = uv0 is None and 0 < self.settings.coarse_faces <= self._m // 4
+        st = self.settings
+        coarse = uv0 is None and 0 < st.coarse_faces <= self._m // 4
         if uv0 is not None:
             uv = np.array(uv0, dtype=np.float64)
         elif coarse:
             uv = self.coarse_start()
         else:
             uv = self.initial_map(boundary)
-        st = self.settings
         ones = np.ones(self._m)
-        mid_iterations = 0
-        if uv0 is None and not coarse and st.mid_bounds_iterations > 0:
+        s1, s2 = ones, ones           # initial stretches 1 and R by Eq. 7 (§4.3)
+        mid_iterations = coupled_iterations = 0
+        fresh = uv0 is None and not coarse
+        if fresh and st.mid_bounds_iterations > 0:
             mid = self.bounds.mean(axis=1)
             phase = self._iterate(uv, ones * mid[0], ones * mid[1], np.column_stack([mid, mid]),
                                   st.mid_bounds_iterations, None)
             uv, mid_iterations = phase.uv, phase.iterations
         t_init = time.perf_counter() - t0
         t1 = time.perf_counter()
-        # Initial stretches 1 and R by Eq. 7 (§4.3).
-        run = self._iterate(uv, ones, ones, None, st.max_iterations, progress)
+        # on the fine mesh, also from a coarse start: on a decimated copy the phase did harm
+        coupling = self.coupling if uv0 is None else None
+        if coupling is not None:
+            cap = min(st.spacing_integrability_iterations,
+                      max(100, int(st.spacing_integrability_budget / self._m)))
+            phase = self._iterate(uv, s1, s2, None, cap, progress, coupling)
+            uv, coupled_iterations = phase.uv, phase.iterations
+        def progress3(i: int, change: float, energy: float) -> None:   # one count over phases 2 and 3
+            if progress is not None:
+                progress(coupled_iterations + i, change, energy)
+        run = self._iterate(uv, s1, s2, None, st.max_iterations, progress3)
         t_iter = time.perf_counter() - t1
-        result = self._result(run.uv, run.energy, run.iterations, run.converged, run.accelerated,
-                              run.rejected, t_init, t_iter, run.history)
+        result = self._result(run.uv, run.energy, coupled_iterations + run.iterations, run.converged,
+                              run.accelerated, run.rejected, t_init, t_iter, run.history)
         result.mid_bounds_iterations = mid_iterations
+        result.coupled_iterations = coupled_iterations
         if coarse and result.folded.any():
             # The coarse start left a fold: start again as the paper does, on the fine mesh.
-            fresh = self.solve(self.initial_map(boundary), progress=progress)
-            fresh.time_init_s += t_init + t_iter
-            return fresh
+            fresh_run = self.solve(self.initial_map(boundary), progress=progress)
+            fresh_run.time_init_s += t_init + t_iter
+            return fresh_run
         return result
 
     def _iterate(self, uv: np.ndarray, s1: np.ndarray, s2: np.ndarray, bounds: np.ndarray | None,
-                 max_iterations: int, progress: ProgressCallback | None) -> "_Run":
-        """Local/global iterations from ``uv`` with Anderson acceleration and Peng's safeguard.
+                 max_iterations: int, progress: ProgressCallback | None,
+                 coupled: RowCountCoupling | None = None) -> "_Run":
+        """Local/global iterations from ``uv`` with Anderson acceleration and Peng's safeguard;
+        ``coupled``: on Eq. 3 plus the row-count coupling.
 
         With the design's bounds (``bounds`` None) the stop is the paper's: the mean change of σ1
         and of σ2 below the tolerance. With fixed Σ (degenerate ``bounds``) σ does not change, and
@@ -444,7 +494,7 @@ class BoundedFlattener:
         n = len(self.V)
         pinned_at = uv[self.pinned].copy()
         aa = _Anderson(2 * (n - 1), st.anderson_window) if st.anderson_window > 0 else None
-        targets, s1, s2, energy = self.local(uv, s1, s2, bounds)
+        targets, s1, s2, energy = self.local(uv, s1, s2, bounds, coupled)
         g = self.global_step(targets, pinned_at)
         x_acc, g_acc, e_acc, s1_acc, s2_acc = uv, g, energy, s1, s2
         if aa is not None:
@@ -461,14 +511,14 @@ class BoundedFlattener:
                 uv[: n - 1] = aa.extrapolate().reshape(-1, 2)
                 uv[n - 1] = pinned_at
                 used_aa = True
-            targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds)
+            targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds, coupled)
             if used_aa and not energy <= e_acc:
                 # Safeguard (Peng et al. 2018): the plain step from the last accepted iterate.
                 rejected += 1
                 used_aa = False
                 aa.reset(x_acc[: n - 1].ravel(), g_acc[: n - 1].ravel())
                 uv = g_acc
-                targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds)
+                targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds, coupled)
             accelerated += used_aa
             g = self.global_step(targets, pinned_at)
             if aa is not None:

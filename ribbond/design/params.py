@@ -119,9 +119,15 @@ class SolverSettings(BaseModel):
         500, ge=0, description="cap on the first phase, which aims every face at the middle of "
         "the bounds before the bounded iteration (the most uniform flattening); 0 turns it off")
     spacing_integrability_weight: float = Field(
-        0.0, ge=0, description="the flattening also penalizes the curl of (s − σ2) k2, so that the rows "
-        "Eq. 10 asks for can be counted along k1 (θ's frequency integrable), this much against Eq. 3 "
-        "(per unit target area); σ2 stays within its bounds; 0: Eq. 3 alone")
+        1e-3, ge=0, description="a phase of the flattening also penalizes the curl of (s − σ2) k2, so "
+        "that the rows Eq. 10 asks for can be counted along k1 (θ's frequency integrable), this much "
+        "against Eq. 3 (per unit target area); Eq. 3 alone follows it, so the result is a minimizer "
+        "of Eq. 3; 0: no such phase (the previous engine)")
+    spacing_integrability_iterations: int = Field(
+        800, ge=1, description="cap on that coupled phase's iterations (it converges slowly)")
+    spacing_integrability_budget: float = Field(
+        4e6, gt=0, description="and on its cost: at most this many face-iterations (faces × "
+        "iterations, about 3-4 s on one core), but never fewer than 100 iterations")
     stripe_edge_fraction: float = Field(
         0.15, gt=0, le=1, description="the stripe patterns are computed on a triangulation of the flat "
         "surface with edges of this share of the shortest stripe period")

@@ -186,7 +186,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     progress.stage_started("flatten", "bounded directional flattening")
     t = time.perf_counter()
     flattener = BoundedFlattener(V, F, field.angle, params.bounds, solver, frames=frames,
-                                 prestretch=params.prestretch)
+                                 prestretch=params.prestretch,
+                                 k1_defined=field.anisotropy > ANISOTROPY_THRESHOLD)
     flat = flattener.solve(boundary=target.boundary,
                            progress=lambda i, dsig, e: progress.iteration("flatten", i, dsig, e))
     if flat.folded.any():
@@ -216,9 +217,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     c, s = np.cos(rotation), np.sin(rotation)
     placed = np.array([[c, s], [-s, c]])
     direction = flat.ribbon_direction @ placed
-    k1_pushed = np.einsum("mij,mj->mi", flat.jacobians, np.column_stack([np.cos(curvature.angle),
-                                                                         np.sin(curvature.angle)]))
-    k1_direction = (k1_pushed / np.linalg.norm(k1_pushed, axis=1, keepdims=True)) @ placed
+    # print vector p -> flat (placed p) -> target frame J⁻¹ placed p: the report's angles on the target
+    pullback = np.linalg.inv(flat.jacobians) @ placed
+    k1_target = np.column_stack([np.cos(curvature.angle), np.sin(curvature.angle)])
     kappa1 = curvature.normal_curvature(field.local) / scale
     report = flattening_report(flat, frames.area, params.bounds, timings,
                                total_time=time.perf_counter() - t_start)
@@ -227,7 +228,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     progress.stage_started("stripes", "ribbon spacing (Eq. 10) and the stripe patterns θ and ψ")
     t = time.perf_counter()
     stripes = stripe_grid(uv, F, target.boundary, flat.sigma, direction, kappa1, params,
-                          k1_direction=k1_direction, anisotropic=field.anisotropy > ANISOTROPY_THRESHOLD,
+                          pullback=pullback, k1_target=k1_target,
+                          anisotropic=field.anisotropy > ANISOTROPY_THRESHOLD,
                           edge_fraction=solver.stripe_edge_fraction, max_faces=solver.stripe_max_faces,
                           spacing_weight=solver.stripe_spacing_weight,
                           direction_weight=solver.stripe_direction_weight)

@@ -45,7 +45,11 @@ class StripeGrid:
     mu1, mu2 : (n,) spacing along and across the ribbons at the vertices (Eq. 10), mm.
     kappa1 : (n,) signed curvature along the ribbons at the vertices, 1/mm.
     direction : (m, 2) the ribbon direction k̄1 per face.
-    k1_direction : (m, 2) the target's own k1 (before the line field's smoothing) pushed forward;
+    pullback : (m, 2, 2) maps a flat vector (mm, print coordinates) to the target surface, in the
+        isometric frame of the design face each face lies in (J⁻¹ of the flattening);
+    k1_target : (m, 2) unit, the target's own k1 (before the line field's smoothing) in that frame:
+        the report measures the ribbons' angle to k1 on the target, where they bend and twist
+        (the flat map changes angles by up to σ2 / σ1);
     anisotropic : (m,) True where k1 is defined (anisotropy above ``ANISOTROPY_THRESHOLD``).
     theta, psi : the stripe patterns across (period 2μ2) and along (period μ1) the ribbons.
     spacing : the edge length of the stripe mesh, mm.
@@ -58,7 +62,8 @@ class StripeGrid:
     mu2: np.ndarray
     kappa1: np.ndarray
     direction: np.ndarray
-    k1_direction: np.ndarray
+    pullback: np.ndarray
+    k1_target: np.ndarray
     anisotropic: np.ndarray
     theta: StripePattern
     psi: StripePattern
@@ -92,7 +97,8 @@ def stripe_spacing(shortest_period: float, area: float, edge_fraction: float, ma
 
 def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.ndarray,
                 ribbon_direction: np.ndarray, kappa1: np.ndarray, params: DesignParameters, *,
-                k1_direction: np.ndarray | None = None, anisotropic: np.ndarray | None = None,
+                pullback: np.ndarray | None = None, k1_target: np.ndarray | None = None,
+                anisotropic: np.ndarray | None = None,
                 edge_fraction: float = 0.15, max_faces: int = 150_000,
                 spacing_weight: float | None = None, direction_weight: float = 1.0) -> StripeGrid:
     """Spacing fields and the θ and ψ stripe patterns on the flat surface (§6.1–6.2).
@@ -103,8 +109,9 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
         boundary loop.
     sigma : (m, 2) final principal stretches (σ1 along the ribbons, σ2 across).
     ribbon_direction : (m, 2) unit k̄1 per face; kappa1 : (m,) signed curvature along it, 1/mm.
-    k1_direction : (m, 2) the target's k1 pushed forward (default: ``ribbon_direction``);
-    anisotropic : (m,) where k1 is defined (default: everywhere); both only for the report.
+    pullback : (m, 2, 2) flat (print) vectors to the target face's frame, J⁻¹ (default: identity);
+    k1_target : (m, 2) the target's k1 in that frame (default: ``ribbon_direction``);
+    anisotropic : (m,) where k1 is defined (default: everywhere); these three only for the report.
     edge_fraction, max_faces : the stripes are computed on a triangulation of the flat domain with
         edges of ``edge_fraction`` × the shortest stripe period (5th percentile), within
         ``max_faces`` faces (``remesh``).
@@ -135,10 +142,12 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
     theta = solver.solve(X2, nu_theta, ratio=direction_weight,
                          face_direction=direction)     # a phase change along the ribbons turns them
     psi = solver.solve(X1, 2 * np.pi / mu_r[:, 0])
-    k1_dir = (ribbon_direction if k1_direction is None else k1_direction)[mesh.parent]
+    back = np.broadcast_to(np.eye(2), (len(F), 2, 2)) if pullback is None else np.asarray(pullback)
+    k1_t = (ribbon_direction if k1_target is None else k1_target)[mesh.parent]
     aniso = np.ones(len(mesh.F), dtype=bool) if anisotropic is None else np.asarray(anisotropic)[mesh.parent]
     return StripeGrid(uv=mesh.uv, F=mesh.F, parent=mesh.parent, mu1=mu_r[:, 0], mu2=mu_r[:, 1],
-                      kappa1=k1_r, direction=direction, k1_direction=k1_dir, anisotropic=aniso,
+                      kappa1=k1_r, direction=direction, pullback=back[mesh.parent], k1_target=k1_t,
+                      anisotropic=aniso,
                       theta=theta, psi=psi, spacing=h)
 
 
@@ -502,8 +511,10 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
             continue
         dev_all.append(np.degrees(np.arccos(np.clip(cosang[kept_interval], 0.0, 1.0))))
         devw_all.append((hi - lo)[kept_interval])
-        k1dir = grid.k1_direction[np.maximum(face, 0)]
-        cos_k1 = np.abs(np.einsum("kc,kc->k", vec, k1dir)) / np.maximum(vlen, 1e-300)
+        on_face = np.maximum(face, 0)
+        vec_t = np.einsum("kij,kj->ki", grid.pullback[on_face], vec)     # the segment on the target
+        cos_k1 = np.abs(np.einsum("kc,kc->k", vec_t, grid.k1_target[on_face])) / np.maximum(
+            np.linalg.norm(vec_t, axis=1), 1e-300)
         on_k1 = kept_interval & grid.anisotropic[np.maximum(face, 0)]
         k1dev_all.append(np.degrees(np.arccos(np.clip(cos_k1[on_k1], 0.0, 1.0))))
         k1w_all.append((hi - lo)[on_k1])

@@ -331,14 +331,12 @@ def test_ribbons_follow_the_exact_curvature_lines(name: str, request: pytest.Fix
     assert folder.design.report.field_k1_deviation_deg.median <= 1.0
 
 
-@pytest.mark.parametrize("name, limit", [("symmetric_saddle", 5.0), ("skew_saddle", 5.0),
-                                         # σ2 runs from 1.39 to 1.44 along the torus' ribbons: a
-                                         # stripe pattern cannot follow that (the row count would
-                                         # have to change by a third); see the README
-                                         ("torus", 8.0)])
-def test_across_spacing_follows_eq_10(name: str, limit: float, request: pytest.FixtureRequest) -> None:
+@pytest.mark.parametrize("name", ["symmetric_saddle", "skew_saddle", "torus"])
+def test_across_spacing_follows_eq_10(name: str, request: pytest.FixtureRequest) -> None:
+    # issue 11's goal; on the torus only with the flattening's row-count phase (without it σ2
+    # runs from 1.39 to 1.44 along the ribbons and the median reads 1.4-6.9 % by resolution)
     rr = request.getfixturevalue(name)["folder"].design.report.ribbons
-    assert rr.spacing_error_across_pct.median <= limit
+    assert rr.spacing_error_across_pct.median <= 5.0
 
 
 def test_sides_follow_the_exact_curvature_sign(symmetric_saddle: dict[str, Any],
