@@ -429,7 +429,7 @@ class BoundedFlattener:
            start leads to the most uniform one; a developable surface flattens with one uniform Σ;
         2. Eq. 3 plus the row-count coupling (``spacing_integrability_weight``, ``RowCountCoupling``)
            for at most ``spacing_integrability_iterations`` and ``spacing_integrability_budget`` /
-           faces (never fewer than 100): σ2 moves off the k1 lines' direction,
+           faces (never fewer than 25): σ2 moves off the k1 lines' direction,
            so that Eq. 10's rows can be counted along them (the ribbons both follow k1 and keep
            their spacing);
         3. the paper's iteration (§4.3, Eq. 3 alone) to its stop, so the result is a minimizer of
@@ -461,7 +461,7 @@ class BoundedFlattener:
         coupling = self.coupling if uv0 is None else None
         if coupling is not None:
             cap = min(st.spacing_integrability_iterations,
-                      max(100, int(st.spacing_integrability_budget / self._m)))
+                      max(25, int(st.spacing_integrability_budget / self._m)))
             phase = self._iterate(uv, s1, s2, None, cap, progress, coupling)
             uv, coupled_iterations = phase.uv, phase.iterations
         def progress3(i: int, change: float, energy: float) -> None:   # one count over phases 2 and 3

@@ -127,7 +127,7 @@ class SolverSettings(BaseModel):
         800, ge=1, description="cap on that coupled phase's iterations (it converges slowly)")
     spacing_integrability_budget: float = Field(
         4e6, gt=0, description="and on its cost: at most this many face-iterations (faces × "
-        "iterations, about 3-4 s on one core), but never fewer than 100 iterations")
+        "iterations, about 3-4 s on one core), but never fewer than 25 iterations")
     stripe_edge_fraction: float = Field(
         0.15, gt=0, le=1, description="the stripe patterns are computed on a triangulation of the flat "
         "surface with edges of this share of the shortest stripe period")
