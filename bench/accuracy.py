@@ -12,7 +12,7 @@ spacing errors (across: gap to the next centerline against the harmonic mean of 
 
 ``--integrability`` runs the designs once per weight given ([solver]
 spacing_integrability_weight, the flattening's row-count phase; default: the settings' own, 0
-turns the phase off); ``--sweep`` adds the torus patch at five resolutions with the phase off and
+turns the phase off); ``--sweep`` adds the torus patch at seven resolutions with the phase off and
 on (the across median jumps with the resolution without it). The ribbon table also gives the
 flattening's σ1 and σ2 ranges (2nd–98th percentile) against the bounds, the share of faces outside
 them, and the median angle of the stretch direction off k1 (Table 1's column; 0 where Eq. 3 is 0).
@@ -155,14 +155,14 @@ def main() -> int:
     ap.add_argument("--ribbons-only", action="store_true", help="skip the line-field table")
     ap.add_argument("--integrability", type=float, nargs="+", default=None, metavar="W",
                     help="[solver] spacing_integrability_weight values to run the designs with")
-    ap.add_argument("--sweep", action="store_true", help="also the torus patch at five resolutions, "
+    ap.add_argument("--sweep", action="store_true", help="also the torus patch at seven resolutions, "
                     "without the row-count phase (weight 0) and with the settings' own")
     args = ap.parse_args()
     if not args.ribbons_only:
         field_table(args.quick)
     ribbon_table(args.integrability or [None], design_cases())
     if args.sweep:
-        ribbon_table([0.0, None], [torus(nu) for nu in (50, 60, 70, 80, 110)])
+        ribbon_table([0.0, None], [torus(nu) for nu in (50, 60, 70, 80, 110, 160, 200)])
     return 0
 
 

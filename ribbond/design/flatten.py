@@ -435,7 +435,8 @@ class BoundedFlattener:
         3. the paper's iteration (§4.3, Eq. 3 alone) to its stop, so the result is a minimizer of
            Eq. 3 and the bounds hold as well as Eq. 3 allows: phase 2 only chose which one.
         From a coarse start (a mesh of 4× ``coarse_faces`` or more) the coarse flattening ran
-        phase 1 and the fine mesh runs phases 2 and 3; from ``uv0`` only phase 3 runs.
+        phase 1 and the fine mesh runs phase 3 only (phase 2 would cost more there than the whole
+        flattening); from ``uv0`` only phase 3 runs.
         """
         t0 = time.perf_counter()
         st = self.settings
@@ -457,8 +458,9 @@ class BoundedFlattener:
             uv, mid_iterations = phase.uv, phase.iterations
         t_init = time.perf_counter() - t0
         t1 = time.perf_counter()
-        # on the fine mesh, also from a coarse start: on a decimated copy the phase did harm
-        coupling = self.coupling if uv0 is None else None
+        # not on a mesh with a coarse start (48k faces and more by default): there it cost 3-10 s
+        # (112k faces), and on the decimated copy itself it spread the rows more, not less
+        coupling = self.coupling if fresh else None
         if coupling is not None:
             cap = min(st.spacing_integrability_iterations,
                       max(25, int(st.spacing_integrability_budget / self._m)))

@@ -254,7 +254,8 @@ class Report(_Updatable):
     field_k1_deviation_deg: Deviation | None = Field(
         None, description="line field vs the target's k1 on faces with anisotropy > 0.3 (format 2)")
     ribbon_k1_deviation_deg: Deviation | None = Field(
-        None, description="ribbon centerlines vs the target's k1 there, length-weighted (format 2)")
+        None, description="ribbon centerlines vs the target's k1 there, the angle on the target (the "
+        "centerline pulled back through the flattening), length-weighted (format 2)")
     umbilic_pct: float | None = Field(None, ge=0, le=100,
                                       description="% of faces with anisotropy ≤ 0.3 (format 2)")
     ribbons: RibbonsReport | None = None
