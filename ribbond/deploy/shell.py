@@ -618,7 +618,6 @@ class ShellEnergy:
         boundary): the 18 dofs a face's bending Gauss–Newton block touches, and where each of its
         hinges' four vertices sits among them."""
         F, topo = self.F, self.topo
-        m = len(F)
         hinge_of_edge = np.full(topo.n_edges, -1, dtype=np.int64)
         hinge_of_edge[topo.hinge_edge] = np.arange(len(topo.hinge))
         hid = hinge_of_edge[topo.face_edge]                                 # (m, 3), −1 on the boundary

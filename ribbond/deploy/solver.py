@@ -29,6 +29,9 @@ from cvxopt import cholmod
 
 from .shell import ShellEnergy
 
+#: Called after each Newton iteration with (iteration, energy, ‖∇E‖∞).
+Progress = Callable[[int, float, float], None]
+
 __all__ = ["NewtonResult", "pinned_dofs", "newton"]
 
 #: Shifts of the exact Hessian tried in turn, × its mean diagonal.
