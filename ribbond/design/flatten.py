@@ -429,7 +429,8 @@ class BoundedFlattener:
            start leads to the most uniform one; a developable surface flattens with one uniform Σ;
         2. Eq. 3 plus the row-count coupling (``spacing_integrability_weight``, ``RowCountCoupling``)
            for at most ``spacing_integrability_iterations`` and ``spacing_integrability_budget`` /
-           faces (never fewer than 25): σ2 moves off the k1 lines' direction,
+           faces (never fewer than 25), and half of ``max_iterations``, which caps phases 2 and 3
+           together: σ2 moves off the k1 lines' direction,
            so that Eq. 10's rows can be counted along them (the ribbons both follow k1 and keep
            their spacing);
         3. the paper's iteration (§4.3, Eq. 3 alone) to its stop, so the result is a minimizer of
@@ -461,15 +462,16 @@ class BoundedFlattener:
         # not on a mesh with a coarse start (48k faces and more by default): there it cost 3-10 s
         # (112k faces), and on the decimated copy itself it spread the rows more, not less
         coupling = self.coupling if fresh else None
-        if coupling is not None:
-            cap = min(st.spacing_integrability_iterations,
-                      max(25, int(st.spacing_integrability_budget / self._m)))
+        # max_iterations caps phases 2 and 3 together; phase 3 keeps at least half of it
+        cap = min(st.spacing_integrability_iterations, max(25, int(st.spacing_integrability_budget / self._m)),
+                  st.max_iterations // 2)
+        if coupling is not None and cap > 0:
             phase = self._iterate(uv, s1, s2, None, cap, progress, coupling)
             uv, coupled_iterations = phase.uv, phase.iterations
         def progress3(i: int, change: float, energy: float) -> None:   # one count over phases 2 and 3
             if progress is not None:
                 progress(coupled_iterations + i, change, energy)
-        run = self._iterate(uv, s1, s2, None, st.max_iterations, progress3)
+        run = self._iterate(uv, s1, s2, None, st.max_iterations - coupled_iterations, progress3)
         t_iter = time.perf_counter() - t1
         result = self._result(run.uv, run.energy, coupled_iterations + run.iterations, run.converged,
                               run.accelerated, run.rejected, t_init, t_iter, run.history)

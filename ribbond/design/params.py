@@ -111,7 +111,8 @@ class SolverSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     tolerance: float = Field(1e-6, gt=0, description="stop when the mean change of σ1 and of σ2 is below")
-    max_iterations: int = Field(3000, ge=1, description="cap on local/global iterations")
+    max_iterations: int = Field(3000, ge=1, description="cap on local/global iterations (the flattening's "
+                                "row-count phase and the paper's iteration together)")
     local_passes: int = Field(2, ge=1, description="R/Σ alternations per global step (§4.3: twice)")
     anderson_window: int = Field(6, ge=0, description="Anderson acceleration history; 0 turns it off")
     slim_iterations: int = Field(2, ge=0, description="SLIM iterations after the Tutte embedding")

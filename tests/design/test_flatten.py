@@ -229,6 +229,14 @@ def test_integrability_phase_makes_the_rows_countable_along_k1():
     assert np.ptp(coupled.sigma[:, 0]) > 1.5 * np.ptp(plain.sigma[:, 0])
 
 
+def test_max_iterations_caps_the_row_count_phase_and_the_paper_iteration_together():
+    V, F = surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30), nu=40, nv=20)
+    _, _, _, capped = flatten(V, F, max_iterations=10)
+    assert capped.iterations == 10 and capped.coupled_iterations == 5 and not capped.converged
+    _, _, _, one = flatten(V, F, max_iterations=1)
+    assert one.iterations == 1 and one.coupled_iterations == 0
+
+
 def test_row_curl_operator_leaves_out_vertices_where_k1_is_not_defined():
     V, F, fr, angle = _torus_with_exact_k1(12, 6)
     C_all, _ = row_curl_operator(F, fr, angle, len(V))
