@@ -427,12 +427,11 @@ class BoundedFlattener:
         1. every face aimed at the middle of the bounds (Σ fixed, R by Eq. 7) until the map
            settles: inside the bounds Eq. 3 has a whole family of zero-energy minimizers, and this
            start leads to the most uniform one; a developable surface flattens with one uniform Σ;
-        2. Eq. 3 plus the row-count coupling (``spacing_integrability_weight``, ``RowCountCoupling``)
-           for at most ``spacing_integrability_iterations`` and ``spacing_integrability_budget`` /
-           faces (never fewer than 25), and half of ``max_iterations``, which caps phases 2 and 3
-           together: σ2 moves off the k1 lines' direction,
-           so that Eq. 10's rows can be counted along them (the ribbons both follow k1 and keep
-           their spacing);
+        2. Eq. 3 plus the row-count coupling (``spacing_integrability_weight``, ``RowCountCoupling``):
+           σ2 moves off the k1 lines' direction, so that Eq. 10's rows can be counted along them
+           (the ribbons both follow k1 and keep their spacing); at most
+           ``spacing_integrability_iterations``, ``spacing_integrability_budget`` / faces (never
+           fewer than 25) and half of ``max_iterations``, which caps phases 2 and 3 together;
         3. the paper's iteration (§4.3, Eq. 3 alone) to its stop, so the result is a minimizer of
            Eq. 3 and the bounds hold as well as Eq. 3 allows: phase 2 only chose which one.
         From a coarse start (a mesh of 4× ``coarse_faces`` or more) the coarse flattening ran
@@ -468,6 +467,7 @@ class BoundedFlattener:
         if coupling is not None and cap > 0:
             phase = self._iterate(uv, s1, s2, None, cap, progress, coupling)
             uv, coupled_iterations = phase.uv, phase.iterations
+
         def progress3(i: int, change: float, energy: float) -> None:   # one count over phases 2 and 3
             if progress is not None:
                 progress(coupled_iterations + i, change, energy)
