@@ -217,8 +217,12 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     c, s = np.cos(rotation), np.sin(rotation)
     placed = np.array([[c, s], [-s, c]])
     direction = flat.ribbon_direction @ placed
-    # print vector p -> flat (placed p) -> target frame J⁻¹ placed p: the report's angles on the target
-    pullback = np.linalg.inv(flat.jacobians) @ placed
+    # print vector p -> flat (placed p) -> target frame J⁻¹ placed p: the report's angles on the target.
+    # The adjugate is det J · J⁻¹: the same line for an angle, and defined where J is singular.
+    J = flat.jacobians
+    adjugate = np.stack([np.stack([J[:, 1, 1], -J[:, 0, 1]], axis=1),
+                         np.stack([-J[:, 1, 0], J[:, 0, 0]], axis=1)], axis=1)
+    pullback = adjugate @ placed
     k1_target = np.column_stack([np.cos(curvature.angle), np.sin(curvature.angle)])
     kappa1 = curvature.normal_curvature(field.local) / scale
     report = flattening_report(flat, frames.area, params.bounds, timings,

@@ -46,7 +46,8 @@ class StripeGrid:
     kappa1 : (n,) signed curvature along the ribbons at the vertices, 1/mm.
     direction : (m, 2) the ribbon direction k̄1 per face.
     pullback : (m, 2, 2) maps a flat vector (mm, print coordinates) to the target surface, in the
-        isometric frame of the design face each face lies in (J⁻¹ of the flattening);
+        isometric frame of the design face each face lies in (J⁻¹ of the flattening, or any
+        multiple of it: only directions are used);
     k1_target : (m, 2) unit, the target's own k1 (before the line field's smoothing) in that frame:
         the report measures the ribbons' angle to k1 on the target, where they bend and twist
         (the flat map changes angles by up to σ2 / σ1);
@@ -109,7 +110,8 @@ def stripe_grid(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, sigma: np.n
         boundary loop.
     sigma : (m, 2) final principal stretches (σ1 along the ribbons, σ2 across).
     ribbon_direction : (m, 2) unit k̄1 per face; kappa1 : (m,) signed curvature along it, 1/mm.
-    pullback : (m, 2, 2) flat (print) vectors to the target face's frame, J⁻¹ (default: identity);
+    pullback : (m, 2, 2) flat (print) vectors to the target face's frame, J⁻¹ up to a scale per
+        face (default: identity);
     k1_target : (m, 2) the target's k1 in that frame (default: ``ribbon_direction``);
     anisotropic : (m,) where k1 is defined (default: everywhere); these three only for the report.
     edge_fraction, max_faces : the stripes are computed on a triangulation of the flat domain with
