@@ -95,7 +95,8 @@ class FaultInjector:
         fired: list[str] = []
         for name, after in (("reset", self.config.reset_after_lines),
                             ("disconnect", self.config.disconnect_after_lines),
-                            ("runaway", self.config.runaway_after_lines)):
+                            ("runaway", self.config.runaway_after_lines),
+                            ("mintemp", self.config.mintemp_after_lines)):
             if after is not None and name not in self._fired and self._accepted >= after:
                 self._fired.add(name)
                 fired.append(name)

@@ -47,6 +47,8 @@ ERR_CHECKSUM = "checksum mismatch, Last Line: "
 ERR_NO_CHECKSUM = "No Checksum with line number, Last Line: "
 ERR_NO_LINE_NUMBER = "No Line Number with checksum, Last Line: "
 ERR_RUNAWAY = "Error:Thermal Runaway, system stopped! Heater_ID: 0"
+# temperature.cpp _temp_error(): "Error:" + STR_T_MINTEMP + STR_STOPPED_HEATER + the heater index
+ERR_MINTEMP = "Error:MINTEMP triggered, system stopped! Heater_ID: 0"
 
 BANNER_SETTINGS = (
     "echo:; Steps per unit:",
@@ -403,12 +405,15 @@ class Firmware:
         elif code == "M410" and not self.halted:
             self._stop_motion()
 
-    def halt(self, *, runaway: bool = False) -> None:
-        """kill(): stop everything; answer every later line with an error until reset."""
+    def halt(self, *, runaway: bool = False, error: str | None = None) -> None:
+        """kill(): stop everything; answer every later line with an error until reset. ``error``:
+        the line printed first (a thermal error); ``runaway``: Marlin's thermal runaway line."""
         if self.halted:
             return
         if runaway:
-            self.emit(ERR_RUNAWAY)
+            error = ERR_RUNAWAY
+        if error is not None:
+            self.emit(error)
         self.emit(ERR_KILLED)
         self.halted = True
         self.halted_at = self.t
@@ -545,6 +550,8 @@ class Firmware:
                 self.reset(self.t)
             elif name == "runaway":
                 self.halt(runaway=True)
+            elif name == "mintemp":
+                self.halt(error=ERR_MINTEMP)
             else:
                 self._on_trigger(name)
 
@@ -794,6 +801,12 @@ class Firmware:
 
     def _m114(self, g: GCode, cmd: QueuedCommand) -> None:
         x, y, z, e = self.position
+        if self.config.m114_on_ok:
+            # Smoothieware: the position is the text after "ok" (GcodeDispatch prints "ok %s" with
+            # the gcode's txt_after_ok; Robot::print_position writes "C: X:%1.4f Y:%1.4f Z:%1.4f").
+            cmd.skip_ok = True
+            self.emit(f"ok C: X:{x:.4f} Y:{y:.4f} Z:{z:.4f} E:{e:.4f}", True)
+            return
         sx, sy, sz, _ = STEPS_PER_MM
         ax, ay, az, _ = self.planner.position_at(self.t)
         self.emit(f"X:{x:.2f} Y:{y:.2f} Z:{z:.2f} E:{e:.2f} "

@@ -83,6 +83,34 @@ async def test_send_and_queries(make_sim) -> None:
     await link.close()
 
 
+@pytest.mark.parametrize("advanced_ok", [True, False], ids=["advanced-ok", "plain-ok"])
+async def test_a_position_on_the_ok_line_is_taken(make_sim, advanced_ok: bool) -> None:
+    """Smoothieware answers M114 with ``ok C: X:… Y:… Z:… E:…`` (no position line before it, no
+    N/P/B fields): the position is taken from the ok, the ok acknowledges the M114 (not a line
+    after it), and the capabilities learn where the firmware puts it."""
+    sim = make_sim(m114_on_ok=True, advanced_ok=advanced_ok)
+    link = link_for(sim)
+    await link.connect()
+    assert link.capabilities.position_report == "line", "not known before the first M114"
+    await link.send("G28")
+    await link.send("G1 X12.5 Y7 Z3 F6000")
+    position = await asyncio.wait_for(link.query_position(grace_s=0.0), 5)
+    assert (position.x, position.y, position.z, position.e) == (12.5, 7.0, 3.0, 0.0)
+    assert link.status.position == (12.5, 7.0, 3.0, 0.0)
+    assert link.capabilities.position_report == "ok"
+    # the acknowledgements stay in step: the next command's answer is its own
+    await link.send("G1 X-4.25 Y30 F6000")
+    again = await link.query_position(grace_s=0.0)
+    assert (again.x, again.y) == (-4.25, 30.0)
+    temps = await link.query_temperatures()
+    assert temps.hotend is not None
+    program = [*moves(300)[:150], "M114", *moves(300)[150:]]
+    before = len(sim.commands())
+    await link.stream(program)
+    assert [c.command for c in sim.commands()[before:]] == program
+    await link.close()
+
+
 @pytest.mark.parametrize("ping_pong", [False, True], ids=["windowed", "ping-pong"])
 async def test_clean_stream_executes_every_line_once_in_order(make_sim, ping_pong: bool) -> None:
     sim = make_sim()
@@ -224,6 +252,22 @@ async def test_thermal_runaway_halts_the_stream(make_sim) -> None:
     with pytest.raises(PrinterHalted, match="Thermal Runaway"):
         await link.stream(moves(2000))
     assert link.state is LinkState.HALTED
+    await link.close()
+
+
+async def test_a_mintemp_error_halts_the_stream_and_the_link(make_sim) -> None:
+    """MINTEMP (a thermistor unplugged or broken) is fatal: the stream stops with the printer's
+    own words (the MINTEMP line halts the link, not only kill()'s line after it), the link is
+    halted, and what ran is the program's beginning."""
+    sim = make_sim(faults=FaultConfig(mintemp_after_lines=200))
+    link = link_for(sim)
+    await link.connect()
+    program = moves(2000)
+    with pytest.raises(PrinterHalted, match="MINTEMP triggered, system stopped! Heater_ID: 0"):
+        await link.stream(program)
+    assert link.state is LinkState.HALTED
+    assert_prefix_without_duplicates(executed_program(sim), program)
+    assert len(executed_program(sim)) < 200
     await link.close()
 
 

@@ -134,6 +134,18 @@ def test_runaway_after_lines() -> None:
         assert host.read_quiet() == [HALTED]
 
 
+def test_mintemp_after_lines() -> None:
+    """Marlin's MINTEMP error (temperature.cpp _temp_error: "Error:" "MINTEMP triggered"
+    ", system stopped! Heater_ID: " 0), then kill()'s line; later lines draw the halted error."""
+    with connected(faulty(mintemp_after_lines=2)) as (sim, host):
+        assert host.command("G90", 1) == ["ok N1 P15 B3"]
+        host.send("G90", 2)
+        assert host.read_quiet() == ["Error:MINTEMP triggered, system stopped! Heater_ID: 0", HALTED]
+        assert sim.halted_at is not None
+        host.send("G90", 3)
+        assert host.read_quiet() == [HALTED]
+
+
 def _assert_unplugged(host: PtyHost) -> None:
     with pytest.raises(OSError) as info:
         for _ in range(20):

@@ -60,7 +60,8 @@ class PrinterStatus(BaseModel):
     capabilities: dict[str, bool] = {}
     advanced_ok: bool = False
     heaters: dict[str, HeaterStatus] = {}
-    position: tuple[float, float, float, float] | None = None
+    #: x, y, z and e (None when the firmware reports no extruder position).
+    position: tuple[float, float, float, float | None] | None = None
     last_error: str | None = None
     busy: str | None = None
     lines_acknowledged: int = -1
@@ -319,9 +320,12 @@ class PrinterLink:
         raise LinkError(f"printer answered M105 without temperatures: {answer.ok.text!r}")
 
     async def query_position(self, grace_s: float = 1.0) -> codec.Position:
-        """Ask for the position (``M114``). Some firmwares print it after the ``ok``: wait a little."""
+        """Ask for the position (``M114``), wherever the firmware puts it: on its own line before
+        the ``ok`` (Marlin), on the ``ok`` line (Smoothieware), or after the ``ok`` (wait a little)."""
         asked_at = time.monotonic()
         answer = await self.send("M114")
+        if answer.ok.position is not None:
+            return answer.ok.position
         found = answer.first(codec.Position)
         if isinstance(found, codec.Position):
             return found
@@ -431,6 +435,8 @@ class PrinterLink:
         if isinstance(event, codec.Ok):
             temperatures = event.temperatures
             self._status.busy = None
+            if event.position is not None:
+                self._observe(event.position)
         elif isinstance(event, codec.TemperatureReport):
             temperatures = event.temperatures
         elif isinstance(event, codec.Position):

@@ -366,20 +366,21 @@ class Sender:
         self.capabilities.learn_ok(ok)
         if self._resend_ok_due:
             self._resend_ok_due = False
-            if not ok.advanced and ok.temperatures is None:
+            if not ok.advanced and ok.temperatures is None and ok.position is None:
                 return  # the ok Marlin prints right after each Resend: line
         if ok.advanced:
             if ok.line is not None:
                 self._ack_through(ok.line, ok)
             else:
                 self._ack_oldest(ok)  # an unnumbered command acknowledged in order
-        elif ok.temperatures is not None:
-            # The answer to M105, processed in order: every line before the oldest unacknowledged
-            # M105 has been processed too.
-            probe = next((line for line in self._history_from(self._acked_through + 1)
-                          if _command_word(line.command) == "M105"), None)
-            if probe is not None:
-                self._ack_through(probe.number, ok)
+        elif ok.temperatures is not None or ok.position is not None:
+            # The answer to M105 (or, on Smoothieware, M114), processed in order: every line
+            # before the oldest unacknowledged such command has been processed too.
+            word = "M105" if ok.temperatures is not None else "M114"
+            query = next((line for line in self._history_from(self._acked_through + 1)
+                          if _command_word(line.command) == word), None)
+            if query is not None:
+                self._ack_through(query.number, ok)
             else:
                 self._ack_oldest(ok)
         elif self.capabilities.advanced_ok:
