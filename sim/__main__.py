@@ -88,6 +88,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--skip-refused", action="store_true",
                    help="buggy firmware: a line refused for its checksum is marked received "
                         "(never run) and the next one is asked for")
+    g.add_argument("--swallow-resent-after-lines", type=int, default=None, metavar="N",
+                   help="buggy firmware, once after N accepted numbered lines: ask for the next line "
+                        "again, take the re-sent line without running or answering it, lose the line "
+                        "after it, and later ask for the one after the swallowed line")
     g.add_argument("--reset-after-lines", type=int, default=None, metavar="N",
                    help="reboot after N accepted numbered lines")
     g.add_argument("--disconnect-after-lines", type=int, default=None, metavar="N",
@@ -137,6 +141,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
             slow_rate=args.slow_rate,
             slow_delay_s=args.slow_delay,
             skip_refused=args.skip_refused,
+            swallow_resent_after_lines=args.swallow_resent_after_lines,
             reset_after_lines=args.reset_after_lines,
             disconnect_after_lines=args.disconnect_after_lines,
             runaway_after_lines=args.runaway_after_lines,

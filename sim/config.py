@@ -47,6 +47,11 @@ class FaultConfig:
     mintemp_after_lines: int | None = None
     """A heater's thermistor reads below MINTEMP (unplugged, broken): Marlin's MINTEMP error, then
     halted as by kill()."""
+    swallow_resent_after_lines: int | None = None
+    """A buggy firmware, once after that many accepted numbered lines: the next numbered line N is
+    refused as if corrupted (``Resend: N``); the re-sent N is then marked received but neither run
+    nor answered, and the line after it is lost without a word (flushed with it), so the printer
+    later asks for N + 1 with N never run nor acknowledged."""
     skip_refused: bool = False
     """A buggy firmware: a line refused for its checksum is marked received without running, so
     the resend request asks for the line after it (that line is then missing)."""
@@ -59,7 +64,7 @@ class FaultConfig:
                      "unsolicited_rate", "slow_rate"):
             _check_rate(name, getattr(self, name))
         for name in ("reset_after_lines", "disconnect_after_lines", "runaway_after_lines",
-                     "mintemp_after_lines"):
+                     "mintemp_after_lines", "swallow_resent_after_lines"):
             _check_trigger(name, getattr(self, name))
         if self.slow_delay_s < 0:
             raise ValueError("slow_delay_s must be >= 0")

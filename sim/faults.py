@@ -89,6 +89,14 @@ class FaultInjector:
             return self.config.slow_delay_s
         return 0.0
 
+    def swallow_due(self) -> bool:
+        """Whether the swallow_resent fault starts on the numbered line now arriving (once)."""
+        after = self.config.swallow_resent_after_lines
+        if after is None or "swallow" in self._fired or self._accepted < after:
+            return False
+        self._fired.add("swallow")
+        return True
+
     def line_accepted(self) -> list[str]:
         """Count an accepted numbered line; return the one-shot triggers that fire now."""
         self._accepted += 1

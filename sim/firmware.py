@@ -199,6 +199,8 @@ class Firmware:
         self._lb = bytearray()
         self._lb_skip = False
         self._flush_until: float | None = None  # bytes arriving by then go with the last flush
+        self._swallow: int | None = None  # swallow_resent: the line to take silently when re-sent
+        self._lose_next = False  # swallow_resent: the line after the swallowed one is lost
         self.queue: deque[QueuedCommand] = deque()
         self._current: _Running | None = None
         self.halted_at: float | None = None
@@ -259,6 +261,8 @@ class Firmware:
         self._lb.clear()
         self._lb_skip = False
         self._flush_until = None
+        self._swallow = None
+        self._lose_next = False
 
     def _stop_motion(self) -> None:
         partial = self.planner.quickstop(self.t)
@@ -520,6 +524,8 @@ class Firmware:
                     return
                 self._line_error(ERR_CHECKSUM)
                 return
+            if self._swallow_resent(number):
+                return
             self.last_n = number
             m = _N_DIGITS.match(text)
             n_text = m.group(1) if m else ""
@@ -540,6 +546,25 @@ class Firmware:
             self.queue.append(QueuedCommand(text, None, None))
         if len(self.queue) > self.stats.queue_peak:
             self.stats.queue_peak = len(self.queue)
+
+    def _swallow_resent(self, number: int) -> bool:
+        """The swallow_resent fault on a numbered line that passed the checks: True when the line
+        was taken by it (refused as corrupted, swallowed, or lost)."""
+        if self._lose_next:
+            self._lose_next = False  # lost with the swallowed line: no answer, number not kept
+            return True
+        if self._swallow == number:
+            self._swallow = None
+            self.last_n = number  # marked received, never queued, never answered
+            self.stats.swallowed_line = number
+            self._lose_next = True
+            return True
+        if self.faults.swallow_due():
+            self._swallow = number
+            self.stats.checksum_errors += 1
+            self._line_error(ERR_CHECKSUM)
+            return True
+        return False
 
     def _after_numbered_line(self) -> None:
         if self.faults.spurious_resend():

@@ -194,6 +194,30 @@ async def test_a_printer_that_skips_a_refused_line_stops_the_stream(make_sim) ->
     await link.close()
 
 
+async def test_a_printer_that_swallows_a_resent_line_stops_the_stream(make_sim) -> None:
+    """Issue 22: the printer asks for line N again, takes the re-sent N without running or answering
+    it and later asks for N + 1. The stream stops naming N (it is not counted as done), N never
+    ran, everything before it ran once in order, and the link numbers lines again: it is usable."""
+    sim = make_sim(faults=FaultConfig(swallow_resent_after_lines=300))
+    link = link_for(sim)
+    await link.connect()
+    program = moves(1500, seed=4)
+    with pytest.raises(ProtocolError, match=r"never line (\d+) \(program line (\d+): ") as caught:
+        await link.stream(program)
+    swallowed = sim.stats().swallowed_line
+    message = str(caught.value)
+    assert re.search(r"never line (\d+)", message).group(1) == str(swallowed)
+    index = int(re.search(r"program line (\d+)", message).group(1)) - 1
+    assert program[index] in message
+    assert swallowed not in [c.line for c in sim.commands()], "the swallowed line never ran"
+    executed = executed_program(sim)
+    assert executed[:index] == program[:index], "everything before it ran, once, in order"
+    assert program[index] not in executed, "the line named is the one that did not run"
+    assert link.state is LinkState.READY
+    await link.send("M400")                     # the link works again: the safe stop can go out
+    await link.close()
+
+
 async def test_without_ok_after_resend(make_sim) -> None:
     sim = make_sim(faults=FaultConfig(corrupt_rate=0.05), ok_after_resend=False, seed=11)
     link = link_for(sim, capabilities=Capabilities(ok_after_resend=False))

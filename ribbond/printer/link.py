@@ -18,7 +18,7 @@ from pydantic import BaseModel
 
 from . import codec
 from .capabilities import Capabilities
-from .errors import Disconnected, LinkError, NotReady, PrinterHalted, PrinterReset
+from .errors import Disconnected, LinkError, NotReady, PrinterHalted, PrinterReset, ProtocolError
 from .sender import Answer, Sender, StreamProgress, StreamResult, Timeouts
 from .transport import SerialTransport
 
@@ -351,9 +351,28 @@ class PrinterLink:
         self._set_state(LinkState.STREAMING)
         try:
             return await self.sender.stream(commands, progress, barriers)
+        except ProtocolError:
+            await self._resync()
+            raise
         finally:
             if self._state in (LinkState.STREAMING, LinkState.PAUSED):
                 self._set_state(LinkState.READY)
+
+    async def _resync(self) -> None:
+        """After the sender stopped on a protocol error (the printer asked for what cannot be
+        given, or never acknowledged a line), its line numbers no longer match the printer's:
+        number from 0 again (a new handshake) so that the safe stop and a resume can be sent."""
+        if self._state not in (LinkState.STREAMING, LinkState.PAUSED):
+            return
+        log.warning("numbering the printer's lines again after a protocol error")
+        self._set_state(LinkState.CONNECTING)
+        try:
+            await self._handshake()
+        except (LinkError, OSError) as exc:
+            log.error("handshake after a protocol error failed: %s", exc)
+            await self.close()
+            return
+        self._set_state(LinkState.READY)
 
     def pause(self) -> None:
         """Stop feeding lines; what the printer already has is still executed."""
