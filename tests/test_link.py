@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 import os
 import re
 import select
@@ -267,6 +268,23 @@ async def test_disconnect_mid_job_fails_clearly_without_duplicates(make_sim) -> 
         await link.stream(program)
     assert link.state is LinkState.DISCONNECTED
     assert_prefix_without_duplicates(executed_program(sim), program)
+
+
+async def test_an_unplugged_port_is_one_error_line_without_a_traceback(make_sim, caplog) -> None:
+    """A vanished port is the workshop's event, not a bug: one ERROR record naming the port and
+    what to do, no traceback at WARNING or above."""
+    sim = make_sim(faults=FaultConfig(disconnect_after_lines=300))
+    link = link_for(sim)
+    port = sim.port
+    await link.connect()
+    caplog.set_level("DEBUG", logger="ribbond.printer")
+    with pytest.raises(Disconnected, match=rf"printer disconnected: {re.escape(port)}: "):
+        await link.stream(moves(2000))
+    loud = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert [r.levelname for r in loud] == ["ERROR"], [r.getMessage() for r in loud]
+    message = loud[0].getMessage()
+    assert message.startswith(f"printer disconnected: {port}: ") and "reconnect" in message, message
+    assert loud[0].exc_info is None
 
 
 async def test_thermal_runaway_halts_the_stream(make_sim) -> None:

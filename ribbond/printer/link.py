@@ -502,7 +502,10 @@ class PrinterLink:
 
     def _on_lost(self, reason: Exception) -> None:
         acked = self._sender.last_acknowledged_line if self._sender else -1
-        error = Disconnected(f"printer disconnected: {reason} (last acknowledged line: {acked})")
+        # One line: an unplugged printer is an event of the workshop, not a bug to trace.
+        log.error("printer disconnected: %s: %s; reconnect it (ribbond connects again on its own; "
+                  "a job it interrupted can be resumed)", self.port, reason)
+        error = Disconnected(f"printer disconnected: {self.port}: {reason} (last acknowledged line: {acked})")
         if self._sender is not None:
             self._sender.stop(error)
         self._transport = None
