@@ -3,11 +3,33 @@
 from __future__ import annotations
 
 import random
+import sys
 from collections.abc import Callable, Iterator
 
 import pytest
 
 from sim import FaultConfig, SimConfig, SimulatedPrinter
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--hide-package", action="append", default=[], metavar="NAME",
+                     help="run as if the optional package NAME were not installed (repeatable), e.g. "
+                          "--hide-package cholespy: the engine's fallback path, as on a linux/aarch64 host")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # None in sys.modules makes every later `import NAME` raise ImportError (ModuleNotFoundError);
+    # set before the test modules, hence ribbond, are imported.
+    for name in config.getoption("--hide-package"):
+        if sys.modules.get(name) is not None:
+            raise pytest.UsageError(f"--hide-package {name}: {name} was imported before the tests started")
+        sys.modules[name] = None  # type: ignore[assignment]
+
+
+def pytest_report_header(config: pytest.Config) -> str | None:
+    hidden = config.getoption("--hide-package")
+    return f"hidden packages (imports fail): {', '.join(hidden)}" if hidden else None
+
 
 #: Commands the link sends on its own: the handshake and its probes. Test programs use none of them.
 HOST_COMMANDS = ("M110", "M115", "M155", "M105")
