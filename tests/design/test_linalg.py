@@ -24,13 +24,15 @@ from ribbond.design.linalg import SymmetricFactor
 from ribbond.design.mesh_io import write_obj
 from ribbond.design.params import DesignParameters
 from ribbond.design.pipeline import design_mesh
+from ribbond.design.stripes import StripeSolver, integrable_frequency
 from tests.test_wheels import absent_on
 
 ROOT = Path(__file__).resolve().parents[2]
 HAS_CHOLESPY = importlib.util.find_spec("cholespy") is not None
 
 #: The engine's test modules whose solves go through ``SymmetricFactor`` (every call site: the
-#: flattening's global step, Tutte start and row-count coupling; the stripes' inverse power iteration).
+#: flattening's global step, Tutte start and row-count coupling; the stripes' inverse power iteration;
+#: the stripes' integrable frequency, here in test_linalg.py).
 SOLVER_TESTS = ("tests/design/test_flatten.py", "tests/design/test_stripes.py", "tests/design/test_linalg.py")
 
 
@@ -51,7 +53,7 @@ def condition_number() -> float:
     return float(eigenvalues[-1] / eigenvalues[0])
 
 
-def test_the_laplacian_is_what_the_solvers_are_for() -> None:
+def test_the_pinned_cotangent_laplacian_is_symmetric_positive_definite() -> None:
     L = cotangent_laplacian()
     assert abs(L - L.T).max() < 1e-12
     assert condition_number() > 1.0
@@ -95,6 +97,21 @@ def test_the_back_end_in_use_is_logged_once(caplog: pytest.LogCaptureFixture,
     said = [r.getMessage() for r in caplog.records if r.name == "ribbond.design.linalg"]
     assert said == [f"sparse solver: {linalg.BACKEND_DESCRIPTION}"]
     assert linalg.BACKEND in said[0]
+
+
+def test_the_stripes_integrable_frequency_solve() -> None:
+    """The one solve no engine test reached (``stripes.integrable_frequency``), on the default back
+    end: with X = (1, 0) on the unit square, ω = ν dx is closed exactly where ν does not vary with y
+    (dω = -∂ν/∂y dx∧dy). Such a ν comes back unchanged; one varying with y is made closed (constant
+    along each line x = const) when the spacing weight is small."""
+    uv, F = surfaces.grid(12, 12)
+    solver = StripeSolver(uv, F)
+    X = np.tile([1.0, 0.0], (len(uv), 1))
+    closed = 1.0 + 0.3 * uv[:, 0]
+    assert np.abs(integrable_frequency(solver, X, closed, 1.0) - closed).max() <= 1e-10
+    nu = integrable_frequency(solver, X, 1.0 + 0.3 * uv[:, 1], 1e-3)
+    spread = [np.ptp(nu[np.isclose(uv[:, 0], x)]) for x in np.unique(uv[:, 0])]
+    assert max(spread) <= 0.01 * 0.3
 
 
 class _Stages:
@@ -143,20 +160,23 @@ def test_cholespy_is_optional_only_where_it_has_no_wheel() -> None:
 @pytest.mark.skipif(not HAS_CHOLESPY, reason="cholespy is not installed: this run is already the fallback")
 def test_engine_tests_pass_with_the_optional_native_packages_hidden() -> None:
     """The solver tests in a fresh interpreter with every package linux/aarch64 goes without hidden."""
-    hidden = [arg for name in absent_on("aarch64") for arg in ("--hide-package", name)]
-    own = f"{Path(__file__).relative_to(ROOT)}::{test_engine_tests_pass_with_the_optional_native_packages_hidden.__name__}"
-    command = [sys.executable, "-m", "pytest", "-v", "-p", "no:cacheprovider", "-o", "addopts=", *hidden,
+    absent = absent_on("aarch64")
+    own = f"{Path(__file__).relative_to(ROOT)}::{sys._getframe().f_code.co_name}"   # not itself again
+    hide = [arg for name in absent for arg in ("--hide-package", name)]
+    command = [sys.executable, "-m", "pytest", "-v", "-p", "no:cacheprovider", "-o", "addopts=", *hide,
                "--deselect", own, *SOLVER_TESTS]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    path = [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]
     started = time.perf_counter()
-    run = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
+    run = subprocess.run(command, cwd=ROOT, env={**os.environ, "PYTHONPATH": os.pathsep.join(path)},
+                         capture_output=True, text=True, timeout=240)
     output = run.stdout + run.stderr
     assert run.returncode == 0, output[-4000:]
-    assert "hidden packages (imports fail): cholespy" in output
+    assert f"hidden packages (imports fail): {', '.join(absent)}" in output
     summary = output.strip().splitlines()[-1]
     assert re.search(r"\d+ passed", summary) and not re.search(r"failed|error", summary), summary
     # inside, the default back end was checked to be scipy, and the flattening and stripes ran on it
     assert "::test_the_default_back_end_is_cholespy_where_installed_else_scipy PASSED" in output
     assert "::test_the_design_says_which_sparse_solver_it_used PASSED" in output
-    assert re.search(r"test_flatten\.py::\S+ PASSED", output) and re.search(r"test_stripes\.py::\S+ PASSED", output)
+    for module in ("test_flatten", "test_stripes"):
+        assert re.search(rf"{module}\.py::\S+ PASSED", output), module
     print(f"fallback run: {summary} ({time.perf_counter() - started:.1f} s)")
