@@ -6,10 +6,13 @@ against many right-hand sides; the factorization is their expensive set-up and i
 Two back ends give ``SymmetricFactor`` the same API:
 
 - ``"cholespy"``: CHOLMOD's sparse Cholesky (the cholespy package), used where it is installed. Its
-  back-substitution is about 2.4x faster than SuperLU's on the flattening's cotangent Laplacian
-  (7 ms against 17 ms for two right-hand sides at 112k faces), and that solve runs every iteration.
+  back-substitution is 1.7-2x faster than SuperLU's on the flattening's cotangent Laplacian (at 112k
+  faces, two right-hand sides: 12.6 against 24.9 ms on the torus patch, 23.8 against 40.2 ms on the
+  saddle), and that solve runs every iteration; the factorizations take about as long.
 - ``"scipy"``: SuperLU (scipy), with the minimum-degree ordering of Lᵀ + L that suits a symmetric
-  matrix, the fallback where cholespy has no wheel (linux/aarch64: Raspberry Pi hosts).
+  matrix, the fallback where cholespy has no wheel (linux/aarch64: Raspberry Pi hosts). The same
+  solutions to rounding (1e-13 relative on these matrices); the flattening's path is sensitive to
+  rounding, so its iteration count on a given mesh may differ between the two.
 
 ``BACKEND`` names the one in use; ``SymmetricFactor(L, backend=...)`` asks for one explicitly.
 """
