@@ -117,12 +117,16 @@ def missing_for_target(wheels: dict[str, Path], roots: list[Requirement],
     return list(missing.values())
 
 
-def pip_download(requirements: list[str], machine: str, dest: Path) -> subprocess.CompletedProcess:
+def pip_download(requirements: list[str], machine: str, dest: Path) -> subprocess.CompletedProcess[str]:
+    """``pip download --only-binary=:all:`` of ``requirements`` for CPython 3.11 on linux/``machine``."""
     platforms = [arg for tag in platform_tags(machine) for arg in ("--platform", tag)]
     command = [sys.executable, "-m", "pip", "download", "--only-binary=:all:", *platforms,
                "--python-version", PYTHON, "--implementation", "cp", "--abi", "cp311",
                "--progress-bar", "off", "--disable-pip-version-check", "-d", str(dest), *requirements]
-    return subprocess.run(command, capture_output=True, text=True, timeout=240)
+    run = subprocess.run(command, capture_output=True, text=True, timeout=240)
+    if run.returncode != 0 and "No matching distribution" not in run.stderr:   # a network hiccup: once more
+        run = subprocess.run(command, capture_output=True, text=True, timeout=240)
+    return run
 
 
 def downloaded(dest: Path) -> dict[str, Path]:
