@@ -28,7 +28,9 @@ from .records import NotFound, ServiceError
 
 #: A message is cut to this many characters (a list of names can be long; an echo must not be).
 DETAIL_MAX = 2000
-_QUOTED = re.compile(r"'([^'\n]{%d,})'|\"([^\"\n]{%d,})\"" % (ECHO_MAX + 1, ECHO_MAX + 1))
+#: A quoted value: opened and closed by a quote that is not inside a word (the apostrophe of
+#: "daemon's" opens nothing), so prose between two values is never taken for one.
+_QUOTED = re.compile(r"(?<!\w)'([^'\n]*)'(?!\w)|(?<!\w)\"([^\"\n]*)\"(?!\w)")
 
 
 class Error(BaseModel):
@@ -108,9 +110,25 @@ def responses(*codes: int, mutating: bool = False, body: bool = False) -> dict[i
 
 
 def bounded(text: str) -> str:
-    """``text`` with every quoted value over 64 characters cut, and at most 2000 characters."""
-    text = _QUOTED.sub(lambda m: repr(short(m.group(1) if m.group(1) is not None else m.group(2))), text)
-    return short(text, DETAIL_MAX)
+    """``text`` with every quoted value over 64 characters cut, and at most 2000 characters, cut
+    after a whole word."""
+    text = _QUOTED.sub(_cut_value, text)
+    return cut_at_word(text, DETAIL_MAX)
+
+
+def _cut_value(match: re.Match[str]) -> str:
+    value = match.group(1) if match.group(1) is not None else match.group(2)
+    return repr(short(value)) if len(value) > ECHO_MAX else match.group(0)
+
+
+def cut_at_word(text: str, limit: int) -> str:
+    """``text`` if it has at most ``limit`` characters, else its words that fit and "…" (a single
+    word longer than the limit is cut: it is a value, not prose)."""
+    if len(text) <= limit:
+        return text
+    head = text[:limit]
+    space = head.rfind(" ")
+    return (head[:space].rstrip() if space > limit // 2 else head) + " …"
 
 
 def _items(errors: list[dict[str, Any]], prefix: tuple[str | int, ...] = ()) -> list[dict[str, Any]]:

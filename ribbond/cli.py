@@ -284,7 +284,8 @@ def _cmd_calibrate_record(args: argparse.Namespace) -> int:
 
 
 EPILOG = """exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the
-alignment is refused, the job failed); 2 bad input; 3 the daemon cannot be reached; 4 no such job;
+alignment is refused, the job failed); 2 bad input (also a missing or wrong API token); 3 the
+daemon cannot be reached; 4 no such job;
 130 interrupted; 141 the output was closed. 'ribbonctl COMMAND --help' describes each command."""
 
 

@@ -7,7 +7,7 @@ flip-done, frame-ok, align, accept, re-seat, delete. The printer: printer, home,
 
 Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
 is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
-file, a value out of range, a program the profile refuses); 3 the daemon cannot be reached (or
+file, a value out of range, a program the profile refuses, a missing or wrong API token); 3 the daemon cannot be reached (or
 answered an error of its own); 4 no such job; 130 interrupted (Ctrl-C); 141 the output was closed
 (``ribbonctl status | head``).
 """
@@ -69,10 +69,16 @@ class Client:
             detail = body.decode(errors="replace").strip() or f"HTTP {status}"
         if isinstance(detail, list):                       # FastAPI's validation errors
             detail = "; ".join(f"{'.'.join(map(str, d.get('loc', [])[1:]))}: {d.get('msg')}" for d in detail)
-        code = {404: 4, 409: 1, 413: 2, 422: 2, 503: 1}.get(status, 3)
-        if status == 401:
-            detail = f"{detail}: give --token or --token-file (or set RIBBOND_TOKEN)"
+        code = {401: 2, 404: 4, 409: 1, 413: 2, 422: 2, 503: 1}.get(status, 3)
         return ClientError(f"{detail}" + (f" (HTTP {status})" if code == 3 else ""), code)
+
+    def _refused_token(self) -> ClientError:
+        """401: the daemon was reached and refused the token (or its absence): bad input, 2."""
+        if self.headers:
+            return ClientError(f"the daemon refused the token (HTTP 401): check --token, --token-file or "
+                               f"RIBBOND_TOKEN against the daemon's api.token or api.token_file", 2)
+        return ClientError("the daemon needs a token (HTTP 401): give --token or --token-file (or set "
+                           "RIBBOND_TOKEN)", 2)
 
     def _send(self, method: str, path: str, params: dict[str, Any] | None, json_body: Any,
               body: Any, headers: dict[str, str], timeout: float | None) -> tuple[http.client.HTTPConnection,
@@ -104,6 +110,8 @@ class Client:
             raise ClientError(f"lost ribbond at {self.url}: {exc}", 3) from None
         finally:
             conn.close()
+        if r.status == 401:
+            raise self._refused_token()
         if r.status >= 400:
             raise self._error(r.status, data)
         if r.status == 204:
@@ -148,7 +156,7 @@ class Client:
         if r.status >= 400:
             body = r.read()
             conn.close()
-            raise self._error(r.status, body)
+            raise self._refused_token() if r.status == 401 else self._error(r.status, body)
         return self._read_events(conn, r)
 
     def _read_events(self, conn: http.client.HTTPConnection, r: http.client.HTTPResponse) -> Iterator[dict[str, Any]]:
