@@ -23,7 +23,7 @@ from starlette.routing import Match
 from .alignment import AlignmentRefused
 from .guard import ECHO_MAX, short
 from .jobs import IllegalTransition
-from .printer.errors import LinkError
+from .printer.errors import LinkError, NotReady, PrinterHalted
 from .records import NotFound, ServiceError
 
 #: A message is cut to this many characters (a list of names can be long; an echo must not be).
@@ -57,7 +57,7 @@ class ValidationFailed(Error):
 class Conflict(Error):
     """409: the job's state (or the printer's, or the alignment) does not allow it now."""
 
-    state: str | None = Field(None, description="the job's state")
+    state: str | None = Field(None, description="the job's state (or the printer's: halted)")
     command: str | None = None
     allowed: list[str] | None = Field(None, description="commands possible in this state")
     allowed_states: list[str] | None = Field(None, description="states the command is possible in")
@@ -89,11 +89,11 @@ _STATUS: dict[int, tuple[type[BaseModel], str]] = {
     401: (Error, "no token or a wrong one (when the daemon has a token: Authorization: Bearer <token>)"),
     403: (OriginRefused, "a state-changing request from a page of another origin"),
     404: (Error, "no such job, calibration, table or file"),
-    409: (Conflict, "the job's or the printer's state does not allow it now"),
+    409: (Conflict, "the job's or the printer's state does not allow it now (the printer halted: state halted)"),
     413: (TooLarge, "the body is over limits.max_upload_mb"),
     421: (HostRefused, "the Host header does not name this daemon (api.allowed_hosts)"),
     422: (ValidationFailed, "the values are not acceptable"),
-    503: (Error, "the printer is not connected, or halted"),
+    503: (Error, "the printer is not connected"),
 }
 
 
@@ -179,6 +179,9 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(LinkError)
     async def _printer(_: Request, exc: LinkError) -> JSONResponse:
+        if halted(exc):                             # a state of the printer's, as a job's state is: 409
+            text = str(exc) if isinstance(exc, PrinterHalted) else "the printer is halted: ribbonctl recover"
+            return _json(409, {"detail": bounded(f"printer: {text}"), "state": "halted", "allowed": ["recover"]})
         return _json(503, {"detail": bounded(f"printer: {exc}")})
 
     @app.exception_handler(ValueError)
@@ -190,6 +193,11 @@ def install(app: FastAPI) -> None:
         fields = getattr(exc, "errors", None)
         items = _items(fields) if isinstance(fields, list) else []
         return _json(422, {"detail": bounded(str(exc)), "errors": items})
+
+
+def halted(exc: LinkError) -> bool:
+    """The request was refused because the printer is halted (not because it is away)."""
+    return isinstance(exc, PrinterHalted) or (isinstance(exc, NotReady) and exc.state == "halted")
 
 
 def _methods(app: FastAPI, request: Request) -> set[str]:
