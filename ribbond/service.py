@@ -156,7 +156,7 @@ class RibbonService:
         self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
-        self.verdicts = Verdicts()                       # the design's verdict in each status (issue 22)
+        self.verdicts = Verdicts(self.jobs_dir)          # the design's verdict in each status (issue 22)
         self.temperatures = TemperatureHistory()         # the last 30 minutes, for the chart (issue 22)
         self._tasks: list[asyncio.Task[None]] = []
 

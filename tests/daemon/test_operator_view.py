@@ -221,3 +221,25 @@ def test_a_halted_printer_refuses_manual_control_with_409(shared_daemon: Daemon,
     deadline = time.monotonic() + 30
     while api.get("/printer").json()["state"] != "ready" and time.monotonic() < deadline:
         time.sleep(0.1)
+
+
+def test_a_design_is_read_once_for_its_verdict(tmp_path: Path) -> None:
+    """A job list's statuses must not read every design.json (tens of MB with a fine mesh) each time:
+    the verdict is kept in memory and beside the job, and read again only for another design folder."""
+    from ribbond.store import JobRecord
+    from ribbond.verdicts import Verdicts
+
+    design_dir = tmp_path / "jobs" / "0123456789ab" / "design"
+    design_dir.mkdir(parents=True)
+    report = {"sigma1_bad_pct": 40.0, "sigma2_bad_pct": 0.0, "sigma1_max_dev": 0.2, "sigma2_max_dev": 0.0}
+    (design_dir / "design.json").write_text(json.dumps({"report": report, "parameters": {}}))
+    job = JobRecord(id="0123456789ab", state="ready", created=0, updated=0, mesh_name="m.obj", mesh_path="m.obj",
+                    parameters={}, start_when_ready=False, design_dir=str(design_dir))
+    expected = verdict_lines({"report": report})
+    assert expected[0].startswith("OUTSIDE the stretch bounds on 40.0 % of faces")
+    assert Verdicts(tmp_path / "jobs").lines(job) == expected
+    (design_dir / "design.json").unlink()                      # read once: a new daemon finds it kept
+    assert Verdicts(tmp_path / "jobs").lines(job) == expected
+    moved = job.model_copy(update={"design_dir": str(tmp_path / "elsewhere")})
+    assert Verdicts(tmp_path / "jobs").lines(moved) is None     # another folder, not written (yet)
+    assert Verdicts(tmp_path / "jobs").lines(job.model_copy(update={"kind": "gcode"})) is None
