@@ -2,7 +2,7 @@
 ribbond processes and simulators: the design's verdict (the API's lines), the layout in the preview's
 colours, the job's files to download, the temperatures and the tab's title while heating, the
 chart full from the daemon's history at load, a plain program labelled as one, and the resume
-option to reprint the ribbon begun."""
+options (reprint the ribbon begun; keep the alignment)."""
 
 from __future__ import annotations
 
@@ -22,7 +22,9 @@ from ribbond.design.preview import SIDE_COLORS
 from ribbond.design.surfaces import sphere_cap
 from ribbond.gcode.profiles import load_profile
 from tests.daemon.conftest import Daemon, Sim, own_printer, running, submit, wait_for
+from tests.daemon.test_daemon_e2e import flip_and_align
 from tests.daemon.test_operator_view import SlowSim
+from tests.daemon.test_resume import kill_at, restart
 
 from .conftest import SHOTS, shot
 
@@ -139,26 +141,52 @@ def test_heating_shows_the_temperatures_the_title_and_a_full_chart(
     assert not browser_page.errors, browser_page.errors
 
 
-def test_an_interrupted_job_offers_to_reprint_the_ribbon_begun(browser_page: Any, tmp_path: Path,
-                                                               meshes: dict[str, Path]) -> None:
-    with own_printer(tmp_path / "state") as (_, daemon):
+def click_option(page: Any, job: str, action: str, text: str) -> dict[str, Any]:
+    """Click the resume option ``text`` (a button of ``action`` with a body) and return the body sent."""
+    button = page.locator(f"#j-actions button[data-action='{action}'][data-body]")
+    button.wait_for(timeout=30 * SECOND)
+    assert button.inner_text() == text
+    with page.expect_request(lambda r: r.url.endswith(f"/jobs/{job}/{action}") and r.method == "POST") as sent:
+        button.click()
+    return dict(json.loads(sent.value.post_data or "{}"))
+
+
+def test_resume_options_reprint_the_ribbon_begun_and_keep_the_alignment(
+        browser_page: Any, tmp_path: Path, meshes: dict[str, Path]) -> None:
+    """Killed on the front: "Resume, reprinting the ribbon begun" sends partial=reprint (the front's
+    frame check offers no alignment to keep). Killed on the back after the alignment: the frame
+    check offers "Frame not moved: keep the alignment", which sends keep_alignment."""
+    with own_printer(tmp_path / "state") as (sim, daemon):
         assert daemon.client is not None
-        job = submit(daemon.client, meshes["one_sided"], start=True)
-        wait_for(daemon.client, job, "printing_front", timeout=120, poll=0.01,
-                 until=lambda j: j["last_acked_line"] >= 300)
-        daemon.kill()                                          # a power cut
-        daemon.start()
-        daemon.wait_printer()
-        api = daemon.client
+        job = submit(daemon.client, meshes["two_sided"], start=True)
+        record = wait_for(daemon.client, job, "printing_front", timeout=120, until=lambda j: j["lines_total"])
+        kill_at(daemon, job, "printing_front", record["lines_total"] // 2)
+        api = restart(daemon, sim)
         assert api.get(f"/jobs/{job}").json()["state"] == "interrupted"
         page = browser_page()
         page.goto(f"{daemon.url}/#/job/{job}")
-        button = page.locator("#j-actions button[data-action='resume'][data-body]")
-        button.wait_for(timeout=20 * SECOND)
-        assert button.inner_text() == "Resume, reprinting the ribbon begun"
-        with page.expect_request(lambda r: r.url.endswith(f"/jobs/{job}/resume") and r.method == "POST") as sent:
-            button.click()
-        assert json.loads(sent.value.post_data or "{}") == {"partial": "reprint"}
-        wait_for(api, job, "awaiting_check", timeout=60)
+        assert click_option(page, job, "resume", "Resume, reprinting the ribbon begun") == {"partial": "reprint"}
+        wait_for(api, job, "awaiting_check", timeout=60, until=lambda j: j["waits_for_operator"])
+        page.wait_for_selector("#j-actions button[data-action='frame-ok']", timeout=30 * SECOND)
+        assert page.locator("#j-actions button[data-body]").count() == 0     # the front: nothing to keep
+        assert api.post(f"/jobs/{job}/frame-ok").status_code == 200
+
+        wait_for(api, job, "awaiting_flip", timeout=120)
+        marks = api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"]
+        answers = flip_and_align(api, sim, job, marks, (0.4, -0.3, 0.5))
+        assert all(a.status_code == 200 for a in answers), [a.text for a in answers]
+        record = wait_for(api, job, "printing_back", timeout=60, until=lambda j: j["lines_total"])
+        kill_at(daemon, job, "printing_back", record["lines_total"] * 2 // 5)
+        api = restart(daemon, sim)
+        assert api.post(f"/jobs/{job}/resume").status_code == 200
+        wait_for(api, job, "awaiting_check", timeout=60, until=lambda j: j["waits_for_operator"])
+        page.goto(f"{daemon.url}/#/job/{job}")
+        page.reload()
+        assert click_option(page, job, "frame-ok", "Frame not moved: keep the alignment") == {"keep_alignment": True}
+        resumed = wait_for(api, job, {"heating", "printing_back", "done"}, timeout=60)
+        assert resumed["correction"] is not None
+        # the alignment kept: no mark was measured again (the job went on without aligning)
+        states = [t["to_state"] for t in api.get(f"/jobs/{job}/transitions").json()]
+        assert states.count("aligning") == 1, states
         api.post(f"/jobs/{job}/cancel")
         assert not browser_page.errors, browser_page.errors
