@@ -5,12 +5,13 @@ models in and out, no business logic.
 OpenAPI at ``/docs`` (Swagger UI served from the package: it works on a host without internet); it
 documents every status a route answers with its body model (``ribbond.apierrors``) and links the
 operations of one job, table or calibration (``POST /jobs`` -> ``GET /jobs/{job_id}`` ...).
-Errors: a request the job's state does not allow is 409 with the state and the commands possible
-now; an unknown job or file 404; bad input 422; an upload over the limit 413; the printer not
-connected or halted 503. In front of every route, before any body is read, ``ribbond.guard``
-checks the Host header (421), the origin of state-changing requests (403) and, when a token is
-configured (always when listening beyond loopback), ``Authorization: Bearer <token>`` (401) on
-every path but the documentation and the dashboard's files.
+Errors: a request the job's state (or the printer's: halted) does not allow is 409 with the state
+and the commands possible now; an unknown job or file 404; bad input 422; an upload over the limit
+413; the printer not connected 503. In front of every route, before any body is read,
+``ribbond.guard`` checks the Host header (421), the origin of state-changing requests (403) and,
+when a token is configured (``api.token`` or ``api.token_file``, on any address; always beyond
+loopback), ``Authorization: Bearer <token>`` (401) on every path but the documentation and the
+dashboard's files.
 """
 
 from __future__ import annotations
@@ -80,6 +81,9 @@ class JobStatus(JobRecord):
     waits_for_operator: bool = Field(False, description="nothing happens until the operator acts")
     fit: dict[str, Any] | None = Field(None, description="in state fitted: the alignment's fit under review "
                                                          "(rotation_deg, offset, rms_mm, max_residual_mm)")
+    verdict: list[str] | None = Field(None, description="a design's verdict, one sentence per line: the "
+                                                        "stretch bounds, clamped thicknesses, ribbons dropped "
+                                                        "or trimmed, the prediction (ribbond.design.verdict)")
     next: NextStep
 
 
@@ -392,6 +396,12 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     async def printer(refresh: bool = False) -> dict[str, Any]:
         """Connection, firmware, temperatures, position; ``refresh=true`` asks the printer first."""
         return await service.manual.printer_status(refresh)
+
+    @app.get("/printer/temperatures", responses=responses())
+    async def temperatures() -> dict[str, Any]:
+        """The nozzle's and bed's temperatures and targets of the last 30 minutes, oldest first
+        (``samples``: ``t`` unix s, ``T``/``Tt`` nozzle, ``B``/``Bt`` bed, °C; at most one per ``interval_s``)."""
+        return service.temperatures.as_json()
 
     @app.post("/printer/emergency-stop", responses=printer_action)
     async def emergency_stop() -> dict[str, Any]:

@@ -7,9 +7,9 @@ flip-done, frame-ok, align, accept, re-seat, delete. The printer: printer, home,
 
 Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
 is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
-file, a value out of range, a program the profile refuses); 3 the daemon cannot be reached (or
-answered an error of its own); 4 no such job; 130 interrupted (Ctrl-C); 141 the output was closed
-(``ribbonctl status | head``).
+file, a value out of range, a program the profile refuses, a missing or wrong API token: the
+daemon was reached and refused it); 3 the daemon cannot be reached (or answered an error of its
+own); 4 no such job; 130 interrupted (Ctrl-C); 141 the output was closed (``ribbonctl status | head``).
 """
 
 from __future__ import annotations
@@ -69,10 +69,16 @@ class Client:
             detail = body.decode(errors="replace").strip() or f"HTTP {status}"
         if isinstance(detail, list):                       # FastAPI's validation errors
             detail = "; ".join(f"{'.'.join(map(str, d.get('loc', [])[1:]))}: {d.get('msg')}" for d in detail)
-        code = {404: 4, 409: 1, 413: 2, 422: 2, 503: 1}.get(status, 3)
-        if status == 401:
-            detail = f"{detail}: give --token or --token-file (or set RIBBOND_TOKEN)"
+        code = {401: 2, 404: 4, 409: 1, 413: 2, 422: 2, 503: 1}.get(status, 3)
         return ClientError(f"{detail}" + (f" (HTTP {status})" if code == 3 else ""), code)
+
+    def _refused_token(self) -> ClientError:
+        """401: the daemon was reached and refused the token (or its absence): bad input, 2."""
+        if self.headers:
+            return ClientError(f"the daemon refused the token (HTTP 401): check --token, --token-file or "
+                               f"RIBBOND_TOKEN against the daemon's api.token or api.token_file", 2)
+        return ClientError("the daemon needs a token (HTTP 401): give --token or --token-file (or set "
+                           "RIBBOND_TOKEN)", 2)
 
     def _send(self, method: str, path: str, params: dict[str, Any] | None, json_body: Any,
               body: Any, headers: dict[str, str], timeout: float | None) -> tuple[http.client.HTTPConnection,
@@ -104,6 +110,8 @@ class Client:
             raise ClientError(f"lost ribbond at {self.url}: {exc}", 3) from None
         finally:
             conn.close()
+        if r.status == 401:
+            raise self._refused_token()
         if r.status >= 400:
             raise self._error(r.status, data)
         if r.status == 204:
@@ -148,7 +156,7 @@ class Client:
         if r.status >= 400:
             body = r.read()
             conn.close()
-            raise self._error(r.status, body)
+            raise self._refused_token() if r.status == 401 else self._error(r.status, body)
         return self._read_events(conn, r)
 
     def _read_events(self, conn: http.client.HTTPConnection, r: http.client.HTTPResponse) -> Iterator[dict[str, Any]]:
@@ -229,10 +237,13 @@ def bar_text(fraction: float, label: str = "", text: str = "", width: int = 24) 
            + (f"  {text}" if text else "")
 
 
-def progress_text(info: dict[str, Any]) -> str:
-    """``front  ribbon 3/8  elapsed 0:12  ETA 0:20`` from a job status or a progress event."""
+def progress_text(info: dict[str, Any], kind: str | None = None) -> str:
+    """``front  ribbon 3/8  elapsed 0:12  ETA 0:20`` from a job status or a progress event (of a job
+    of ``kind``: a plain G-code job's side is named ``program``, it has no front or back)."""
     parts = []
     side = info.get("print_side") or info.get("side")
+    if (kind or info.get("kind")) == "gcode":
+        side = "program" if side else None
     if side:
         parts.append(side)
     if info.get("ribbons"):
@@ -250,18 +261,47 @@ def _line(job: dict[str, Any]) -> str:
     err = f"  ({job['error']})" if job.get("error") else ""
     runs = f"  run {len(job.get('runs') or []) + 1}" if job.get("runs") else ""
     kind = "  (G-code)" if job.get("kind") == "gcode" else ""
-    return f"{job['id']}  {job['state']:<15} {pct}  {job['mesh_name']}{kind}{runs}{stage}{err}"
+    state = job["state"]
+    if job.get("kind") == "gcode" and state == "printing_front":
+        state = "printing"                  # a plain program has no front (--json keeps the state's name)
+    return f"{job['id']}  {state:<15} {pct}  {job['mesh_name']}{kind}{runs}{stage}{err}"
 
 
-def _detail(job: dict[str, Any]) -> str:
+def temperatures_text(printer: dict[str, Any] | None) -> str:
+    """``nozzle 187/210 °C  bed 55/60 °C`` (actual/target) from a printer status; "" when unknown."""
+    heaters = (printer or {}).get("heaters") or {}
+    parts = [f"{name} {h['current']:.0f}/{h.get('target') or 0:.0f} °C"
+             for key, name in (("T", "nozzle"), ("B", "bed"))
+             if isinstance(h := heaters.get(key), dict) and h.get("current") is not None]
+    return "  ".join(parts)
+
+
+#: Job states in which the temperatures are shown with the job (it holds or is about to heat the printer).
+HOT = RUNNING | {"paused", "awaiting_check"}
+
+
+def verdict_text(job: dict[str, Any]) -> list[str]:
+    """A design job's verdict lines (``GET /jobs/{id}``'s ``verdict``), labelled as ``ribbonctl
+    design`` labels them."""
+    return [f"verdict     {line}" for line in job.get("verdict") or []]
+
+
+def _detail(job: dict[str, Any], printer: dict[str, Any] | None = None, verdict: bool = False) -> str:
+    """A job for people: its line, progress, the temperatures (``printer``: a printer status, while
+    the job heats or prints), the design's verdict (``verdict``), what to do next."""
     lines = [_line(job)]
-    more = progress_text(job)
+    more = progress_text(job, job.get("kind"))
     if job.get("lines_total") and job["state"] in ("heating", "printing_front", "printing_back", "paused"):
         # last_acked_line counts the lines the printer acknowledged
         more = f"line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}" + (
             f"  {more}" if more else "")
     if more:
         lines.append(f"  {bar_text(job.get('progress') or 0)}  {more}")
+    temps = temperatures_text(printer) if job["state"] in HOT else ""
+    if temps:
+        lines.append(f"  temperatures  {temps}  (actual/target)")
+    if verdict:
+        lines += [f"  {line}" for line in verdict_text(job)]
     nxt = job.get("next") or {}
     if nxt.get("instruction"):
         lines.append(f"  next: {nxt['instruction']}")
@@ -346,15 +386,23 @@ def cmd_submit(args: argparse.Namespace) -> int:
         f"{r['iterations']} iterations, {r['time_s']:.1f} s",
         f"ribbons     {rr.get('front', 0)} front, {rr.get('back', 0)} back; "
         f"{len(design.get('registration_marks') or [])} registration marks (numbered from 1 on the preview)",
-        f"print       front ~{pr.get('front', {}).get('time_s', 0) / 60:.1f} min, back "
-        f"~{pr.get('back', {}).get('time_s', 0) / 60:.1f} min",
+        f"print       {_print_sides(pr)}",
         f"bounds      σ1 {r['sigma1_bad_pct']:.2f} %, σ2 {r['sigma2_bad_pct']:.2f} % of faces outside",
         *_deployed_lines(r, c.url, job),
         f"preview     {job['design_dir']}/preview.png  ({c.url}/jobs/{job['id']}/files/preview.png)",
+        *verdict_text(job),
         f"next        {(job.get('next') or {}).get('instruction', '')}",
     ])
     _out(args, {"job": job, "report": r}, text)
     return 0
+
+
+def _print_sides(report_print: dict[str, Any]) -> str:
+    """``front ~3.2 min, back ~1.0 min``: the sides that have something to print (a one-sided
+    design has no back to speak of)."""
+    sides = [f"{side} ~{sp.get('time_s', 0) / 60:.1f} min" for side in ("front", "back")
+             if (sp := report_print.get(side) or {}).get("lines")]
+    return ", ".join(sides) or "nothing to print"
 
 
 def _deployed_lines(report: dict[str, Any], url: str, job: dict[str, Any]) -> list[str]:
@@ -380,7 +428,8 @@ def cmd_status(args: argparse.Namespace) -> int:
     c = _client(args)
     if args.job:
         job = c.request("GET", f"/jobs/{args.job}")
-        _out(args, job, _detail(job))
+        printer = c.request("GET", "/printer") if job["state"] in HOT and not args.json else None
+        _out(args, job, _detail(job, printer, verdict=True))
     else:
         params: dict[str, Any] = {"state": args.state} if args.state else {}
         if args.limit is not None:
@@ -397,12 +446,16 @@ def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
     job_id = job["id"]
     tty = sys.stdout.isatty() and not args.json
     bar = Bar(job_id, tty, stream=sys.stdout)
-    print(json.dumps(job) if args.json else _detail(job), flush=True)
+    temps = _Temperatures(job, tty and not args.json)
+    if job["state"] in HOT and not args.json:
+        temps.printer = c.request("GET", "/printer")
+    print(json.dumps(job) if args.json else _detail(job, temps.printer), flush=True)
     if waits(job):
         return _exit_code(job)
     events = c.events()
     # the job may have changed between the first GET and the subscription: look once more
     job = c.request("GET", f"/jobs/{job_id}")
+    temps.job = job
     state = job["state"]
     if waits(job):
         print(json.dumps(job) if args.json else _detail(job), flush=True)
@@ -413,22 +466,28 @@ def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
             kind = event.get("type")
             if kind == "job" and event["job"]["id"] == job_id:
                 job = event["job"]
+                temps.job = job
                 if job["state"] != state or waits(job):
                     state = job["state"]
                     bar.close()
-                    print(json.dumps(event) if args.json else _detail(job), flush=True)
+                    print(json.dumps(event) if args.json else _detail(job, temps.printer), flush=True)
                     shown = -1
                 if waits(job):
                     return _exit_code(job)
             elif kind == "progress" and event.get("job_id") == job_id:
                 fraction = event.get("progress") or 0.0
+                text = "  ".join(t for t in (progress_text(event, job.get("kind")), temps.text()) if t)
                 if args.json:
                     print(json.dumps(event), flush=True)
                 elif tty:
-                    bar.draw(fraction, progress_text(event))
+                    bar.draw(fraction, text)
                 elif int(fraction * 10) > shown:
                     shown = int(fraction * 10)
-                    print(f"  {bar_text(fraction)}  {progress_text(event)}", flush=True)
+                    print(f"  {bar_text(fraction)}  {text}", flush=True)
+            elif kind == "printer" and not args.json:
+                line = temps.update(event.get("printer"))
+                if line:
+                    print(line, flush=True)
             elif kind == "deleted" and event.get("job_id") == job_id:
                 bar.close()
                 raise ClientError(f"job {job_id} was deleted", 4)
@@ -438,6 +497,37 @@ def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
     finally:
         bar.close()
     return 3
+
+
+class _Temperatures:
+    """What ``watch`` shows of the printer's temperatures: with the progress while the job holds the
+    printer, and while it heats a line of its own (on a terminal the line is redrawn in place, else
+    one every ``EVERY_S`` seconds)."""
+
+    EVERY_S = 2.0
+
+    def __init__(self, job: dict[str, Any], live: bool) -> None:
+        self.job, self.live = job, live
+        self.printer: dict[str, Any] | None = None
+        self._printed = 0.0
+
+    def text(self) -> str:
+        return temperatures_text(self.printer) if self.job["state"] in HOT else ""
+
+    def update(self, printer: dict[str, Any] | None) -> str | None:
+        """Take a printer event; the line to print now, if any."""
+        self.printer = printer
+        if self.job["state"] not in ("heating", "awaiting_check") or not self.text():
+            return None
+        now = time.monotonic()
+        if self.live:
+            sys.stdout.write(f"\r\x1b[K  heating  {self.text()}")
+            sys.stdout.flush()
+            return None
+        if now - self._printed < self.EVERY_S:
+            return None
+        self._printed = now
+        return f"  heating  {self.text()}  (actual/target)"
 
 
 def cmd_watch(args: argparse.Namespace) -> int:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import asyncio
 
-from .printer.errors import LinkError
+from .printer.errors import LinkError, PrinterHalted
 from .printer.link import LinkState, PrinterLink
 
 
@@ -27,7 +27,7 @@ class Head:
         if self.link is None or self.link.state is LinkState.DISCONNECTED:
             raise LinkError("the printer is not connected")
         if self.link.state is LinkState.HALTED:
-            raise LinkError("the printer is halted (emergency stop or a firmware error): ribbonctl recover")
+            raise PrinterHalted("the printer is halted (emergency stop or a firmware error): ribbonctl recover")
         if self.link.state is LinkState.CONNECTING:
             raise LinkError("the printer is connecting; try again in a moment")
         return self.link

@@ -55,6 +55,8 @@ from .resume import Resumer, modal_state
 from .run import MarkCheck, PrintState, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
+from .temperatures import TemperatureHistory
+from .verdicts import Verdicts
 
 #: What callers import from here: the service, and the names of its components they use.
 __all__ = ["MAX_MANUAL_COMMANDS", "MAX_NAME_BYTES", "NotFound", "RibbonService", "ServiceError", "mesh_file_name",
@@ -154,6 +156,8 @@ class RibbonService:
         self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
+        self.verdicts = Verdicts(self.jobs_dir)          # the design's verdict in each status (issue 22)
+        self.temperatures = TemperatureHistory()         # the last 30 minutes, for the chart (issue 22)
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
@@ -186,6 +190,7 @@ class RibbonService:
             except Exception:  # noqa: BLE001 - a status that cannot be read is not worth a stop
                 log.debug("printer status for the events", exc_info=True)
                 continue
+            self.temperatures.sample(status)
             if status != last:
                 self.bus.publish({"type": "printer", "printer": status})
                 last = status
@@ -503,6 +508,7 @@ class RibbonService:
         run = self.state.current(job.id)
         if job.state is JobState.FITTED and run is not None and run.alignment is not None:
             data["fit"] = run.alignment.fit
+        data["verdict"] = self.verdicts.lines(job)
         return data
 
     def _waits(self, job: JobRecord) -> bool:

@@ -428,7 +428,7 @@ class PrinterLink:
     def _require(self, *states: LinkState) -> None:
         if self._state not in states:
             allowed = ", ".join(s.value for s in states)
-            raise NotReady(f"link is {self._state.value}; this needs it {allowed}")
+            raise NotReady(f"link is {self._state.value}; this needs it {allowed}", self._state.value)
 
     # ------------------------------------------------------------------ what the printer says
 

@@ -323,3 +323,14 @@ def test_token_not_in_repr() -> None:
 ])
 def test_tokens_match(given: str | None, expected: str, match: bool) -> None:
     assert tokens_match(given, expected) is match
+
+
+def test_a_token_file_configured_on_loopback_is_used(tmp_path: Path) -> None:
+    """Issue 22 item 5: a configured ``token_file`` counts on loopback too (created if missing);
+    the default file in the state directory is not read there."""
+    token_file = tmp_path / "keys" / "tok"
+    config = DaemonConfig(state_dir=tmp_path / "state", api=ApiSettings(token_file=token_file))
+    token = resolve_token(config)
+    assert token is not None and token_file.read_text(encoding="utf-8").strip() == token
+    assert resolve_token(config) == token
+    assert resolve_token(DaemonConfig(state_dir=tmp_path / "state")) is None
