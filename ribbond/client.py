@@ -253,7 +253,7 @@ def _line(job: dict[str, Any]) -> str:
     return f"{job['id']}  {job['state']:<15} {pct}  {job['mesh_name']}{kind}{runs}{stage}{err}"
 
 
-def _detail(job: dict[str, Any]) -> str:
+def _detail(job: dict[str, Any], notes: bool = False) -> str:
     lines = [_line(job)]
     more = progress_text(job)
     if job.get("lines_total") and job["state"] in ("heating", "printing_front", "printing_back", "paused"):
@@ -262,6 +262,7 @@ def _detail(job: dict[str, Any]) -> str:
             f"  {more}" if more else "")
     if more:
         lines.append(f"  {bar_text(job.get('progress') or 0)}  {more}")
+    lines += [f"  note: {n}" for n in (job.get("notes") or []) if notes]
     nxt = job.get("next") or {}
     if nxt.get("instruction"):
         lines.append(f"  next: {nxt['instruction']}")
@@ -371,8 +372,11 @@ def cmd_print(args: argparse.Namespace) -> int:
     c = _client(args)
     job = c.upload("gcode", args.program, {"start": str(not args.no_start).lower()}, show=not args.json)
     if args.no_wait or args.no_start:
-        _out(args, job, _detail(job) if not args.json else "")
+        _out(args, job, _detail(job, notes=True) if not args.json else "")
         return 0
+    if not args.json:
+        for note in job.get("notes") or []:
+            print(f"note: {note}", flush=True)
     return _follow(c, args, job)
 
 
@@ -380,7 +384,7 @@ def cmd_status(args: argparse.Namespace) -> int:
     c = _client(args)
     if args.job:
         job = c.request("GET", f"/jobs/{args.job}")
-        _out(args, job, _detail(job))
+        _out(args, job, _detail(job, notes=True))
     else:
         params: dict[str, Any] = {"state": args.state} if args.state else {}
         if args.limit is not None:
@@ -582,7 +586,9 @@ def cmd_goto(args: argparse.Namespace) -> int:
 
 def cmd_gcode(args: argparse.Namespace) -> int:
     result = _client(args).request("POST", "/printer/gcode", json={"commands": args.commands}, timeout=630)
-    text = "\n".join(f"> {a['command']}\n" + "\n".join(a["answer"]) for a in result["answers"])
+    text = "\n".join(f"> {a['command']}" + (f"  (sent as: {a['sent']})" if a.get("sent") else "") + "\n"
+                     + "\n".join(a["answer"]) for a in result["answers"])
+    text += "".join(f"\nnote: {n}" for n in result.get("notes") or [])
     _out(args, result, text)
     return 0
 
