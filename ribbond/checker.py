@@ -139,14 +139,14 @@ class Checked:
 
     def notes(self, profile: PrinterProfile, unit: str = "line") -> list[str]:
         """What was changed, as a person reads it: e.g. "37 moves' feed rates clamped to the
-        profile (Z ≤ 40 mm/s), as the firmware would limit them; the first at line 12"."""
+        profile (Z ≤ 40 mm/s), as the firmware limits feed rates; the first at line 12"."""
         if not self.clamped:
             return []
         limits = _limits(profile)
         by = ", ".join(f"{axis} ≤ {limits[axis]:g} mm/s" for axis in sorted(self.clamped))
         n = sum(self.clamped.values())
         moves = f"{n} moves' feed rates" if n != 1 else "1 move's feed rate"
-        return [f"{moves} clamped to the profile ({by}), as the firmware would limit them; "
+        return [f"{moves} clamped to the profile ({by}), as the firmware limits feed rates; "
                 f"the first at {unit} {self.first_clamped}"]
 
 
