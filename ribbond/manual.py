@@ -2,7 +2,9 @@
 never while a program streams (a job paused, awaiting the flip or aligning, or no job at all);
 the printer's status; the emergency stop and the recovery after it.
 
-Moves stay inside the frame and above the fabric; the head's commanded position is tracked
+Moves stay inside the frame and above the fabric, temperatures within the profile: jog, goto, heat
+and typed G-code are checked by the same ``checker.GcodeChecker`` as a plain G-code job (typed G-code
+unchecked only with ``[manual] raw_console = true``). The head's commanded position is tracked
 (``Head``) so a jog goes from where the head was sent, not from ``M114``'s rounded report.
 """
 
@@ -141,18 +143,29 @@ class ManualControl:
             checked = self._check(clean, self.head.commanded(link), "command")
             notes = checked.notes(self.profile, unit="command")
             moves_head = any(_moves_head(c) for c in checked.commands)
-            if moves_head:
-                await link.send("G90", timeout=60)
-            answers = []
-            for typed, command in zip(clean, checked.commands):
-                _, lines = await link.send_collecting(command, timeout=600)
-                answers.append({"command": typed, **({"sent": command} if command != typed else {}), "answer": lines})
-            if not checked.modal.absolute:
-                await link.send("G90", timeout=60)
-                notes.append("G90 sent after the commands: the printer is left in absolute positioning, as "
-                             "the daemon's moves and G-code jobs expect (give G91 and its moves in one request)")
+            try:
+                answers = await self._send_checked(link, clean, checked.commands, moves_head)
+                if not checked.modal.absolute:
+                    await link.send("G90", timeout=60)
+                    notes.append("G90 sent after the commands: the printer is left in absolute positioning, as "
+                                 "the daemon's moves and G-code jobs expect (give G91 and its moves in one request)")
+            except BaseException:
+                self.head.forget()              # stopped part way: where the head is, the printer says
+                raise
             await self._after_typed(link, checked.modal, moves_head)
             return {"answers": answers, "notes": notes}
+
+    @staticmethod
+    async def _send_checked(link: PrinterLink, typed: list[str], commands: list[str],
+                            moves_head: bool) -> list[dict[str, Any]]:
+        """Send the checked commands (G90 first when they move the head); the printer's answers."""
+        if moves_head:
+            await link.send("G90", timeout=60)
+        answers = []
+        for text, command in zip(typed, commands):
+            _, lines = await link.send_collecting(command, timeout=600)
+            answers.append({"command": text, **({"sent": command} if command != text else {}), "answer": lines})
+        return answers
 
     async def _after_typed(self, link: PrinterLink, modal: Modal, moved: bool) -> None:
         """The head's position after checked G-code: the printer's own after a homing, the checked
