@@ -769,7 +769,9 @@ def add_commands(sub: Any) -> None:
     g.add_argument("y", type=float)
     gc = cmd("gcode", "send G-code commands and print the printer's answers", cmd_gcode,
              "Send one command or a short list (one argument each, quoted: ribbonctl gcode \"G28 X\" M114); "
-             "not while a program streams.")
+             "not while a program streams. Checked whole as a G-code job is (frame, fabric, temperatures; "
+             "feed rates clamped, said in a note) before anything is sent; moves start from where home, "
+             "jog or goto left the head, in absolute positioning (G90).")
     gc.add_argument("commands", nargs="+", metavar="COMMAND")
     h = cmd("heat", "heat the nozzle (default: the profile's temperature) and/or the bed", cmd_heat)
     h.add_argument("--nozzle", type=float, metavar="C")
