@@ -382,6 +382,10 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/printer/gcode", responses=printer_body)
     async def gcode(body: GcodeRequest) -> dict[str, Any]:
+        """Typed G-code, checked whole as a plain G-code job is (inside the frame, above the fabric,
+        temperatures within the profile; feed rates clamped, said in ``notes``) before any of it is
+        sent: 422 names the command and the limit. ``answers``: per command, the printer's lines
+        (``sent``: the command as sent, when clamped). Unchecked with ``[manual] raw_console = true``."""
         return await service.manual.gcode(body.commands)
 
     @app.post("/printer/heat", responses=printer_body)

@@ -286,9 +286,11 @@ def verdict_text(job: dict[str, Any]) -> list[str]:
     return [f"verdict     {line}" for line in job.get("verdict") or []]
 
 
-def _detail(job: dict[str, Any], printer: dict[str, Any] | None = None, verdict: bool = False) -> str:
+def _detail(job: dict[str, Any], printer: dict[str, Any] | None = None, verdict: bool = False,
+            notes: bool = False) -> str:
     """A job for people: its line, progress, the temperatures (``printer``: a printer status, while
-    the job heats or prints), the design's verdict (``verdict``), what to do next."""
+    the job heats or prints), the design's verdict (``verdict``), the daemon's notes on its program
+    (``notes``), what to do next."""
     lines = [_line(job)]
     more = progress_text(job, job.get("kind"))
     if job.get("lines_total") and job["state"] in ("heating", "printing_front", "printing_back", "paused"):
@@ -302,6 +304,7 @@ def _detail(job: dict[str, Any], printer: dict[str, Any] | None = None, verdict:
         lines.append(f"  temperatures  {temps}  (actual/target)")
     if verdict:
         lines += [f"  {line}" for line in verdict_text(job)]
+    lines += [f"  note: {n}" for n in (job.get("notes") or []) if notes]
     nxt = job.get("next") or {}
     if nxt.get("instruction"):
         lines.append(f"  next: {nxt['instruction']}")
@@ -419,8 +422,11 @@ def cmd_print(args: argparse.Namespace) -> int:
     c = _client(args)
     job = c.upload("gcode", args.program, {"start": str(not args.no_start).lower()}, show=not args.json)
     if args.no_wait or args.no_start:
-        _out(args, job, _detail(job) if not args.json else "")
+        _out(args, job, _detail(job, notes=True) if not args.json else "")
         return 0
+    if not args.json:
+        for note in job.get("notes") or []:
+            print(f"note: {note}", flush=True)
     return _follow(c, args, job)
 
 
@@ -429,7 +435,7 @@ def cmd_status(args: argparse.Namespace) -> int:
     if args.job:
         job = c.request("GET", f"/jobs/{args.job}")
         printer = c.request("GET", "/printer") if job["state"] in HOT and not args.json else None
-        _out(args, job, _detail(job, printer, verdict=True))
+        _out(args, job, _detail(job, printer, verdict=True, notes=True))
     else:
         params: dict[str, Any] = {"state": args.state} if args.state else {}
         if args.limit is not None:
@@ -672,7 +678,9 @@ def cmd_goto(args: argparse.Namespace) -> int:
 
 def cmd_gcode(args: argparse.Namespace) -> int:
     result = _client(args).request("POST", "/printer/gcode", json={"commands": args.commands}, timeout=630)
-    text = "\n".join(f"> {a['command']}\n" + "\n".join(a["answer"]) for a in result["answers"])
+    text = "\n".join(f"> {a['command']}" + (f"  (sent as: {a['sent']})" if a.get("sent") else "") + "\n"
+                     + "\n".join(a["answer"]) for a in result["answers"])
+    text += "".join(f"\nnote: {n}" for n in result.get("notes") or [])
     _out(args, result, text)
     return 0
 
@@ -853,7 +861,9 @@ def add_commands(sub: Any) -> None:
     g.add_argument("y", type=float)
     gc = cmd("gcode", "send G-code commands and print the printer's answers", cmd_gcode,
              "Send one command or a short list (one argument each, quoted: ribbonctl gcode \"G28 X\" M114); "
-             "not while a program streams.")
+             "not while a program streams. Checked whole as a G-code job is (frame, fabric, temperatures; "
+             "feed rates clamped, said in a note) before anything is sent; moves start from where home, "
+             "jog or goto left the head, in absolute positioning (G90).")
     gc.add_argument("commands", nargs="+", metavar="COMMAND")
     h = cmd("heat", "heat the nozzle (default: the profile's temperature) and/or the bed", cmd_heat)
     h.add_argument("--nozzle", type=float, metavar="C")

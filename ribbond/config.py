@@ -113,6 +113,17 @@ class FlipPolicy(BaseModel):
                                "a pause), s; 0: never")
 
 
+class ManualSettings(BaseModel):
+    """The operator's direct control of the printer (``ribbonctl gcode``, the dashboard's console)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    # Off: typed G-code passes the same check as a plain G-code job (frame, fabric, temperatures,
+    # feed rates). On: sent unchecked, each command logged as such; for the few who need raw access.
+    raw_console: bool = Field(False, strict=True, description="send typed G-code unchecked (logged); "
+                              "default false: checked like a plain G-code job")
+
+
 class DaemonConfig(BaseModel):
     """Everything ``ribbond`` reads from its configuration file; every field has a default."""
 
@@ -125,6 +136,7 @@ class DaemonConfig(BaseModel):
     api: ApiSettings = ApiSettings()
     limits: Limits = Limits()
     flip: FlipPolicy = FlipPolicy()
+    manual: ManualSettings = ManualSettings()
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @property

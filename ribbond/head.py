@@ -41,6 +41,11 @@ class Head:
         """The commanded position, if known."""
         return self._xyz
 
+    def commanded(self, link: PrinterLink) -> tuple[float, float, float] | None:
+        """The commanded position if it holds on ``link``'s connection (None: not known without
+        asking the printer)."""
+        return self._xyz if self._xyz is not None and self._sender is link.sender else None
+
     def set(self, xyz: tuple[float, float, float]) -> None:
         """The head was commanded to ``xyz`` (and the move finished)."""
         self._xyz = xyz

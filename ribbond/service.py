@@ -49,7 +49,8 @@ from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
 from .manual import MAX_MANUAL_COMMANDS, ManualControl
 from .printer.link import LinkState, PrinterLink
 from .printing import PrintTask
-from .programs import Timeline, check_program, program_timeline
+from .checker import Checked
+from .programs import Timeline, check_plain_program, program_timeline
 from .records import JobRecords, NotFound, ServiceError, has_program
 from .resume import Resumer, modal_state
 from .run import MarkCheck, PrintState, Stream, stream_rate
@@ -91,9 +92,10 @@ def mesh_file_name(name: str) -> str:
 PRINTER_EVENT_S = 0.5
 
 
-def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[list[str], Timeline]:
-    lines = text.splitlines()
-    return check_program(lines, profile, source=source), program_timeline(lines, profile)
+def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[Checked, Timeline]:
+    """The program checked (feed rates clamped as the firmware would) and its time line."""
+    checked = check_plain_program(text.splitlines(), profile, source=source)
+    return checked, program_timeline(checked.lines, profile)
 
 
 def _aligning_guidance(j: str, al: MarkCheck | None) -> str:
@@ -153,7 +155,7 @@ class RibbonService:
         self.resumer = Resumer(self.head, profile, self.records, self.state, self.heaters)
         self.printing = PrintTask(self.head, profile, self.records, self.state, self.heaters, self.aligner,
                                   self.resumer, self.progress)
-        self.manual = ManualControl(self.head, profile, self.records, self.state)
+        self.manual = ManualControl(self.head, profile, self.records, self.state, config.manual)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
         self.verdicts = Verdicts(self.jobs_dir)          # the design's verdict in each status (issue 22)
@@ -282,7 +284,8 @@ class RibbonService:
         except UnicodeDecodeError:
             raise ValueError(f"{name}: not a text file (G-code is ASCII text)") from None
         # checked and estimated beside the loop: a long program must not hold up the printer's stream
-        commands, timeline = await asyncio.to_thread(_check_and_estimate, text, self.profile, safe)
+        checked, timeline = await asyncio.to_thread(_check_and_estimate, text, self.profile, safe)
+        commands, notes = checked.commands, checked.notes(self.profile)
         if start:
             self.records.check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
@@ -291,9 +294,11 @@ class RibbonService:
         folder.mkdir(parents=True, exist_ok=True)
         program = folder / "program.gcode"
         shutil.move(str(upload), program)
+        if notes:                             # the program as it streams: the clamped F words
+            program.write_text("\n".join(checked.lines) + "\n", encoding="utf-8")
         job = self.records.transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
                                       mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
-                                      estimate_s={"front": timeline.total})
+                                      estimate_s={"front": timeline.total}, notes=notes)
         if start:
             self.state.queue_print(job.id)
         return job

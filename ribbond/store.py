@@ -28,7 +28,7 @@ from .jobs import JobState, check_transition
 
 #: The layout this code reads and writes (PRAGMA user_version). Bump it with a migration in
 #: ``_MIGRATIONS`` whenever the tables change.
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 
 class JobRecord(BaseModel):
@@ -62,6 +62,8 @@ class JobRecord(BaseModel):
                                        "oldest first: run, started, ended, state, error, side, lines")
     estimate_s: dict[str, float] | None = Field(None, description="the programs' own time estimate per side "
                                                 "(front, back), s: for progress and time left")
+    notes: list[str] = Field(default_factory=list, description="what the daemon changed in the job's program "
+                             "and why (e.g. feed rates clamped to the profile's limits)")
 
     @field_validator("mesh_name")
     @classmethod
@@ -97,7 +99,7 @@ class JobNotFound(KeyError):
 
 #: Fields ``transition`` and ``update`` may set (the id, the state and the timestamps are the store's).
 MUTABLE_FIELDS = frozenset(JobRecord.model_fields) - {"id", "state", "created", "updated"}
-_JSON_FIELDS = frozenset({"parameters", "correction", "runs", "estimate_s"})
+_JSON_FIELDS = frozenset({"parameters", "correction", "runs", "estimate_s", "notes"})
 _COLUMNS = tuple(JobRecord.model_fields)
 
 #: The parts of a print proven printed (schema 3), for resuming an interrupted one.
@@ -137,7 +139,8 @@ CREATE TABLE jobs (
     paused_from      TEXT,
     kind             TEXT NOT NULL DEFAULT 'design',
     runs             TEXT,                               -- JSON list, NULL: none
-    estimate_s       TEXT                                -- JSON
+    estimate_s       TEXT,                               -- JSON
+    notes            TEXT                                -- JSON list, NULL: none
 );
 CREATE INDEX jobs_state ON jobs (state);
 CREATE TABLE transitions (
@@ -158,6 +161,8 @@ _MIGRATIONS: dict[int, str] = {
        "ALTER TABLE jobs ADD COLUMN estimate_s TEXT",
     # 3: the parts (ribbons, marks) of a print proven printed, for resuming an interrupted one (issue 16)
     2: _PART_EVENTS,
+    # 4: what the daemon changed in a job's program, e.g. feed rates clamped (issue 22)
+    3: "ALTER TABLE jobs ADD COLUMN notes TEXT",
 }
 
 #: What a part's events make of it (its last event decides).
@@ -276,6 +281,8 @@ class JobStore:
         data["start_when_ready"] = bool(data["start_when_ready"])
         if data["runs"] is None:
             data["runs"] = []
+        if data["notes"] is None:
+            data["notes"] = []
         return JobRecord.model_validate(data)
 
     def _row(self, job_id: str) -> sqlite3.Row:

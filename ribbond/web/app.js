@@ -218,7 +218,11 @@ $("console-form").addEventListener("submit", async (e) => {
   $("console-in").value = "";
   try {
     const r = await api.post("/printer/gcode", { commands: [line] });
-    for (const a of r.answers) for (const l of a.answer) add(l, "answer");
+    for (const a of r.answers) {
+      if (a.sent) add(`sent as: ${a.sent}`, "note");
+      for (const l of a.answer) add(l, "answer");
+    }
+    for (const n of r.notes || []) add(`note: ${n}`, "note");   // clamped feeds, G90 restored, unchecked
   } catch (err) { add(err.message, "error"); }
 });
 

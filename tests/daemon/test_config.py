@@ -17,6 +17,7 @@ from ribbond.config import (
     DaemonConfig,
     FlipPolicy,
     Limits,
+    ManualSettings,
     SerialSettings,
     config_path,
     is_loopback,
@@ -87,6 +88,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
                         token_file=tmp_path / "secrets" / "token", allowed_hosts=["printer.local", "[::1]:8125"]),
         limits=Limits(max_upload_mb=12.5, max_faces=1000, max_jobs=3),
         flip=FlipPolicy(heaters="off", lower_to=150.0, off_after_s=60.0),
+        manual=ManualSettings(raw_console=True),
         log_level="debug",
     )
     # Every field differs from its default, so a field the loader dropped would show.
