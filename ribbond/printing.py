@@ -25,6 +25,7 @@ from .aligner import Aligner
 from .alignment import expected_marks
 from .design.folder import read_design_folder
 from .design.format import Design
+from .frame import FrameGate, needs_fresh_frame
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, Program, SidePlan, render_side
 from .head import Head
@@ -37,7 +38,7 @@ from .programs import Part, program_parts, program_timeline
 from .records import JobRecords, NotFound
 from .resume import Resumer, resumed_text
 from .run import PrintState, Run, Stream, stream_rate
-from .store import JobRecord, JobStore
+from .store import FRAME_FRESH, JobRecord, JobStore
 
 log = logging.getLogger(__name__)
 
@@ -79,9 +80,11 @@ class _Acknowledgements:
     printing, ``last_acked_line`` stored and a progress event sent at most every ACK_INTERVAL_S."""
 
     def __init__(self, records: JobRecords, state: PrintState, progress: Callable[[JobRecord], dict[str, Any]],
-                 job_id: str, stream: Stream, track: _PartTracker, after_heating: JobState | None) -> None:
+                 job_id: str, stream: Stream, track: _PartTracker, after_heating: JobState | None,
+                 frame_used: Callable[[str], None]) -> None:
         self.records, self.state, self.progress, self.job_id = records, state, progress, job_id
         self.stream, self.track, self.after_heating = stream, track, after_heating
+        self.frame_used, self._printed = frame_used, False
         self.switched = after_heating is None
         self._last_write = 0.0
         if self.switched:
@@ -95,6 +98,9 @@ class _Acknowledgements:
         self.track.acknowledged(p.acknowledged)
         if stream.printing_since is None and p.acknowledged >= first_part:
             stream.printing_since = now
+        if not self._printed and p.acknowledged >= first_part:
+            self._printed = True
+            self.frame_used(job_id)                   # the program prints on the frame: it is no longer fresh
         if not self.switched and p.acknowledged >= first_part:
             self.switched = True
             job = records.get(job_id)
@@ -114,9 +120,10 @@ class PrintTask:
 
     def __init__(self, head: Head, profile: PrinterProfile, records: JobRecords, state: PrintState,
                  heaters: Heaters, aligner: Aligner, resumer: Resumer,
-                 progress: Callable[[JobRecord], dict[str, Any]]) -> None:
+                 progress: Callable[[JobRecord], dict[str, Any]], frame: FrameGate) -> None:
         self.head, self.profile, self.records, self.state = head, profile, records, state
         self.heaters, self.aligner, self.resumer, self.progress = heaters, aligner, resumer, progress
+        self.frame = frame
         self._background_tasks: set[asyncio.Future[Any]] = set()
 
     # ------------------------------------------------------------------ the queue
@@ -144,6 +151,11 @@ class PrintTask:
                 if waited is None:
                     continue
                 job = waited
+            if needs_fresh_frame(job) and self.records.store.frame()["state"] != FRAME_FRESH:
+                gated = await self.frame.wait_fresh(job_id)   # not over the fabric the last job left
+                if gated is None:
+                    continue
+                job = gated
             state.run = run = Run(job_id)
             await self._run_print(run, job)
 
@@ -308,7 +320,7 @@ class PrintTask:
         self.head.forget()
         records.publish(records.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
         track = _PartTracker(records.store, job_id, side, [] if plain else program_parts(lines), part_base)
-        acks = _Acknowledgements(records, state, self.progress, job_id, stream, track, after_heating)
+        acks = _Acknowledgements(records, state, self.progress, job_id, stream, track, after_heating, self.frame.used)
         try:
             await link.stream(commands, acks, track.barriers)
         finally:
@@ -318,6 +330,7 @@ class PrintTask:
             run.stream = None
         if not acks.switched and after_heating is not None:
             records.transition(job_id, after_heating, stage=f"printing {side}")
+            self.frame.used(job_id)
 
     # ------------------------------------------------------------------ stops
 

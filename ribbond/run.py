@@ -28,8 +28,24 @@ class MarkCheck:
     refused: AlignmentRefused | None = None     # or why it was refused
     fit: dict[str, Any] | None = None           # the fit shown for review (state fitted)
     reseat: bool = False                        # the operator refused the fit under review
+    # the marks measured again after a refused fit or a re-seat (the others are kept), numbered from 1
+    remeasure: tuple[int, ...] = ()
 
     current: int = 0                            # the mark the head is above (from 1; 0: on its way)
+
+    def reopen(self, marks: list[int]) -> None:
+        """Measure ``marks`` (from 1) again: their measurements, the fit and its verdict dropped."""
+        for mark in marks:
+            self.measured.pop(mark, None)
+        self.remeasure = tuple(sorted(marks))
+        self.correction = self.refused = self.fit = None
+        self.reseat = False
+        self.current = 0
+
+    @property
+    def kept(self) -> list[int]:
+        """The marks measured and kept (numbered from 1)."""
+        return sorted(self.measured)
 
     @property
     def next_mark(self) -> int | None:

@@ -36,12 +36,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .aligner import Aligner
+from .aligner import Aligner, aligning_guidance
 from .calibrations import Calibrations
 from .compiler import COMPILE_STAGES, Compiler
 from .config import DaemonConfig
 from .design.params import check_printable, settings_from_dict
 from .events import EventBus
+from .frame import INSTRUCTION as FRESH_FRAME_INSTRUCTION, FrameGate, waits_at_gate
 from .gcode.profiles import PrinterProfile
 from .head import Head
 from .heaters import Heaters
@@ -52,7 +53,7 @@ from .printing import PrintTask
 from .programs import Timeline, check_program, program_timeline
 from .records import JobRecords, NotFound, ServiceError, has_program
 from .resume import Resumer, modal_state
-from .run import MarkCheck, PrintState, Stream, stream_rate
+from .run import PrintState, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
 
@@ -94,22 +95,12 @@ def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tupl
     return check_program(lines, profile, source=source), program_timeline(lines, profile)
 
 
-def _aligning_guidance(j: str, al: MarkCheck | None) -> str:
-    if al is None or al.current == 0:
-        nxt = al.next_mark if al is not None else 1
-        return f"aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
-    k, n = al.current, len(al.expected)
-    return (f"mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
-            f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
-            f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
-
-
 def _fitted_guidance(j: str, fit: dict[str, Any] | None) -> str:
     seen = (f"the fit turns the back by {fit['rotation_deg']:.2f}° and moves it by "
             f"({fit['offset'][0]:.2f}, {fit['offset'][1]:.2f}) mm, {fit['max_residual_mm']:.2f} mm "
             "off at the worst mark. ") if fit else ""
     return (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
-            f"re-seat the frame and align again (ribbonctl re-seat {j})")
+            f"re-seat the frame, back side up, and measure every mark again (ribbonctl re-seat {j})")
 
 
 def _ended_guidance(job: JobRecord) -> tuple[str, list[str] | None]:
@@ -149,8 +140,9 @@ class RibbonService:
         self.aligner = Aligner(self.head, profile, self.records, self.state, self.heaters,
                                lambda job: self.guidance(job)["instruction"])
         self.resumer = Resumer(self.head, profile, self.records, self.state, self.heaters)
+        self.frame = FrameGate(self.records, self.state, self.heaters)
         self.printing = PrintTask(self.head, profile, self.records, self.state, self.heaters, self.aligner,
-                                  self.resumer, self.progress)
+                                  self.resumer, self.progress, self.frame)
         self.manual = ManualControl(self.head, profile, self.records, self.state)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
@@ -182,7 +174,7 @@ class RibbonService:
         while True:
             await asyncio.sleep(PRINTER_EVENT_S)
             try:
-                status = await self.manual.printer_status()
+                status = {**await self.manual.printer_status(), "frame": self.frame.status()}
             except Exception:  # noqa: BLE001 - a status that cannot be read is not worth a stop
                 log.debug("printer status for the events", exc_info=True)
                 continue
@@ -266,9 +258,10 @@ class RibbonService:
                 log.warning("removing %s: a job folder without a job", entry)
                 shutil.rmtree(entry, ignore_errors=True)
 
-    async def submit_gcode(self, upload: Path, name: str, start: bool) -> JobRecord:
+    async def submit_gcode(self, upload: Path, name: str, start: bool, same_frame: bool = False) -> JobRecord:
         """Take an uploaded G-code program, check it line by line against the profile (refused with
-        the line named: nothing is kept), and make it a ``ready`` job (queued if ``start``)."""
+        the line named: nothing is kept), and make it a ``ready`` job (queued if ``start``).
+        ``same_frame``: it prints on the frame as it is (no fresh frame is asked for before it)."""
         safe = re.sub(r"[^A-Za-z0-9._-]", "_", Path(name).name) or "program.gcode"
         if Path(safe).suffix.lower() not in GCODE_SUFFIXES:
             raise ValueError(f"{name!r}: not a G-code file ({', '.join(GCODE_SUFFIXES)})")
@@ -281,7 +274,7 @@ class RibbonService:
         if start:
             self.records.check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
-                                kind="gcode")
+                                kind="gcode", same_frame=same_frame)
         folder = self.job_dir(job.id)
         folder.mkdir(parents=True, exist_ok=True)
         program = folder / "program.gcode"
@@ -453,7 +446,7 @@ class RibbonService:
         elif s is JobState.AWAITING_FLIP:
             text, cmds = self._flip_guidance(job), [f"ribbonctl flip-done {j}", f"ribbonctl cancel {j}"]
         elif s is JobState.ALIGNING:
-            text = _aligning_guidance(j, run.alignment if run is not None else None)
+            text = aligning_guidance(j, run.alignment if run is not None else None, job.error)
             cmds = ["ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
         elif s is JobState.FITTED:
             text = _fitted_guidance(j, run.alignment.fit if run is not None and run.alignment is not None else None)
@@ -470,6 +463,9 @@ class RibbonService:
         j = job.id
         if not job.start_when_ready:
             return f"ready to print: ribbonctl start {j}", None
+        if waits_at_gate(job):
+            return f"waiting for a fresh frame: {FRESH_FRAME_INSTRUCTION}", ["ribbonctl frame-ready",
+                                                                            f"ribbonctl cancel {j}"]
         link = self.head.link
         connected = link is not None and link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
         text = "queued: it prints when the printer is free" + (
@@ -480,8 +476,7 @@ class RibbonService:
         frame = self.profile.frame
         axis = frame.flip_axis
         other, c = ("x", frame.center[0]) if axis == "y" else ("y", frame.center[1])
-        refused = f"the alignment was refused ({job.error}); " if job.error else ""
-        return (f"{refused}the front is printed. Turn the frame over about its {axis} axis (the line "
+        return (f"the front is printed. Turn the frame over about its {axis} axis (the line "
                 f"{other} = {c:g}), seat it again, then run: ribbonctl flip-done {job.id}")
 
     def _check_guidance(self, job: JobRecord) -> str:
@@ -503,13 +498,16 @@ class RibbonService:
         run = self.state.current(job.id)
         if job.state is JobState.FITTED and run is not None and run.alignment is not None:
             data["fit"] = run.alignment.fit
+        if job.state is JobState.ALIGNING and run is not None and run.alignment is not None:
+            data["alignment"] = {"marks": len(run.alignment.expected), "kept": run.alignment.kept,
+                                 "remeasure": list(run.alignment.remeasure)}
         return data
 
     def _waits(self, job: JobRecord) -> bool:
         """Nothing happens until the operator acts (a ready job nobody started, the flip, a mark
         the head is above, a pause)."""
         if job.state is JobState.READY:
-            return not job.start_when_ready
+            return not job.start_when_ready or waits_at_gate(job)
         if job.state is JobState.ALIGNING:
             run = self.state.current(job.id)
             return run is not None and run.alignment is not None and run.alignment.current > 0

@@ -259,13 +259,13 @@ function renderJobs() {
         <td><span class="state ${esc(j.state)}">${esc(st)}</span></td><td>${esc(sizeOf(j))}</td>
         <td>${when(j.created)}</td><td>${ended ? when(j.updated) : "–"}</td><td>${duration(dur)}</td></tr>`;
     }).join("")}</tbody></table>`;
-  const waiting = [...state.jobs.values()].find((j) => ["awaiting_flip", "aligning", "fitted"].includes(j.state) && j.waits_for_operator);
+  const waiting = [...state.jobs.values()].find((j) => (["awaiting_flip", "aligning", "fitted"].includes(j.state) || atGate(j)) && j.waits_for_operator);
   const banner = $("needs-you");
   const here = state.route.page === "job" && waiting && state.route.id === waiting.id;
   banner.hidden = !waiting || here;
   if (waiting && !here) {
     banner.href = `#/job/${waiting.id}`;
-    const what = { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
+    const what = atGate(waiting) ? "load a fresh frame" : { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
     banner.textContent = `${waiting.mesh_name}: ${what} →`;
   }
 }
@@ -390,8 +390,11 @@ function progressText(j) {
 const ACTIONS = {
   start: (j) => (ENDED.has(j.state) ? "Print again" : ["submitted", "compiling"].includes(j.state) ? "Print when compiled" : "Print"),
   pause: () => "Pause", resume: (j) => (j.state === "interrupted" ? "Resume where it stopped" : "Resume"),
-  "frame-ok": () => "Frame is checked", cancel: () => "Cancel", delete: () => "Delete",
+  "frame-ok": () => "Frame is checked", "frame-ready": () => "Fresh frame loaded", cancel: () => "Cancel", delete: () => "Delete",
 };
+
+/** The job is queued and waits for the operator to load a fresh stretched frame (the daemon's gate). */
+const atGate = (j) => j.state === "ready" && j.start_when_ready && j.stage === "waiting for a fresh frame";
 
 function renderActions(j) {
   const box = $("j-actions");
@@ -419,6 +422,12 @@ $("j-actions").addEventListener("click", async (e) => {
       await api.call("DELETE", `/jobs/${id}`);
       state.jobs.delete(id);
       location.hash = "#/";
+    } else if (c === "frame-ready") {
+      // the frame is the printer's, not the job's: the waiting job goes on once it is confirmed
+      await api.post("/printer/frame-ready");
+      const j = await api.get(`/jobs/${id}`);
+      state.jobs.set(j.id, j);
+      renderJobPage();
     } else {
       const j = await api.post(`/jobs/${id}/${c}`);
       state.jobs.set(j.id, { ...state.jobs.get(j.id), ...j });
@@ -434,9 +443,10 @@ $("j-actions").addEventListener("click", async (e) => {
 function alignResultHTML(res) {
   if (!res) return "";
   if (res.refused) {
+    const unit = res.refused === "rotation" ? "°" : " mm";
+    const numbers = res.value !== undefined ? `The ${esc(res.refused)} is ${mm(res.value, 3)}${unit}; the limit is ${mm(res.limit, 3)}${unit}.` : "";
     return `<div class="result refused"><h3>Alignment refused</h3><p>${esc(res.detail)}</p>
-      <p>The ${esc(res.refused)} is ${mm(res.value, 3)}${res.refused === "rotation" ? "°" : " mm"}; the limit is ${mm(res.limit, 3)}${res.refused === "rotation" ? "°" : " mm"}.
-      Re-seat the frame on its pins, then press “Frame is flipped” to measure the marks again.</p></div>`;
+      <p>${numbers} The marks are measured again below; the frame stays back side up.</p></div>`;
   }
   if (res.fit) {
     const f = res.fit;
@@ -454,6 +464,18 @@ function alignResultHTML(res) {
   return "";
 }
 
+const marksText = (ms) => (ms.length === 1 ? `mark ${ms[0]}` : `marks ${ms.slice(0, -1).join(", ")} and ${ms[ms.length - 1]}`);
+
+/** After a refused fit or a re-seat: what it means for the frame and the marks (the frame is back
+ * side up already: it is never turned over again). */
+function reseatText(j) {
+  const a = j.alignment;
+  if (!a || !a.remeasure?.length) return "";
+  if (a.remeasure.length === a.marks) return "Re-seat the frame, back side up (do not turn it over again): every mark is measured again. ";
+  const kept = marksText(a.kept);
+  return `The frame stays back side up (do not turn it over again). ${kept[0].toUpperCase()}${kept.slice(1)} fitted and ${a.kept.length > 1 ? "are" : "is"} kept: measure ${marksText(a.remeasure)} again. `;
+}
+
 /** What to do next, in the page's words (the daemon's instruction names ribbonctl commands). */
 function nextText(j) {
   const text = j.next?.instruction || "";
@@ -461,6 +483,7 @@ function nextText(j) {
     case "submitted": case "compiling":
       return j.start_when_ready ? "Compiling; it prints when compiled." : "Compiling; then press Print.";
     case "ready":
+      if (atGate(j)) return "Waiting for a fresh frame: load a fresh stretched frame, then press “Fresh frame loaded”. Nothing heats until then.";
       return j.start_when_ready ? text.replace(/^queued/, "Queued") : "Ready to print: press Print.";
     case "paused":
       if (j.stage === "paused") return "Pausing: the head is parking…";
@@ -500,7 +523,7 @@ function renderJobPage() {
   $("j-stage").textContent = stage.replace(/_/g, " ") === LABEL[j.state] ? "" : stage;
   $("j-next").textContent = nextText(j);
   $("j-next").hidden = !$("j-next").textContent;
-  $("j-error").hidden = !j.error || j.state === "awaiting_flip";     // the flip step says it
+  $("j-error").hidden = !j.error || ["awaiting_flip", "aligning"].includes(j.state);     // the step says it
   $("j-error").textContent = j.error || "";
   const showProgress = !["submitted", "ready"].includes(j.state) || j.progress > 0;
   $("j-progress").hidden = !showProgress;
@@ -542,19 +565,22 @@ function renderJobPage() {
   // the alignment step
   $("align").hidden = !["aligning", "fitted"].includes(j.state) && !(state.align.get(j.id)?.fit && j.state === "printing_back");
   if (!$("align").hidden) {
-    const m = /^mark (\d+) of (\d+)/.exec(j.next?.instruction || "");
+    const m = /(?:^|\. )mark (\d+) of (\d+):/.exec(j.next?.instruction || "");
     const k = m ? Number(m[1]) : state.alignMark.get(j.id)?.mark;
     const n = m ? Number(m[2]) : state.alignMark.get(j.id)?.marks;
     const ready = j.state === "aligning" && j.waits_for_operator && k;
-    $("align-text").textContent = j.state !== "aligning" ? "" : ready
+    $("align-text").textContent = j.state !== "aligning" ? "" : reseatText(j) + (ready
       ? `The head is above mark ${k} of ${n}. Jog the nozzle onto the mark, then press “Nozzle is on the mark”.`
-      : `The head is on its way above mark ${k || 1}…`;
+      : `The head is on its way above mark ${k || 1}…`);
     $("align-text").dataset.mark = ready ? String(k) : "";
     $("align-here").disabled = !ready;
     $("align-here").hidden = j.state !== "aligning";
     $("align-jog").hidden = j.state !== "aligning";
-    // (after a reload the fit under review comes with the job)
-    const res = state.align.get(j.id) ?? (j.state === "fitted" && j.fit ? { fit: j.fit, review: true } : undefined);
+    // (after a reload the fit under review, or the refusal, comes with the job); a refusal the
+    // operator acted on (the daemon cleared it) is no longer shown
+    if (state.align.get(j.id)?.refused && j.state === "aligning" && !j.error) state.align.delete(j.id);
+    const res = state.align.get(j.id) ?? (j.state === "fitted" && j.fit ? { fit: j.fit, review: true }
+      : j.state === "aligning" && j.error ? { refused: "fit", detail: j.error } : undefined);
     const rkey = JSON.stringify([res, j.state]);
     if ($("align-result").dataset.key !== rkey) {
       $("align-result").dataset.key = rkey;
@@ -569,7 +595,7 @@ function renderJobPage() {
   // pictures and the summary
   const files = state.files.get(j.id);
   $("j-pictures").hidden = j.kind !== "design" || !design;
-  const highlight = j.state === "aligning" ? (/^mark (\d+)/.exec(j.next?.instruction || "") || [])[1] : undefined;
+  const highlight = j.state === "aligning" ? (/(?:^|\. )mark (\d+) of/.exec(j.next?.instruction || "") || [])[1] : undefined;
   const lkey = `${j.id}:${design ? 1 : 0}:${highlight}:${j.state === "aligning"}`;
   if ($("j-layout").dataset.key !== lkey) {
     $("j-layout").dataset.key = lkey;
