@@ -258,11 +258,15 @@ def _detail(job: dict[str, Any]) -> str:
     lines = [_line(job)]
     more = progress_text(job)
     if job.get("lines_total") and job["state"] in ("heating", "printing_front", "printing_back", "paused"):
-        # last_acked_line counts the lines the printer acknowledged
-        more = f"line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}" + (
+        # last_acked_line counts the lines of ``program`` the printer acknowledged (a resumed side's
+        # program is not the whole side: its name says so)
+        program = job.get("program") or job.get("side") or "front"
+        more = f"{program}: line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}" + (
             f"  {more}" if more else "")
     if more:
         lines.append(f"  {bar_text(job.get('progress') or 0)}  {more}")
+    if job.get("same_frame"):
+        lines.append("  prints on the frame as it is (--same-frame: no fresh frame asked for)")
     nxt = job.get("next") or {}
     if nxt.get("instruction"):
         lines.append(f"  next: {nxt['instruction']}")

@@ -69,11 +69,17 @@ class ResumePlan:
 
 @dataclass
 class Stream:
-    """The program being streamed: its time line and the measured rate."""
+    """The program being streamed: its time line and the measured rate; for a resumed side, where
+    it stands in the whole side."""
 
     side: str
     timeline: Timeline
     acked: int = -1
+    program: str = ""                           # what its lines are named by: front, 'back (resumed at part 3)'
+    # a resumed side (issue 22): the estimated seconds of the side before this program (its parts
+    # proven printed or skipped) and of the whole side; None: this program is the whole side
+    base_s: float = 0.0
+    side_s: float | None = None
     printing_since: float | None = None         # monotonic, when the first line after heating was acked
     paused_s: float = 0.0
     paused_at: float | None = None

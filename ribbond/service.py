@@ -334,7 +334,8 @@ class RibbonService:
         job = self.records.transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
                                       runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
                                       lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
-                                      side=None, correction=None, paused_from=None)
+                                      side=None, correction=None, paused_from=None, program=None,
+                                      print_progress=None)
         self.state.queue_print(job_id)
         return job
 
@@ -401,6 +402,9 @@ class RibbonService:
                 out["eta_s"] = max(0.0, total - done) * rate
         if run is not None:
             out["elapsed_s"] = time.time() - run.started
+        if job.print_progress is not None and s not in (JobState.READY, JobState.SUBMITTED):
+            # never less than was shown before (a pause, an interruption, a restart, the resume's reheat)
+            out["progress"] = max(out["progress"], job.print_progress)
         return out
 
     def _side_progress(self, job: JobRecord, totals: dict[str, float], stream: Stream | None,
@@ -411,13 +415,18 @@ class RibbonService:
         rate = self.state.rate or 1.0
         side: str = job.side or "front"
         if stream is not None:
-            side = stream.side
-            totals[side] = stream.timeline.total or totals.get(side, 0.0)
+            side, tl = stream.side, stream.timeline
             # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
             acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
-            out["ribbon"] = stream.timeline.ribbon_at(acked) or None
-            out["ribbons"] = stream.timeline.ribbons or None
-            return side, stream.timeline.done_s(acked), stream_rate(stream) or rate
+            out["ribbon"] = tl.ribbon_at(acked) or None
+            out["ribbons"] = tl.ribbons or None
+            if stream.side_s is None:
+                totals[side] = tl.total or totals.get(side, 0.0)
+                return side, tl.done_s(acked), stream_rate(stream) or rate
+            # a resumed side: the parts before it count, the resumed program's printing adds to them
+            totals[side] = stream.side_s
+            done = stream.base_s + max(0.0, tl.done_s(acked) - tl.done_s(tl.first))
+            return side, min(done, stream.side_s), stream_rate(stream) or rate
         if s is JobState.PRINTING_BACK:
             return side, 0.0, rate  # the back's stream is not set up yet: the lines stored are the front's
         if job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,

@@ -67,6 +67,10 @@ class JobRecord(BaseModel):
                                                 "(front, back), s: for progress and time left")
     same_frame: bool = Field(False, description="a plain G-code program that prints on the frame as it is "
                              "(no fresh frame needed before it)")
+    program: str | None = Field(None, description="the program lines_total and last_acked_line count: front, "
+                                "back, 'front (resumed at part N)', ...")
+    print_progress: float | None = Field(None, ge=0.0, le=1.0, description="the most of this run's print "
+                                         "(both sides, 0..1) reported so far: progress never goes back")
 
     @field_validator("mesh_name")
     @classmethod
@@ -151,7 +155,9 @@ CREATE TABLE jobs (
     kind             TEXT NOT NULL DEFAULT 'design',
     runs             TEXT,                               -- JSON list, NULL: none
     estimate_s       TEXT,                               -- JSON
-    same_frame       INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1))
+    same_frame       INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)),
+    program          TEXT,
+    print_progress   REAL
 );
 CREATE INDEX jobs_state ON jobs (state);
 CREATE TABLE transitions (
@@ -173,7 +179,9 @@ _MIGRATIONS: dict[int, str] = {
     # 3: the parts (ribbons, marks) of a print proven printed, for resuming an interrupted one (issue 16)
     2: _PART_EVENTS,
     # 4: the frame on the printer and plain G-code jobs that need no fresh one (issue 22)
-    3: "ALTER TABLE jobs ADD COLUMN same_frame INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)); " + _FRAME,
+    # and the program the lines count, the most of the print reported (progress never goes back)
+    3: "ALTER TABLE jobs ADD COLUMN same_frame INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)); "
+       "ALTER TABLE jobs ADD COLUMN program TEXT; ALTER TABLE jobs ADD COLUMN print_progress REAL; " + _FRAME,
 }
 
 #: What a part's events make of it (its last event decides).
@@ -460,8 +468,9 @@ class JobStore:
             self._write(record)
         return record
 
-    def record_ack(self, job_id: str, line: int) -> None:
-        """Raise ``last_acked_line`` to ``line`` (never lowers it), committed.
+    def record_ack(self, job_id: str, line: int, progress: float | None = None) -> None:
+        """Raise ``last_acked_line`` to ``line`` (never lowers it), and ``print_progress`` to
+        ``progress`` (0..1; never lowers it either), committed.
 
         Committed without waiting for the disk (``synchronous=NORMAL`` for this one write): it
         survives the daemon being killed, and it is written every half second while streaming, when
@@ -471,6 +480,8 @@ class JobStore:
         """
         if isinstance(line, bool) or not isinstance(line, int) or line < -1:
             raise ValueError(f"job {job_id}: acknowledged line {line!r}: must be an integer >= -1")
+        if progress is not None and not 0.0 <= progress <= 1.0:
+            raise ValueError(f"job {job_id}: progress {progress!r}: must be within 0..1")
         self._db.execute("PRAGMA synchronous = NORMAL")
         try:
             with self._transaction() as db:
@@ -478,6 +489,8 @@ class JobStore:
                 if line > current["last_acked_line"]:
                     db.execute("UPDATE jobs SET last_acked_line = ?, updated = ? WHERE id = ?",
                                (line, self._now(current["updated"]), job_id))
+                if progress is not None and progress > (current["print_progress"] or 0.0):
+                    db.execute("UPDATE jobs SET print_progress = ? WHERE id = ?", (float(progress), job_id))
         finally:
             self._db.execute("PRAGMA synchronous = FULL")
 

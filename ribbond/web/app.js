@@ -378,7 +378,9 @@ function progressText(j) {
     const it = state.compileInfo.get(j.id);
     if (it && it.iteration !== undefined) parts.push(`iteration ${it.iteration}`);
   } else {
-    if (j.print_side && j.kind === "design") parts.push(`${j.print_side} side`);
+    // a resumed side names its program (its lines are not the whole side's)
+    if (j.program && j.program.includes("resumed") && j.print_side === j.side && STREAMS.has(j.state)) parts.push(j.program);
+    else if (j.print_side && j.kind === "design") parts.push(`${j.print_side} side`);
     parts.push(percent(j));
     if (j.ribbon && j.ribbons) parts.push(`ribbon ${j.ribbon} of ${j.ribbons}`);
     if (j.eta_s !== null && j.eta_s !== undefined && !ENDED.has(j.state)) parts.push(`${duration(j.eta_s)} left`);
