@@ -88,6 +88,10 @@ function heater(h) {
   return `${h.current.toFixed(0)}${tgt} °C`;
 }
 
+/** The frame on the printer: fresh (confirmed, nothing printed on it since) or used. */
+const frameText = (f) => (!f ? "" : f.state === "fresh" ? "Frame: fresh (nothing printed on it since it was loaded)"
+  : `Frame: used${f.waiting_job ? ": a job waits for a fresh one" : ""}`);
+
 function renderPrinter() {
   const p = state.printer;
   const s = p ? p.state : "unknown";
@@ -100,7 +104,7 @@ function renderPrinter() {
   $("p-position").textContent = pos ? `x ${mm(pos[0], 2)}  y ${mm(pos[1], 2)}  z ${mm(pos[2], 2)} mm` : "–";
   $("t-nozzle").textContent = heater(p?.heaters?.T);
   $("t-bed").textContent = heater(p?.heaters?.B);
-  $("p-note").textContent = p?.note || "";
+  $("p-note").textContent = [p?.note, frameText(p?.frame)].filter(Boolean).join(" · ");
   $("p-link").textContent = p?.window_advice || "";   // the link found the board's buffer smaller
   const prof = p?.profile;
   if (prof) {
@@ -578,11 +582,9 @@ function renderJobPage() {
     $("align-here").disabled = !ready;
     $("align-here").hidden = j.state !== "aligning";
     $("align-jog").hidden = j.state !== "aligning";
-    // (after a reload the fit under review, or the refusal, comes with the job); a refusal the
-    // operator acted on (the daemon cleared it) is no longer shown
-    if (state.align.get(j.id)?.refused && j.state === "aligning" && !j.error) state.align.delete(j.id);
+    // (after a reload the fit under review, or the refusal, comes with the job)
     const res = state.align.get(j.id) ?? (j.state === "fitted" && j.fit ? { fit: j.fit, review: true }
-      : j.state === "aligning" && j.error ? { refused: "fit", detail: j.error } : undefined);
+      : j.state === "aligning" && j.error ? { refused: "fit", detail: j.error.replace(/^alignment refused: /, "") } : undefined);
     const rkey = JSON.stringify([res, j.state]);
     if ($("align-result").dataset.key !== rkey) {
       $("align-result").dataset.key = rkey;
@@ -641,7 +643,10 @@ $("align-here").addEventListener("click", async () => {
     // review: the last mark's fit waits for Accept or Re-seat (state fitted)
     const res = await api.post(`/jobs/${id}/align`, { here: true, review: true });
     if (res.fit) state.align.set(id, res);
-    else toast(`Mark ${res.mark} measured (off by ${mm(res.offset[0], 2)}, ${mm(res.offset[1], 2)} mm).`);
+    else {
+      if (state.align.get(id)?.refused) state.align.delete(id);     // acted on: the refusal is old news
+      toast(`Mark ${res.mark} measured (off by ${mm(res.offset[0], 2)}, ${mm(res.offset[1], 2)} mm).`);
+    }
   } catch (e) {
     if (e.data && e.data.refused) state.align.set(id, { ...e.data });
     else toast(`Nozzle is on the mark: ${e.message}`, "error");
@@ -681,6 +686,9 @@ function onEvent(type, ev) {
     state.alignMark.set(ev.job_id, ev);
   } else if (type === "notice") {
     toast(ev.message);
+  } else if (type === "frame" && ev.frame) {
+    if (state.printer) state.printer = { ...state.printer, frame: ev.frame };
+    renderPrinter();
   } else if (type === "printer" && ev.printer) {
     takePrinter(ev.printer);
     return;
