@@ -751,7 +751,7 @@ def add_commands(sub: Any) -> None:
                        ("cancel", "cancel a job"),
                        ("flip-done", "the frame is turned over: go on to the alignment"),
                        ("accept", "print the back with the alignment's fit (after align --review)"),
-                       ("re-seat", "refuse the alignment's fit: seat the frame again, then flip-done")):
+                       ("re-seat", "refuse the alignment's fit: seat the frame again (back side up), measure every mark again")):
         a = cmd(name, text, _action(name))
         a.add_argument("job")
     r = cmd("resume", "resume a paused print, or an interrupted one where it was proven to stand", cmd_resume,

@@ -79,6 +79,9 @@ class FrameGate:
                                f"ended (ribbonctl cancel {job.id} ends it now)")
         self.records.store.set_frame(FRAME_FRESH, None)
         log.info("the operator confirmed a fresh frame")
+        for job in self.records.store.active():
+            if waits_at_gate(job):                   # it goes on now: its answer and status say so
+                self.records.publish(self.records.store.update(job.id, stage="a fresh frame is loaded"))
         self._confirmed.set()
         self._publish()
         return self.status()

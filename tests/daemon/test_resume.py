@@ -269,7 +269,9 @@ def test_part_events_per_run_and_a_version_2_database_gains_the_table(tmp_path: 
     with JobStore(db) as store:
         job = store.create(mesh_name="m.obj", mesh_path="/m.obj", parameters={}, start_when_ready=False)
     conn = sqlite3.connect(db)                      # as ribbond before issue 16 left it
-    conn.executescript("DROP TABLE part_events; PRAGMA user_version = 2;")
+    conn.executescript("DROP TABLE part_events; DROP TABLE frame; ALTER TABLE jobs DROP COLUMN same_frame; "
+                       "ALTER TABLE jobs DROP COLUMN program; ALTER TABLE jobs DROP COLUMN print_progress; "
+                       "PRAGMA user_version = 2;")
     conn.close()
     with JobStore(db) as store:
         assert SCHEMA_VERSION == 4
