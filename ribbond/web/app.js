@@ -436,7 +436,9 @@ $("j-actions").addEventListener("click", async (e) => {
       renderJobPage();
     } else {
       const j = await api.post(`/jobs/${id}/${c}`);
-      state.jobs.set(j.id, { ...state.jobs.get(j.id), ...j });
+      // an event may have brought a newer state already (a started job reaching the frame gate)
+      const cur = state.jobs.get(j.id);
+      if (!cur || (j.updated ?? 0) >= (cur.updated ?? 0)) state.jobs.set(j.id, { ...cur, ...j });
       renderJobPage();
     }
   } catch (err) { toast(`${b.textContent}: ${err.message}`, "error"); }

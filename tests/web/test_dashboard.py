@@ -440,6 +440,8 @@ def test_manual_control_and_a_plain_gcode_job(browser_page: Any, shared_daemon: 
     page.wait_for_selector("#j-state.done", timeout=60 * SECOND)
     page.click("#j-actions button[data-action='start']:text('Print again')")
     page.wait_for_function("document.querySelector('#j-state').className !== 'state done'", timeout=30 * SECOND)
+    # the first run printed on the frame: the operator loads a fresh one and says so
+    page.click("#j-actions button[data-action='frame-ready']", timeout=30 * SECOND)
     page.wait_for_selector("#j-state.done", timeout=60 * SECOND)
     assert len(api.get(f"/jobs/{job}").json()["runs"]) == 1
     shot(page, "17-gcode-done")
