@@ -9,6 +9,9 @@ frame (``frame-ready``). What "does not heat" means is read from the simulator's
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -18,7 +21,7 @@ import pytest
 
 from ribbond.gcode.profiles import load_profile
 
-from .conftest import Daemon, Sim, at_gate, frame_ready, own_printer, wait_for
+from .conftest import ROOT, Daemon, Sim, at_gate, frame_ready, own_printer, wait_for
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -47,6 +50,11 @@ def queue(api: httpx.Client, path: Path, *, same_frame: bool = False) -> str:
                      data={"start": "true", "same_frame": str(same_frame).lower()})
     assert r.status_code == 201, r.text
     return str(r.json()["id"])
+
+
+def ribbonctl(daemon: Daemon, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "ribbond.cli", "--url", daemon.url, *args], cwd=ROOT,
+                          text=True, capture_output=True, timeout=120)
 
 
 def heats(commands: list[dict[str, Any]]) -> list[str]:
@@ -104,16 +112,21 @@ def end_by(how: str, api: httpx.Client, sim: Sim, job: str) -> None:
 
 @pytest.mark.parametrize("how", ["done", "cancel", "failure"])
 def test_the_next_job_waits_for_a_fresh_frame(how: str, api: httpx.Client, shared_sim: Sim,
-                                              tmp_path: Path) -> None:
+                                              shared_daemon: Daemon, tmp_path: Path) -> None:
     """Two jobs queued on a fresh frame: the first prints (the frame is then used); when it ends by
-    ``how`` the second waits, heaters off, until frame-ready; then it prints."""
+    ``how`` the second waits, heaters off, until frame-ready (``ribbonctl frame-ready``, after
+    ``ribbonctl status`` and ``printer`` said so); then it prints."""
     first = queue(api, program(tmp_path, "first.gcode", 300 if how == "done" else 1500))
     second = queue(api, program(tmp_path, "second.gcode", 40))
     end_by(how, api, shared_sim, first)
     assert_waits_without_heat(api, shared_sim, second)
     assert api.get("/printer").json()["frame"]["job_id"] == first
-    frame = frame_ready(api)
-    assert frame["state"] == "fresh", frame
+    status = ribbonctl(shared_daemon, "status", second)
+    assert status.returncode == 0 and f"next: waiting for a fresh frame: {INSTRUCTION}" in status.stdout, status
+    printer = ribbonctl(shared_daemon, "printer")
+    assert f"frame used (job {first}); job {second} waits for a fresh frame: ribbonctl frame-ready" in printer.stdout
+    confirmed = ribbonctl(shared_daemon, "frame-ready")
+    assert confirmed.returncode == 0 and confirmed.stdout.startswith("frame fresh"), confirmed
     done = wait_for(api, second, "done", timeout=90, fresh_frame=False)
     assert done["error"] is None
     frame = api.get("/printer").json()["frame"]
@@ -134,14 +147,20 @@ def test_a_job_waiting_for_its_frame_is_cancelled(api: httpx.Client, shared_sim:
     assert api.post(f"/jobs/{third}/cancel").status_code == 200
 
 
-def test_a_program_on_the_same_frame_needs_no_fresh_one(api: httpx.Client, tmp_path: Path) -> None:
-    """A plain program submitted with same_frame prints after another without frame-ready; the
-    status says it; a design cannot say it."""
+def test_a_program_on_the_same_frame_needs_no_fresh_one(api: httpx.Client, shared_daemon: Daemon,
+                                                        tmp_path: Path) -> None:
+    """A plain program submitted with same_frame (``ribbonctl print --same-frame``) prints after
+    another without frame-ready; the status says it; a design cannot say it."""
     first = queue(api, program(tmp_path, "first.gcode", 40))
-    second = queue(api, program(tmp_path, "second.gcode", 40), same_frame=True)
+    printed = ribbonctl(shared_daemon, "print", str(program(tmp_path, "second.gcode", 40)), "--same-frame",
+                        "--no-wait", "--json")
+    assert printed.returncode == 0, printed.stderr
+    second = json.loads(printed.stdout)["id"]
     wait_for(api, first, "done", timeout=90, fresh_frame=False)
     done = wait_for(api, second, "done", timeout=90, fresh_frame=False)
     assert done["same_frame"] is True
+    status = ribbonctl(shared_daemon, "status", second)
+    assert "prints on the frame as it is (--same-frame" in status.stdout, status.stdout
     assert api.get("/printer").json()["frame"]["state"] == "used"
     mesh = tmp_path / "m.obj"
     mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
