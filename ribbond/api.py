@@ -5,12 +5,13 @@ models in and out, no business logic.
 OpenAPI at ``/docs`` (Swagger UI served from the package: it works on a host without internet); it
 documents every status a route answers with its body model (``ribbond.apierrors``) and links the
 operations of one job, table or calibration (``POST /jobs`` -> ``GET /jobs/{job_id}`` ...).
-Errors: a request the job's state does not allow is 409 with the state and the commands possible
-now; an unknown job or file 404; bad input 422; an upload over the limit 413; the printer not
-connected or halted 503. In front of every route, before any body is read, ``ribbond.guard``
-checks the Host header (421), the origin of state-changing requests (403) and, when a token is
-configured (always when listening beyond loopback), ``Authorization: Bearer <token>`` (401) on
-every path but the documentation and the dashboard's files.
+Errors: a request the job's state (or the printer's: halted) does not allow is 409 with the state
+and the commands possible now; an unknown job or file 404; bad input 422; an upload over the limit
+413; the printer not connected 503. In front of every route, before any body is read,
+``ribbond.guard`` checks the Host header (421), the origin of state-changing requests (403) and,
+when a token is configured (``api.token`` or ``api.token_file``, on any address; always beyond
+loopback), ``Authorization: Bearer <token>`` (401) on every path but the documentation and the
+dashboard's files.
 """
 
 from __future__ import annotations
@@ -83,6 +84,9 @@ class JobStatus(JobRecord):
     alignment: dict[str, Any] | None = Field(None, description="in state aligning: the registration marks "
                                                "(marks), those measured and kept (kept) and those to measure "
                                                "again after a refused fit or a re-seat (remeasure), from 1")
+    verdict: list[str] | None = Field(None, description="a design's verdict, one sentence per line: the "
+                                                        "stretch bounds, clamped thicknesses, ribbons dropped "
+                                                        "or trimmed, the prediction (ribbond.design.verdict)")
     next: NextStep
 
 
@@ -387,6 +391,10 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.post("/printer/gcode", responses=printer_body)
     async def gcode(body: GcodeRequest) -> dict[str, Any]:
+        """Typed G-code, checked whole as a plain G-code job is (inside the frame, above the fabric,
+        temperatures within the profile; feed rates clamped, said in ``notes``) before any of it is
+        sent: 422 names the command and the limit. ``answers``: per command, the printer's lines
+        (``sent``: the command as sent, when clamped). Unchecked with ``[manual] raw_console = true``."""
         return await service.manual.gcode(body.commands)
 
     @app.post("/printer/heat", responses=printer_body)
@@ -408,6 +416,12 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
         """A fresh stretched frame is loaded: the job waiting for one goes on (409 while a job holds
         the printer)."""
         return service.frame.ready()
+
+    @app.get("/printer/temperatures", responses=responses())
+    async def temperatures() -> dict[str, Any]:
+        """The nozzle's and bed's temperatures and targets of the last 30 minutes, oldest first
+        (``samples``: ``t`` unix s, ``T``/``Tt`` nozzle, ``B``/``Bt`` bed, °C; at most one per ``interval_s``)."""
+        return service.temperatures.as_json()
 
     @app.post("/printer/emergency-stop", responses=printer_action)
     async def emergency_stop() -> dict[str, Any]:

@@ -23,12 +23,14 @@ from starlette.routing import Match
 from .alignment import AlignmentRefused
 from .guard import ECHO_MAX, short
 from .jobs import IllegalTransition
-from .printer.errors import LinkError
+from .printer.errors import LinkError, NotReady, PrinterHalted
 from .records import NotFound, ServiceError
 
 #: A message is cut to this many characters (a list of names can be long; an echo must not be).
 DETAIL_MAX = 2000
-_QUOTED = re.compile(r"'([^'\n]{%d,})'|\"([^\"\n]{%d,})\"" % (ECHO_MAX + 1, ECHO_MAX + 1))
+#: A quoted value: opened and closed by a quote that is not inside a word (the apostrophe of
+#: "daemon's" opens nothing), so prose between two values is never taken for one.
+_QUOTED = re.compile(r"(?<!\w)'([^'\n]*)'(?!\w)|(?<!\w)\"([^\"\n]*)\"(?!\w)")
 
 
 class Error(BaseModel):
@@ -55,7 +57,7 @@ class ValidationFailed(Error):
 class Conflict(Error):
     """409: the job's state (or the printer's, or the alignment) does not allow it now."""
 
-    state: str | None = Field(None, description="the job's state")
+    state: str | None = Field(None, description="the job's state (or the printer's: halted)")
     command: str | None = None
     allowed: list[str] | None = Field(None, description="commands possible in this state")
     allowed_states: list[str] | None = Field(None, description="states the command is possible in")
@@ -87,11 +89,11 @@ _STATUS: dict[int, tuple[type[BaseModel], str]] = {
     401: (Error, "no token or a wrong one (when the daemon has a token: Authorization: Bearer <token>)"),
     403: (OriginRefused, "a state-changing request from a page of another origin"),
     404: (Error, "no such job, calibration, table or file"),
-    409: (Conflict, "the job's or the printer's state does not allow it now"),
+    409: (Conflict, "the job's or the printer's state does not allow it now (the printer halted: state halted)"),
     413: (TooLarge, "the body is over limits.max_upload_mb"),
     421: (HostRefused, "the Host header does not name this daemon (api.allowed_hosts)"),
     422: (ValidationFailed, "the values are not acceptable"),
-    503: (Error, "the printer is not connected, or halted"),
+    503: (Error, "the printer is not connected"),
 }
 
 
@@ -108,9 +110,25 @@ def responses(*codes: int, mutating: bool = False, body: bool = False) -> dict[i
 
 
 def bounded(text: str) -> str:
-    """``text`` with every quoted value over 64 characters cut, and at most 2000 characters."""
-    text = _QUOTED.sub(lambda m: repr(short(m.group(1) if m.group(1) is not None else m.group(2))), text)
-    return short(text, DETAIL_MAX)
+    """``text`` with every quoted value over 64 characters cut, and at most 2000 characters, cut
+    after a whole word."""
+    text = _QUOTED.sub(_cut_value, text)
+    return cut_at_word(text, DETAIL_MAX)
+
+
+def _cut_value(match: re.Match[str]) -> str:
+    value = match.group(1) if match.group(1) is not None else match.group(2)
+    return repr(short(value)) if len(value) > ECHO_MAX else match.group(0)
+
+
+def cut_at_word(text: str, limit: int) -> str:
+    """``text`` if it has at most ``limit`` characters, else its words that fit and "…" (a single
+    word longer than the limit is cut: it is a value, not prose)."""
+    if len(text) <= limit:
+        return text
+    head = text[:limit]
+    space = head.rfind(" ")
+    return (head[:space].rstrip() if space > limit // 2 else head) + " …"
 
 
 def _items(errors: list[dict[str, Any]], prefix: tuple[str | int, ...] = ()) -> list[dict[str, Any]]:
@@ -161,6 +179,9 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(LinkError)
     async def _printer(_: Request, exc: LinkError) -> JSONResponse:
+        if halted(exc):                             # a state of the printer's, as a job's state is: 409
+            text = str(exc) if isinstance(exc, PrinterHalted) else "the printer is halted: ribbonctl recover"
+            return _json(409, {"detail": bounded(f"printer: {text}"), "state": "halted", "allowed": ["recover"]})
         return _json(503, {"detail": bounded(f"printer: {exc}")})
 
     @app.exception_handler(ValueError)
@@ -172,6 +193,11 @@ def install(app: FastAPI) -> None:
         fields = getattr(exc, "errors", None)
         items = _items(fields) if isinstance(fields, list) else []
         return _json(422, {"detail": bounded(str(exc)), "errors": items})
+
+
+def halted(exc: LinkError) -> bool:
+    """The request was refused because the printer is halted (not because it is away)."""
+    return isinstance(exc, PrinterHalted) or (isinstance(exc, NotReady) and exc.state == "halted")
 
 
 def _methods(app: FastAPI, request: Request) -> set[str]:

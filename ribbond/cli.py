@@ -135,13 +135,18 @@ def summary(result: DesignResult, out_dir: Path) -> str:
                          f"{sp.extrusion_mm:.0f} mm printed, {sp.travel_mm:.0f} mm travel, "
                          f"{sp.filament_mm:.0f} mm filament" if sp.lines else f"{side + ' G-code':<11} nothing to print")
     lines += [f"preview     {out_dir / 'preview.png'}",
-              f"time        {r.time_s:.2f} s ({timings})",
-              verdict(r.sigma1_bad_pct, r.sigma2_bad_pct, max(r.sigma1_max_dev, r.sigma2_max_dev))]
+              f"time        {r.time_s:.2f} s ({timings})"]
+    lines += verdict_text({"report": r.model_dump(mode="json", by_alias=True),
+                           "parameters": p.model_dump(mode="json")})
     return "\n".join(lines)
 
 
-#: Deviations from the bounds below this are the convergence tolerance, not a misfit of the surface.
-SLIGHT_DEVIATION = 0.005
+def verdict_text(design: dict[str, Any]) -> list[str]:
+    """The design's verdict lines (``ribbond.design.verdict``), each labelled ``verdict``: the same
+    lines ``submit``, ``status`` and the dashboard show."""
+    from .design.verdict import verdict_lines
+
+    return [f"verdict     {line}" for line in verdict_lines(design)]
 
 
 def _deviation_line(what: str, dev: Any) -> list[str]:
@@ -150,19 +155,6 @@ def _deviation_line(what: str, dev: Any) -> list[str]:
         return [f"{what + ':':<15}not measured: k1 is nowhere well defined (anisotropy ≤ 0.3 on every face)"]
     return [f"{what + ':':<15}median {dev.median:.2f}°, mean {dev.mean:.2f}°, p95 {dev.p95:.2f}° "
             "(on faces where k1 is defined: anisotropy > 0.3)"]
-
-
-def verdict(bad1_pct: float, bad2_pct: float, max_dev: float) -> str:
-    """One line on whether the flattening keeps to the stretch bounds."""
-    if bad1_pct == 0 and bad2_pct == 0:
-        return "verdict     within the stretch bounds everywhere (to 1e-3)"
-    bad = max(bad1_pct, bad2_pct)
-    if max_dev < SLIGHT_DEVIATION:
-        return (f"verdict     within the stretch bounds but for {bad:.2f} % of faces, outside by at "
-                f"most {max_dev:.4f} (the solver's tolerance; a tighter [solver] tolerance removes it)")
-    return (f"verdict     OUTSIDE the stretch bounds on {bad:.1f} % of faces, by up to {max_dev:.3f}: "
-            "the fabric cannot stretch as this surface needs there, so the printed surface will "
-            "deviate (a smaller or flatter surface, or cuts, would fit)")
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
@@ -284,7 +276,8 @@ def _cmd_calibrate_record(args: argparse.Namespace) -> int:
 
 
 EPILOG = """exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the
-alignment is refused, the job failed); 2 bad input; 3 the daemon cannot be reached; 4 no such job;
+alignment is refused, the job failed); 2 bad input (also a missing or wrong API token); 3 the
+daemon cannot be reached; 4 no such job;
 130 interrupted; 141 the output was closed. 'ribbonctl COMMAND --help' describes each command."""
 
 

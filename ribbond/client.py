@@ -8,9 +8,9 @@ cool, stop, recover.
 
 Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
 is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
-file, a value out of range, a program the profile refuses); 3 the daemon cannot be reached (or
-answered an error of its own); 4 no such job; 130 interrupted (Ctrl-C); 141 the output was closed
-(``ribbonctl status | head``).
+file, a value out of range, a program the profile refuses, a missing or wrong API token: the
+daemon was reached and refused it); 3 the daemon cannot be reached (or answered an error of its
+own); 4 no such job; 130 interrupted (Ctrl-C); 141 the output was closed (``ribbonctl status | head``).
 """
 
 from __future__ import annotations
@@ -70,10 +70,16 @@ class Client:
             detail = body.decode(errors="replace").strip() or f"HTTP {status}"
         if isinstance(detail, list):                       # FastAPI's validation errors
             detail = "; ".join(f"{'.'.join(map(str, d.get('loc', [])[1:]))}: {d.get('msg')}" for d in detail)
-        code = {404: 4, 409: 1, 413: 2, 422: 2, 503: 1}.get(status, 3)
-        if status == 401:
-            detail = f"{detail}: give --token or --token-file (or set RIBBOND_TOKEN)"
+        code = {401: 2, 404: 4, 409: 1, 413: 2, 422: 2, 503: 1}.get(status, 3)
         return ClientError(f"{detail}" + (f" (HTTP {status})" if code == 3 else ""), code)
+
+    def _refused_token(self) -> ClientError:
+        """401: the daemon was reached and refused the token (or its absence): bad input, 2."""
+        if self.headers:
+            return ClientError(f"the daemon refused the token (HTTP 401): check --token, --token-file or "
+                               f"RIBBOND_TOKEN against the daemon's api.token or api.token_file", 2)
+        return ClientError("the daemon needs a token (HTTP 401): give --token or --token-file (or set "
+                           "RIBBOND_TOKEN)", 2)
 
     def _send(self, method: str, path: str, params: dict[str, Any] | None, json_body: Any,
               body: Any, headers: dict[str, str], timeout: float | None) -> tuple[http.client.HTTPConnection,
@@ -105,6 +111,8 @@ class Client:
             raise ClientError(f"lost ribbond at {self.url}: {exc}", 3) from None
         finally:
             conn.close()
+        if r.status == 401:
+            raise self._refused_token()
         if r.status >= 400:
             raise self._error(r.status, data)
         if r.status == 204:
@@ -149,7 +157,7 @@ class Client:
         if r.status >= 400:
             body = r.read()
             conn.close()
-            raise self._error(r.status, body)
+            raise self._refused_token() if r.status == 401 else self._error(r.status, body)
         return self._read_events(conn, r)
 
     def _read_events(self, conn: http.client.HTTPConnection, r: http.client.HTTPResponse) -> Iterator[dict[str, Any]]:
@@ -230,10 +238,13 @@ def bar_text(fraction: float, label: str = "", text: str = "", width: int = 24) 
            + (f"  {text}" if text else "")
 
 
-def progress_text(info: dict[str, Any]) -> str:
-    """``front  ribbon 3/8  elapsed 0:12  ETA 0:20`` from a job status or a progress event."""
+def progress_text(info: dict[str, Any], kind: str | None = None) -> str:
+    """``front  ribbon 3/8  elapsed 0:12  ETA 0:20`` from a job status or a progress event (of a job
+    of ``kind``: a plain G-code job's side is named ``program``, it has no front or back)."""
     parts = []
     side = info.get("print_side") or info.get("side")
+    if (kind or info.get("kind")) == "gcode":
+        side = "program" if side else None
     if side:
         parts.append(side)
     if info.get("ribbons"):
@@ -251,12 +262,38 @@ def _line(job: dict[str, Any]) -> str:
     err = f"  ({job['error']})" if job.get("error") else ""
     runs = f"  run {len(job.get('runs') or []) + 1}" if job.get("runs") else ""
     kind = "  (G-code)" if job.get("kind") == "gcode" else ""
-    return f"{job['id']}  {job['state']:<15} {pct}  {job['mesh_name']}{kind}{runs}{stage}{err}"
+    state = job["state"]
+    if job.get("kind") == "gcode" and state == "printing_front":
+        state = "printing"                  # a plain program has no front (--json keeps the state's name)
+    return f"{job['id']}  {state:<15} {pct}  {job['mesh_name']}{kind}{runs}{stage}{err}"
 
 
-def _detail(job: dict[str, Any]) -> str:
+def temperatures_text(printer: dict[str, Any] | None) -> str:
+    """``nozzle 187/210 °C  bed 55/60 °C`` (actual/target) from a printer status; "" when unknown."""
+    heaters = (printer or {}).get("heaters") or {}
+    parts = [f"{name} {h['current']:.0f}/{h.get('target') or 0:.0f} °C"
+             for key, name in (("T", "nozzle"), ("B", "bed"))
+             if isinstance(h := heaters.get(key), dict) and h.get("current") is not None]
+    return "  ".join(parts)
+
+
+#: Job states in which the temperatures are shown with the job (it holds or is about to heat the printer).
+HOT = RUNNING | {"paused", "awaiting_check"}
+
+
+def verdict_text(job: dict[str, Any]) -> list[str]:
+    """A design job's verdict lines (``GET /jobs/{id}``'s ``verdict``), labelled as ``ribbonctl
+    design`` labels them."""
+    return [f"verdict     {line}" for line in job.get("verdict") or []]
+
+
+def _detail(job: dict[str, Any], printer: dict[str, Any] | None = None, verdict: bool = False,
+            notes: bool = False) -> str:
+    """A job for people: its line, progress, the temperatures (``printer``: a printer status, while
+    the job heats or prints), the design's verdict (``verdict``), the daemon's notes on its program
+    (``notes``), what to do next."""
     lines = [_line(job)]
-    more = progress_text(job)
+    more = progress_text(job, job.get("kind"))
     if job.get("lines_total") and job["state"] in ("heating", "printing_front", "printing_back", "paused"):
         # last_acked_line counts the lines of ``program`` the printer acknowledged (a resumed side's
         # program is not the whole side: its name says so)
@@ -267,6 +304,12 @@ def _detail(job: dict[str, Any]) -> str:
         lines.append(f"  {bar_text(job.get('progress') or 0)}  {more}")
     if job.get("same_frame"):
         lines.append("  prints on the frame as it is (--same-frame: no fresh frame asked for)")
+    temps = temperatures_text(printer) if job["state"] in HOT else ""
+    if temps:
+        lines.append(f"  temperatures  {temps}  (actual/target)")
+    if verdict:
+        lines += [f"  {line}" for line in verdict_text(job)]
+    lines += [f"  note: {n}" for n in (job.get("notes") or []) if notes]
     nxt = job.get("next") or {}
     if nxt.get("instruction"):
         lines.append(f"  next: {nxt['instruction']}")
@@ -351,15 +394,23 @@ def cmd_submit(args: argparse.Namespace) -> int:
         f"{r['iterations']} iterations, {r['time_s']:.1f} s",
         f"ribbons     {rr.get('front', 0)} front, {rr.get('back', 0)} back; "
         f"{len(design.get('registration_marks') or [])} registration marks (numbered from 1 on the preview)",
-        f"print       front ~{pr.get('front', {}).get('time_s', 0) / 60:.1f} min, back "
-        f"~{pr.get('back', {}).get('time_s', 0) / 60:.1f} min",
+        f"print       {_print_sides(pr)}",
         f"bounds      σ1 {r['sigma1_bad_pct']:.2f} %, σ2 {r['sigma2_bad_pct']:.2f} % of faces outside",
         *_deployed_lines(r, c.url, job),
         f"preview     {job['design_dir']}/preview.png  ({c.url}/jobs/{job['id']}/files/preview.png)",
+        *verdict_text(job),
         f"next        {(job.get('next') or {}).get('instruction', '')}",
     ])
     _out(args, {"job": job, "report": r}, text)
     return 0
+
+
+def _print_sides(report_print: dict[str, Any]) -> str:
+    """``front ~3.2 min, back ~1.0 min``: the sides that have something to print (a one-sided
+    design has no back to speak of)."""
+    sides = [f"{side} ~{sp.get('time_s', 0) / 60:.1f} min" for side in ("front", "back")
+             if (sp := report_print.get(side) or {}).get("lines")]
+    return ", ".join(sides) or "nothing to print"
 
 
 def _deployed_lines(report: dict[str, Any], url: str, job: dict[str, Any]) -> list[str]:
@@ -377,8 +428,11 @@ def cmd_print(args: argparse.Namespace) -> int:
     job = c.upload("gcode", args.program, {"start": str(not args.no_start).lower(),
                                            "same_frame": str(bool(args.same_frame)).lower()}, show=not args.json)
     if args.no_wait or args.no_start:
-        _out(args, job, _detail(job) if not args.json else "")
+        _out(args, job, _detail(job, notes=True) if not args.json else "")
         return 0
+    if not args.json:
+        for note in job.get("notes") or []:
+            print(f"note: {note}", flush=True)
     return _follow(c, args, job)
 
 
@@ -386,7 +440,8 @@ def cmd_status(args: argparse.Namespace) -> int:
     c = _client(args)
     if args.job:
         job = c.request("GET", f"/jobs/{args.job}")
-        _out(args, job, _detail(job))
+        printer = c.request("GET", "/printer") if job["state"] in HOT and not args.json else None
+        _out(args, job, _detail(job, printer, verdict=True, notes=True))
     else:
         params: dict[str, Any] = {"state": args.state} if args.state else {}
         if args.limit is not None:
@@ -403,12 +458,16 @@ def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
     job_id = job["id"]
     tty = sys.stdout.isatty() and not args.json
     bar = Bar(job_id, tty, stream=sys.stdout)
-    print(json.dumps(job) if args.json else _detail(job), flush=True)
+    temps = _Temperatures(job, tty and not args.json)
+    if job["state"] in HOT and not args.json:
+        temps.printer = c.request("GET", "/printer")
+    print(json.dumps(job) if args.json else _detail(job, temps.printer), flush=True)
     if waits(job):
         return _exit_code(job)
     events = c.events()
     # the job may have changed between the first GET and the subscription: look once more
     job = c.request("GET", f"/jobs/{job_id}")
+    temps.job = job
     state = job["state"]
     if waits(job):
         print(json.dumps(job) if args.json else _detail(job), flush=True)
@@ -419,22 +478,28 @@ def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
             kind = event.get("type")
             if kind == "job" and event["job"]["id"] == job_id:
                 job = event["job"]
+                temps.job = job
                 if job["state"] != state or waits(job):
                     state = job["state"]
                     bar.close()
-                    print(json.dumps(event) if args.json else _detail(job), flush=True)
+                    print(json.dumps(event) if args.json else _detail(job, temps.printer), flush=True)
                     shown = -1
                 if waits(job):
                     return _exit_code(job)
             elif kind == "progress" and event.get("job_id") == job_id:
                 fraction = event.get("progress") or 0.0
+                text = "  ".join(t for t in (progress_text(event, job.get("kind")), temps.text()) if t)
                 if args.json:
                     print(json.dumps(event), flush=True)
                 elif tty:
-                    bar.draw(fraction, progress_text(event))
+                    bar.draw(fraction, text)
                 elif int(fraction * 10) > shown:
                     shown = int(fraction * 10)
-                    print(f"  {bar_text(fraction)}  {progress_text(event)}", flush=True)
+                    print(f"  {bar_text(fraction)}  {text}", flush=True)
+            elif kind == "printer" and not args.json:
+                line = temps.update(event.get("printer"))
+                if line:
+                    print(line, flush=True)
             elif kind == "deleted" and event.get("job_id") == job_id:
                 bar.close()
                 raise ClientError(f"job {job_id} was deleted", 4)
@@ -444,6 +509,37 @@ def _follow(c: Client, args: argparse.Namespace, job: dict[str, Any]) -> int:
     finally:
         bar.close()
     return 3
+
+
+class _Temperatures:
+    """What ``watch`` shows of the printer's temperatures: with the progress while the job holds the
+    printer, and while it heats a line of its own (on a terminal the line is redrawn in place, else
+    one every ``EVERY_S`` seconds)."""
+
+    EVERY_S = 2.0
+
+    def __init__(self, job: dict[str, Any], live: bool) -> None:
+        self.job, self.live = job, live
+        self.printer: dict[str, Any] | None = None
+        self._printed = 0.0
+
+    def text(self) -> str:
+        return temperatures_text(self.printer) if self.job["state"] in HOT else ""
+
+    def update(self, printer: dict[str, Any] | None) -> str | None:
+        """Take a printer event; the line to print now, if any."""
+        self.printer = printer
+        if self.job["state"] not in ("heating", "awaiting_check") or not self.text():
+            return None
+        now = time.monotonic()
+        if self.live:
+            sys.stdout.write(f"\r\x1b[K  heating  {self.text()}")
+            sys.stdout.flush()
+            return None
+        if now - self._printed < self.EVERY_S:
+            return None
+        self._printed = now
+        return f"  heating  {self.text()}  (actual/target)"
 
 
 def cmd_watch(args: argparse.Namespace) -> int:
@@ -606,7 +702,9 @@ def cmd_goto(args: argparse.Namespace) -> int:
 
 def cmd_gcode(args: argparse.Namespace) -> int:
     result = _client(args).request("POST", "/printer/gcode", json={"commands": args.commands}, timeout=630)
-    text = "\n".join(f"> {a['command']}\n" + "\n".join(a["answer"]) for a in result["answers"])
+    text = "\n".join(f"> {a['command']}" + (f"  (sent as: {a['sent']})" if a.get("sent") else "") + "\n"
+                     + "\n".join(a["answer"]) for a in result["answers"])
+    text += "".join(f"\nnote: {n}" for n in result.get("notes") or [])
     _out(args, result, text)
     return 0
 
@@ -790,7 +888,9 @@ def add_commands(sub: Any) -> None:
     g.add_argument("y", type=float)
     gc = cmd("gcode", "send G-code commands and print the printer's answers", cmd_gcode,
              "Send one command or a short list (one argument each, quoted: ribbonctl gcode \"G28 X\" M114); "
-             "not while a program streams.")
+             "not while a program streams. Checked whole as a G-code job is (frame, fabric, temperatures; "
+             "feed rates clamped, said in a note) before anything is sent; moves start from where home, "
+             "jog or goto left the head, in absolute positioning (G90).")
     gc.add_argument("commands", nargs="+", metavar="COMMAND")
     h = cmd("heat", "heat the nozzle (default: the profile's temperature) and/or the bed", cmd_heat)
     h.add_argument("--nozzle", type=float, metavar="C")

@@ -9,9 +9,12 @@ Relative paths in the file (``state_dir``, ``api.token_file``, a ``printer_profi
 ``.toml``) are taken relative to the file's directory: the daemon runs with ``/`` as its working
 directory under systemd, where a path relative to the working directory means nothing useful.
 
-This module also decides how the API is protected (``resolve_token``, ``tokens_match``): on a
-loopback address only local users can connect, so a token is optional; on any other address one is
-required and, if none is configured, generated once and kept in a file only the daemon can read.
+This module also decides how the API is protected (``resolve_token``, ``tokens_match``,
+``protection``): a configured token (``api.token`` or ``api.token_file``) is enforced wherever the
+daemon listens, loopback included (a reverse proxy on the same host makes loopback reachable from
+afar); on a loopback address with none configured the API is open to local users; on any other
+address a token is required and, if none is configured, generated once and kept in a file only the
+daemon can read.
 Whatever the address, the API answers only requests whose ``Host`` names the daemon (its listening
 address, the loopback names on loopback, the machine's name beyond it, and ``api.allowed_hosts``,
 e.g. ``allowed_hosts = ["printer.local"]``) and refuses state-changing requests from another
@@ -110,6 +113,17 @@ class FlipPolicy(BaseModel):
                                "a pause), s; 0: never")
 
 
+class ManualSettings(BaseModel):
+    """The operator's direct control of the printer (``ribbonctl gcode``, the dashboard's console)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    # Off: typed G-code passes the same check as a plain G-code job (frame, fabric, temperatures,
+    # feed rates). On: sent unchecked, each command logged as such; for the few who need raw access.
+    raw_console: bool = Field(False, strict=True, description="send typed G-code unchecked (logged); "
+                              "default false: checked like a plain G-code job")
+
+
 class DaemonConfig(BaseModel):
     """Everything ``ribbond`` reads from its configuration file; every field has a default."""
 
@@ -122,6 +136,7 @@ class DaemonConfig(BaseModel):
     api: ApiSettings = ApiSettings()
     limits: Limits = Limits()
     flip: FlipPolicy = FlipPolicy()
+    manual: ManualSettings = ManualSettings()
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @property
@@ -282,10 +297,12 @@ def _write_token_file(path: Path, token: str) -> None:
 def resolve_token(config: DaemonConfig) -> str | None:
     """The token API clients must present, or None when none is needed.
 
-    On a loopback address: ``api.token`` if configured, else None. On any other address a token is
-    required: ``api.token``, else the content of the token file (``config.token_path``, stripped),
-    else a new ``secrets.token_urlsafe(32)`` written to the token file (mode 0600, created
-    atomically, its directory created with mode 0700 if missing) and reused on later starts.
+    ``api.token`` if configured. Else, when ``api.token_file`` is configured or the address is not
+    loopback, the content of the token file (``config.token_path``, stripped), else a new
+    ``secrets.token_urlsafe(32)`` written to the token file (mode 0600, created atomically, its
+    directory created with mode 0700 if missing) and reused on later starts. On a loopback address
+    with neither configured: None (the default token file is not read there: an API left open on
+    purpose stays open).
 
     Raises
     ------
@@ -295,7 +312,7 @@ def resolve_token(config: DaemonConfig) -> str | None:
     """
     if config.api.token is not None:
         return config.api.token
-    if is_loopback(config.api.host):
+    if is_loopback(config.api.host) and config.api.token_file is None:
         return None
     path = config.token_path
     if path.exists():
@@ -306,6 +323,14 @@ def resolve_token(config: DaemonConfig) -> str | None:
     except OSError as exc:
         raise ValueError(f"{path}: cannot create the API token file: {exc}") from None
     return token
+
+
+def protection(config: DaemonConfig, token: str | None, url: str) -> str:
+    """The log line saying whether the API at ``url`` is protected, and by what."""
+    if token is None:
+        return f"API on {url}: open: no token; anyone on this machine can drive the printer"
+    where = "api.token in the configuration" if config.api.token is not None else str(config.token_path)
+    return f"API on {url}: protected by the token in {where}"
 
 
 def tokens_match(given: str | None, expected: str) -> bool:

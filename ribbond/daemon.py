@@ -28,7 +28,7 @@ from pathlib import Path
 import uvicorn
 
 from .api import create_app
-from .config import DaemonConfig, load_config, resolve_token
+from .config import DaemonConfig, load_config, protection, resolve_token
 from .gcode.profiles import load_profile
 from .printer.capabilities import Capabilities
 from .printer.errors import LinkError
@@ -124,7 +124,7 @@ async def run(config: DaemonConfig) -> int:
         host, port = server.servers[0].sockets[0].getsockname()[:2]
         url = f"http://{host if ':' not in host else f'[{host}]'}:{port}"
         (state_dir / "api.url").write_text(url + "\n", encoding="utf-8")
-        log.info("API listening on %s%s", url, " (token required)" if token else "")
+        log.info("%s", protection(config, token, url))
         notifier.ready(f"API on {url}")
 
     async def watchdog() -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import asyncio
 
-from .printer.errors import LinkError
+from .printer.errors import LinkError, PrinterHalted
 from .printer.link import LinkState, PrinterLink
 
 
@@ -27,7 +27,7 @@ class Head:
         if self.link is None or self.link.state is LinkState.DISCONNECTED:
             raise LinkError("the printer is not connected")
         if self.link.state is LinkState.HALTED:
-            raise LinkError("the printer is halted (emergency stop or a firmware error): ribbonctl recover")
+            raise PrinterHalted("the printer is halted (emergency stop or a firmware error): ribbonctl recover")
         if self.link.state is LinkState.CONNECTING:
             raise LinkError("the printer is connecting; try again in a moment")
         return self.link
@@ -40,6 +40,11 @@ class Head:
     def position(self) -> tuple[float, float, float] | None:
         """The commanded position, if known."""
         return self._xyz
+
+    def commanded(self, link: PrinterLink) -> tuple[float, float, float] | None:
+        """The commanded position if it holds on ``link``'s connection (None: not known without
+        asking the printer)."""
+        return self._xyz if self._xyz is not None and self._sender is link.sender else None
 
     def set(self, xyz: tuple[float, float, float]) -> None:
         """The head was commanded to ``xyz`` (and the move finished)."""

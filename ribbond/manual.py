@@ -2,7 +2,9 @@
 never while a program streams (a job paused, awaiting the flip or aligning, or no job at all);
 the printer's status; the emergency stop and the recovery after it.
 
-Moves stay inside the frame and above the fabric; the head's commanded position is tracked
+Moves stay inside the frame and above the fabric, temperatures within the profile: jog, goto, heat
+and typed G-code are checked by the same ``checker.GcodeChecker`` as a plain G-code job (typed G-code
+unchecked only with ``[manual] raw_console = true``). The head's commanded position is tracked
 (``Head``) so a jog goes from where the head was sent, not from ``M114``'s rounded report.
 """
 
@@ -10,10 +12,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from typing import Any
 
 import numpy as np
 
+from .checker import Checked, GcodeChecker, Modal, parse_command
+from .config import ManualSettings
 from .gcode.profiles import PrinterProfile
 from .head import Head
 from .jobs import JobState
@@ -23,19 +28,24 @@ from .printer.link import LinkState, PrinterLink, prepare_program
 from .records import JobRecords, ServiceError
 from .run import PrintState
 
+log = logging.getLogger(__name__)
+
 #: At most this many commands in one manual G-code request.
 MAX_MANUAL_COMMANDS = 16
 #: Jogs and gotos move at most this fast in X/Y, mm/s (the profile's travel speed if slower).
 JOG_SPEED = 50.0
-#: Commands after which the head's position is no longer the one the daemon commanded.
-_MOVES_HEAD = frozenset({"G0", "G1", "G2", "G3", "G28", "G29", "G92", "G30", "M206", "M428"})
 
 
 class ManualControl:
     """The operator's direct commands to the printer; the run (``state``) says when they may move it."""
 
-    def __init__(self, head: Head, profile: PrinterProfile, records: JobRecords, state: PrintState) -> None:
+    def __init__(self, head: Head, profile: PrinterProfile, records: JobRecords, state: PrintState,
+                 settings: ManualSettings | None = None) -> None:
         self.head, self.profile, self.records, self.state = head, profile, records, state
+        self.settings = settings if settings is not None else ManualSettings()
+        if self.settings.raw_console:
+            log.warning("[manual] raw_console = true: typed G-code is sent to the printer unchecked "
+                        "(no frame, fabric, temperature or feed rate check)")
 
     def _manual_link(self, what: str) -> PrinterLink:
         """The link, if the operator may move the printer now: no program streaming (a job paused,
@@ -56,24 +66,29 @@ class ManualControl:
             raise ServiceError(f"cannot {what}: a program is streaming to the printer")
         return link
 
-    def _inside(self, x: float, y: float, z: float, what: str) -> None:
-        x0, y0, x1, y1 = self.profile.frame.bounds
-        fabric = self.profile.layers.fabric_z
-        eps = 1e-6
-        if not (x0 - eps <= x <= x1 + eps and y0 - eps <= y <= y1 + eps):
-            raise ValueError(f"{what} would take the head to x {x:.3f}, y {y:.3f}: outside the frame "
-                             f"(x {x0:g} to {x1:g}, y {y0:g} to {y1:g} mm)")
-        if z < fabric - eps:
-            raise ValueError(f"{what} would take the nozzle down to z {z:.3f}, below the fabric (z {fabric:g} mm)")
+    def _check(self, commands: list[str], start: tuple[float, float, float] | None, what: str) -> Checked:
+        """``commands`` checked as a plain G-code job's lines are (``checker``), from ``start`` in
+        absolute mode; refusals name ``what`` (e.g. "jog 5 0 0"), or for typed G-code (``what``
+        "command") the command and its number ("command 2 (G1 Z-2)")."""
+        modal = Modal(pos=list(start) if start is not None else [None, None, None])
 
-    async def _move_to(self, link: PrinterLink, x: float, y: float, z: float) -> None:
-        here = await self.head.where(link)
+        def where(number: int, command: str) -> str:
+            return f"command {number} ({command})" if what == "command" else what
+
+        return GcodeChecker(self.profile, modal=modal, where=where).check(commands)
+
+    def _move_commands(self, here: tuple[float, float, float], x: float, y: float, z: float) -> list[str]:
+        """The moves to (x, y, z): up before moving across, down after (never dragged over the fabric)."""
         xy_feed = min(JOG_SPEED, self.profile.motion.travel_speed) * 60
         z_feed = self.profile.motion.z_speed * 60
         xy = f"G0 X{x:.3f} Y{y:.3f} F{xy_feed:.0f}"
         zz = f"G0 Z{z:.3f} F{z_feed:.0f}"
-        # up before moving across, down after: never dragged over the fabric
-        moves = [zz, xy] if z >= here[2] else [xy, zz]
+        return [zz, xy] if z >= here[2] else [xy, zz]
+
+    async def _move_to(self, link: PrinterLink, x: float, y: float, z: float, what: str) -> None:
+        """Check, then make the moves to (x, y, z) (``_move_commands``) and wait for them."""
+        here = await self.head.where(link)
+        moves = self._check(self._move_commands(here, x, y, z), here, what).commands
         for command in ("G90", *moves, "M400"):
             await link.send(command, timeout=300)
         self.head.set((x, y, z))
@@ -98,9 +113,7 @@ class ManualControl:
         async with self.head.lock:
             link = self._manual_link("jog")
             x, y, z = await self.head.where(link)
-            target = (x + dx, y + dy, z + dz)
-            self._inside(*target, what=f"jog {dx:g} {dy:g} {dz:g}")
-            await self._move_to(link, *target)
+            await self._move_to(link, x + dx, y + dy, z + dz, what=f"jog {dx:g} {dy:g} {dz:g}")
             return self._position_status()
 
     async def goto(self, x: float, y: float) -> dict[str, Any]:
@@ -111,48 +124,86 @@ class ManualControl:
             link = self._manual_link("goto")
             _, _, z = await self.head.where(link)
             z = max(z, self.profile.layers.fabric_z + self.profile.layers.safe_height)
-            self._inside(x, y, z, what=f"goto {x:g} {y:g}")
-            await self._move_to(link, x, y, z)
+            await self._move_to(link, x, y, z, what=f"goto {x:g} {y:g}")
             return self._position_status()
 
     async def gcode(self, commands: list[str]) -> dict[str, Any]:
-        """Send typed G-code (one command or a short list) and return what the printer answered."""
-        clean = [c.strip() for c in commands if c.strip()]
-        if not clean:
-            raise ValueError("no G-code command given")
-        if len(clean) > MAX_MANUAL_COMMANDS:
-            raise ValueError(f"{len(clean)} commands: at most {MAX_MANUAL_COMMANDS} at a time "
-                             "(print a longer program as a job: ribbonctl print FILE)")
-        for i, command in enumerate(clean, start=1):
-            word = command.split()[0].upper()
-            if word == "M112":
-                raise ValueError("M112 is the emergency stop: use ribbonctl stop")
-            prepare_program([command], f"command {i}")       # M110, too long, not ASCII: refused
-            codec.check_sendable(codec.strip_comment(command) or command)
+        """Send typed G-code (one command or a short list) and return what the printer answered.
+
+        The batch is checked whole, as a plain G-code job is (``checker``: inside the frame, above
+        the fabric, temperatures, feed rates clamped as the firmware would; moves from the head's
+        commanded position, which homing, jog or goto make known), before its first command goes
+        out. It runs in absolute positioning (G90 is sent first when it moves the head) and leaves
+        the printer so. ``[manual] raw_console = true`` sends it unchecked (logged)."""
+        clean = _typed(commands)
         async with self.head.lock:
             link = self._manual_link("send G-code")
-            answers = []
-            for command in clean:
-                _, lines = await link.send_collecting(command, timeout=600)
-                if command.split()[0].upper() in _MOVES_HEAD:
-                    self.head.forget()
-                answers.append({"command": command, "answer": lines})
-            return {"answers": answers}
+            if self.settings.raw_console:
+                return await self._send_unchecked(link, clean)
+            checked = self._check(clean, self.head.commanded(link), "command")
+            notes = checked.notes(self.profile, unit="command")
+            moves_head = any(_moves_head(c) for c in checked.commands)
+            try:
+                answers = await self._send_checked(link, clean, checked.commands, moves_head)
+                if not checked.modal.absolute:
+                    await link.send("G90", timeout=60)
+                    notes.append("G90 sent after the commands: the printer is left in absolute positioning, as "
+                                 "the daemon's moves and G-code jobs expect (give G91 and its moves in one request)")
+            except BaseException:
+                self.head.forget()              # stopped part way: where the head is, the printer says
+                raise
+            await self._after_typed(link, checked.modal, moves_head)
+            return {"answers": answers, "notes": notes}
+
+    @staticmethod
+    async def _send_checked(link: PrinterLink, typed: list[str], commands: list[str],
+                            moves_head: bool) -> list[dict[str, Any]]:
+        """Send the checked commands (G90 first when they move the head); the printer's answers."""
+        if moves_head:
+            await link.send("G90", timeout=60)
+        answers = []
+        for text, command in zip(typed, commands):
+            _, lines = await link.send_collecting(command, timeout=600)
+            answers.append({"command": text, **({"sent": command} if command != text else {}), "answer": lines})
+        return answers
+
+    async def _after_typed(self, link: PrinterLink, modal: Modal, moved: bool) -> None:
+        """The head's position after checked G-code: the printer's own after a homing, the checked
+        end position otherwise (forgotten where it is not known, e.g. motors switched off)."""
+        if modal.homed:
+            self.head.forget()
+            with contextlib.suppress(LinkError, asyncio.TimeoutError):
+                await self.head.where(link)
+        elif modal.motors_off or modal.known() is None:
+            self.head.forget()
+        elif moved:
+            self.head.set(modal.known())  # type: ignore[arg-type]
+
+    async def _send_unchecked(self, link: PrinterLink, clean: list[str]) -> dict[str, Any]:
+        """``[manual] raw_console = true``: sent as typed, each command logged as unchecked."""
+        answers = []
+        for command in clean:
+            log.warning("raw console ([manual] raw_console = true): sending unchecked G-code: %s", command)
+            _, lines = await link.send_collecting(command, timeout=600)
+            self.head.forget()
+            answers.append({"command": command, "answer": lines})
+        return {"answers": answers, "notes": ["sent unchecked: [manual] raw_console = true in the daemon's "
+                                              "configuration"], "unchecked": True}
 
     async def heat(self, nozzle: float | None, bed: float | None) -> dict[str, Any]:
         """Set heater targets (no wait); defaults: the profile's nozzle temperature, the bed as it is."""
         t = self.profile.temperatures
         nozzle = t.nozzle if nozzle is None and bed is None else nozzle
-        if nozzle is not None and not 0 <= nozzle <= t.nozzle_max:
-            raise ValueError(f"nozzle {nozzle:g} °C: must be 0 to the profile's nozzle_max ({t.nozzle_max:g} °C)")
-        if bed is not None and not 0 <= bed <= t.bed_max:
-            raise ValueError(f"bed {bed:g} °C: must be 0 to the profile's bed_max ({t.bed_max:g} °C)")
+        for name, value in (("nozzle", nozzle), ("bed", bed)):
+            if value is not None and not np.isfinite(value):
+                raise ValueError(f"{name} must be a finite number of °C")
+        sets = ([f"M104 S{nozzle:.0f}"] if nozzle is not None else []) + ([f"M140 S{bed:.0f}"] if bed is not None else [])
+        what = " ".join(f"--{n} {v:g}" for n, v in (("nozzle", nozzle), ("bed", bed)) if v is not None)
+        sets = self._check(sets, None, f"heat {what}").commands
         async with self.head.lock:
             link = self._manual_link("heat")
-            if nozzle is not None:
-                await link.send(f"M104 S{nozzle:.0f}")
-            if bed is not None:
-                await link.send(f"M140 S{bed:.0f}")
+            for command in sets:
+                await link.send(command)
         return await self.printer_status(refresh=True)
 
     async def cool(self) -> dict[str, Any]:
@@ -207,3 +258,27 @@ class ManualControl:
         await link.recover()
         self.head.forget()
         return await self.printer_status()
+
+
+def _typed(commands: list[str]) -> list[str]:
+    """The typed commands, stripped; refused (ValueError naming the command) when empty, too many,
+    the emergency stop, or what the link cannot send (M110, too long, not ASCII)."""
+    clean = [c.strip() for c in commands if c.strip()]
+    if not clean:
+        raise ValueError("no G-code command given")
+    if len(clean) > MAX_MANUAL_COMMANDS:
+        raise ValueError(f"{len(clean)} commands: at most {MAX_MANUAL_COMMANDS} at a time "
+                         "(print a longer program as a job: ribbonctl print FILE)")
+    for i, command in enumerate(clean, start=1):
+        if command.split()[0].upper() == "M112":
+            raise ValueError("M112 is the emergency stop: use ribbonctl stop")
+        if not prepare_program([command], f"command {i}"):       # M110, too long, not ASCII: refused
+            raise ValueError(f"command {i} ({command}): only a comment, nothing to send")
+        codec.check_sendable(codec.strip_comment(command) or command)
+    return clean
+
+
+def _moves_head(command: str) -> bool:
+    """A checked command that moves the head (a G0/G1 with X, Y or Z)."""
+    code, args = parse_command(command, command)
+    return code in ("G0", "G1") and any(a in args for a in "XYZ")

@@ -31,7 +31,7 @@ from .gcode.program import Correction, Program, SidePlan, render_side
 from .head import Head
 from .heaters import Heaters
 from .jobs import JobState
-from .printer.errors import LinkError, StreamCancelled
+from .printer.errors import Disconnected, LinkError, StreamCancelled
 from .printer.link import LinkState, PrinterLink, prepare_program
 from .printer.sender import StreamProgress
 from .programs import Part, program_parts, program_timeline
@@ -179,7 +179,10 @@ class PrintTask:
         except StreamCancelled:
             await self._end_run_logged(run, None)
         except Exception as exc:  # noqa: BLE001 - any fatal error of the print task: stop safely
-            log.exception("printing job %s", job.id)
+            if isinstance(exc, Disconnected):                 # the link logged it in one line
+                log.debug("printing job %s", job.id, exc_info=True)
+            else:
+                log.exception("printing job %s", job.id)
             kind = "printer" if isinstance(exc, (LinkError, OSError)) else "internal error"
             await self._end_run_logged(run, f"{kind}: {exc}")
         finally:

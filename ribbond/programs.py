@@ -14,12 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checker import Checked, GcodeChecker
 from .gcode.estimate import move_times
 from .gcode.profiles import PrinterProfile
 from .printer import codec
 from .printer.link import prepare_program
 
-__all__ = ["Part", "Timeline", "check_program", "command_of", "program_parts", "program_timeline",
+__all__ = ["Part", "Timeline", "check_plain_program", "check_program", "command_of", "program_parts", "program_timeline",
            "resumed_program"]
 
 _NUMBER = re.compile(r"^N\d+\s+")
@@ -160,15 +161,20 @@ def program_timeline(lines: Sequence[str], profile: PrinterProfile) -> Timeline:
 
 
 def check_program(lines: Sequence[str], profile: PrinterProfile, source: str = "program") -> list[str]:
-    """Check a plain G-code program line by line against the printer profile; the commands to stream.
+    """Check a plain G-code program line by line against the printer profile; the commands to
+    stream (feed rates clamped to the profile's limits: ``check_plain_program``)."""
+    return check_plain_program(lines, profile, source).commands
+
+
+def check_plain_program(lines: Sequence[str], profile: PrinterProfile, source: str = "program") -> Checked:
+    """Check a plain G-code program line by line against the printer profile (``checker``: the
+    same check as the console's), from an unknown position in absolute mode.
 
     Refused, naming the line: what ``prepare_program`` refuses (M110, M112, too long, not ASCII);
-    a move whose end is outside the frame's printable rectangle, or below the fabric; a feed above
-    the profile's maximum speeds (X/Y moves: ``max_xy_speed``, Z-only moves: ``max_z_speed``); a
-    temperature above ``nozzle_max`` / ``bed_max``; a relative move before the position is known
-    (home with G28 or move absolutely first); arcs (G2/G3), inches (G20) and G92 on X, Y or Z,
-    which this check cannot follow. Homing (G28: machine 0, as the programs ribbond writes assume)
-    is allowed although home is outside the frame.
+    what ``checker.GcodeChecker`` refuses (outside the frame, below the fabric, a position not
+    known, too hot, moves it cannot follow). Homing (G28: machine 0, as the programs ribbond writes
+    assume) is allowed although home is outside the frame. Feed rates above the profile's maximum
+    speeds are clamped as the firmware would (``Checked.lines``: the program with those F words).
 
     Raises
     ------
@@ -178,68 +184,7 @@ def check_program(lines: Sequence[str], profile: PrinterProfile, source: str = "
     commands = prepare_program(lines, source)
     if not commands:
         raise ValueError(f"{source}: no G-code commands in the file")
-    x0, y0, x1, y1 = profile.frame.bounds
-    fabric = profile.layers.fabric_z
-    mo, temps = profile.motion, profile.temperatures
-    eps = 1e-6
-    pos: list[float | None] = [None, None, None]
-    absolute = True
-    for number, raw in enumerate(lines, start=1):
-        command = command_of(raw)
-        if command is None:
-            continue
-        where = f"{source}, line {number}"
-        code, args = _words(command, where)
-        if code in ("G2", "G3"):
-            raise ValueError(f"{where}: {code} arcs are not checked against the frame; convert them to G1 moves")
-        if code == "G20":
-            raise ValueError(f"{where}: G20 (inches) is not supported; the profile's limits are in mm")
-        if code == "G92" and any(a in args for a in "XYZ"):
-            raise ValueError(f"{where}: G92 redefines the X/Y/Z position, which the frame check cannot "
-                             "follow (G92 E… is fine)")
-        if code == "G90":
-            absolute = True
-        elif code == "G91":
-            absolute = False
-        elif code == "G28":
-            for i in [i for i, a in enumerate("XYZ") if a in args] or [0, 1, 2]:
-                pos[i] = 0.0
-        elif code in ("M104", "M109") and args.get("S") is not None and float(args["S"] or 0) > temps.nozzle_max:
-            raise ValueError(f"{where}: nozzle {args['S']:g} °C is above the profile's nozzle_max "
-                             f"({temps.nozzle_max:g} °C)")
-        elif code in ("M140", "M190") and args.get("S") is not None and float(args["S"] or 0) > temps.bed_max:
-            raise ValueError(f"{where}: bed {args['S']:g} °C is above the profile's bed_max ({temps.bed_max:g} °C)")
-        elif code in ("G0", "G1"):
-            axes = [a for a in "XYZ" if args.get(a) is not None]
-            f = args.get("F")
-            if f is not None:
-                xy_move = any(a in axes for a in "XY")
-                limit, name = (mo.max_xy_speed, "max_xy_speed") if xy_move or not axes else (mo.max_z_speed,
-                                                                                             "max_z_speed")
-                if f / 60.0 > limit + eps:
-                    raise ValueError(f"{where}: feed F{f:g} mm/min ({f / 60:g} mm/s) is above the profile's "
-                                     f"{name} ({limit:g} mm/s = F{limit * 60:g})")
-            for i, a in enumerate("XYZ"):
-                if a not in axes:
-                    continue
-                value = float(args[a])  # type: ignore[arg-type]
-                if absolute:
-                    pos[i] = value
-                elif pos[i] is None:
-                    raise ValueError(f"{where}: a relative {a} move before the {a} position is known; "
-                                     "home (G28) or move to an absolute position first")
-                else:
-                    pos[i] = pos[i] + value  # type: ignore[operator]
-            x, y, z = pos
-            outside_x = "X" in axes and x is not None and not x0 - eps <= x <= x1 + eps
-            outside_y = "Y" in axes and y is not None and not y0 - eps <= y <= y1 + eps
-            if outside_x or outside_y:
-                at = ", ".join(f"{a} {v:g}" for a, v in (("x", x), ("y", y)) if v is not None)
-                raise ValueError(f"{where}: the move ends at {at}, outside the frame "
-                                 f"(x {x0:g} to {x1:g}, y {y0:g} to {y1:g} mm)")
-            if "Z" in axes and z is not None and z < fabric - eps:
-                raise ValueError(f"{where}: the move goes down to z {z:g}, below the fabric (z {fabric:g} mm)")
-    return commands
+    return GcodeChecker(profile, source).check(lines)
 
 
 @dataclass(frozen=True)

@@ -50,12 +50,15 @@ from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
 from .manual import MAX_MANUAL_COMMANDS, ManualControl
 from .printer.link import LinkState, PrinterLink
 from .printing import PrintTask
-from .programs import Timeline, check_program, program_timeline
+from .checker import Checked
+from .programs import Timeline, check_plain_program, program_timeline
 from .records import JobRecords, NotFound, ServiceError, has_program
 from .resume import Resumer, modal_state
 from .run import PrintState, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
+from .temperatures import TemperatureHistory
+from .verdicts import Verdicts
 
 #: What callers import from here: the service, and the names of its components they use.
 __all__ = ["MAX_MANUAL_COMMANDS", "MAX_NAME_BYTES", "NotFound", "RibbonService", "ServiceError", "mesh_file_name",
@@ -90,9 +93,10 @@ def mesh_file_name(name: str) -> str:
 PRINTER_EVENT_S = 0.5
 
 
-def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[list[str], Timeline]:
-    lines = text.splitlines()
-    return check_program(lines, profile, source=source), program_timeline(lines, profile)
+def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tuple[Checked, Timeline]:
+    """The program checked (feed rates clamped as the firmware would) and its time line."""
+    checked = check_plain_program(text.splitlines(), profile, source=source)
+    return checked, program_timeline(checked.lines, profile)
 
 
 def _fitted_guidance(j: str, fit: dict[str, Any] | None) -> str:
@@ -143,9 +147,11 @@ class RibbonService:
         self.frame = FrameGate(self.records, self.state, self.heaters)
         self.printing = PrintTask(self.head, profile, self.records, self.state, self.heaters, self.aligner,
                                   self.resumer, self.progress, self.frame)
-        self.manual = ManualControl(self.head, profile, self.records, self.state)
+        self.manual = ManualControl(self.head, profile, self.records, self.state, config.manual)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
+        self.verdicts = Verdicts(self.jobs_dir)          # the design's verdict in each status (issue 22)
+        self.temperatures = TemperatureHistory()         # the last 30 minutes, for the chart (issue 22)
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
@@ -178,6 +184,7 @@ class RibbonService:
             except Exception:  # noqa: BLE001 - a status that cannot be read is not worth a stop
                 log.debug("printer status for the events", exc_info=True)
                 continue
+            self.temperatures.sample(status)
             if status != last:
                 self.bus.publish({"type": "printer", "printer": status})
                 last = status
@@ -270,7 +277,8 @@ class RibbonService:
         except UnicodeDecodeError:
             raise ValueError(f"{name}: not a text file (G-code is ASCII text)") from None
         # checked and estimated beside the loop: a long program must not hold up the printer's stream
-        commands, timeline = await asyncio.to_thread(_check_and_estimate, text, self.profile, safe)
+        checked, timeline = await asyncio.to_thread(_check_and_estimate, text, self.profile, safe)
+        commands, notes = checked.commands, checked.notes(self.profile)
         if start:
             self.records.check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
@@ -279,9 +287,11 @@ class RibbonService:
         folder.mkdir(parents=True, exist_ok=True)
         program = folder / "program.gcode"
         shutil.move(str(upload), program)
+        if notes:                             # the program as it streams: the clamped F words
+            program.write_text("\n".join(checked.lines) + "\n", encoding="utf-8")
         job = self.records.transition(job.id, JobState.READY, reason=f"G-code checked: {len(commands)} commands",
                                       mesh_path=str(program), design_dir=str(folder), lines_total=len(commands),
-                                      estimate_s={"front": timeline.total})
+                                      estimate_s={"front": timeline.total}, notes=notes)
         if start:
             self.state.queue_print(job.id)
         return job
@@ -510,6 +520,7 @@ class RibbonService:
         if job.state is JobState.ALIGNING and run is not None and run.alignment is not None:
             data["alignment"] = {"marks": len(run.alignment.expected), "kept": run.alignment.kept,
                                  "remeasure": list(run.alignment.remeasure)}
+        data["verdict"] = self.verdicts.lines(job)
         return data
 
     def _waits(self, job: JobRecord) -> bool:

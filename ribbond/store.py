@@ -28,9 +28,9 @@ from .jobs import JobState, check_transition
 
 #: The layout this code reads and writes (PRAGMA user_version). Bump it with a migration in
 #: ``_MIGRATIONS`` whenever the tables change.
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
-#: The frame on the printer (schema 4): fresh (confirmed by the operator, nothing printed on it since) or used.
+#: The frame on the printer (schema 5): fresh (confirmed by the operator, nothing printed on it since) or used.
 FRAME_FRESH, FRAME_USED = "fresh", "used"
 
 
@@ -65,6 +65,8 @@ class JobRecord(BaseModel):
                                        "oldest first: run, started, ended, state, error, side, lines")
     estimate_s: dict[str, float] | None = Field(None, description="the programs' own time estimate per side "
                                                 "(front, back), s: for progress and time left")
+    notes: list[str] = Field(default_factory=list, description="what the daemon changed in the job's program "
+                             "and why (e.g. feed rates clamped to the profile's limits)")
     same_frame: bool = Field(False, description="a plain G-code program that prints on the frame as it is "
                              "(no fresh frame needed before it)")
     program: str | None = Field(None, description="the program lines_total and last_acked_line count: front, "
@@ -106,7 +108,7 @@ class JobNotFound(KeyError):
 
 #: Fields ``transition`` and ``update`` may set (the id, the state and the timestamps are the store's).
 MUTABLE_FIELDS = frozenset(JobRecord.model_fields) - {"id", "state", "created", "updated"}
-_JSON_FIELDS = frozenset({"parameters", "correction", "runs", "estimate_s"})
+_JSON_FIELDS = frozenset({"parameters", "correction", "runs", "estimate_s", "notes"})
 _COLUMNS = tuple(JobRecord.model_fields)
 
 #: The parts of a print proven printed (schema 3), for resuming an interrupted one.
@@ -122,7 +124,7 @@ _PART_EVENTS = """CREATE TABLE part_events (
 );
 CREATE INDEX part_events_job ON part_events (job_id, run, side, part, seq)"""
 
-#: The frame on the printer (schema 4): one row, absent until the first change (then: used).
+#: The frame on the printer (schema 5): one row, absent until the first change (then: used).
 _FRAME = """CREATE TABLE frame (
     id     INTEGER PRIMARY KEY CHECK (id = 1),
     state  TEXT NOT NULL CHECK (state IN ('fresh', 'used')),
@@ -155,6 +157,7 @@ CREATE TABLE jobs (
     kind             TEXT NOT NULL DEFAULT 'design',
     runs             TEXT,                               -- JSON list, NULL: none
     estimate_s       TEXT,                               -- JSON
+    notes            TEXT,                               -- JSON list, NULL: none
     same_frame       INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)),
     program          TEXT,
     print_progress   REAL
@@ -178,9 +181,11 @@ _MIGRATIONS: dict[int, str] = {
        "ALTER TABLE jobs ADD COLUMN estimate_s TEXT",
     # 3: the parts (ribbons, marks) of a print proven printed, for resuming an interrupted one (issue 16)
     2: _PART_EVENTS,
-    # 4: the frame on the printer and plain G-code jobs that need no fresh one (issue 22)
+    # 4: what the daemon changed in a job's program, e.g. feed rates clamped (issue 22)
+    3: "ALTER TABLE jobs ADD COLUMN notes TEXT",
+    # 5: the frame on the printer and plain G-code jobs that need no fresh one (issue 22)
     # and the program the lines count, the most of the print reported (progress never goes back)
-    3: "ALTER TABLE jobs ADD COLUMN same_frame INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)); "
+    4: "ALTER TABLE jobs ADD COLUMN same_frame INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)); "
        "ALTER TABLE jobs ADD COLUMN program TEXT; ALTER TABLE jobs ADD COLUMN print_progress REAL; " + _FRAME,
 }
 
@@ -301,6 +306,8 @@ class JobStore:
         data["same_frame"] = bool(data["same_frame"])
         if data["runs"] is None:
             data["runs"] = []
+        if data["notes"] is None:
+            data["notes"] = []
         return JobRecord.model_validate(data)
 
     def _row(self, job_id: str) -> sqlite3.Row:

@@ -47,6 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="plain 'ok' instead of 'ok N<line> P<planner free> B<queue free>'")
     g.add_argument("--no-ok-after-resend", action="store_true",
                    help="do not print 'ok' after 'Resend:'")
+    g.add_argument("--m114-on-ok", action="store_true",
+                   help="answer M114 on the ok line, as Smoothieware does: "
+                        "'ok C: X:10.0000 Y:20.0000 Z:0.0000 E:0.0000'")
     g.add_argument("--rx-buffer", type=int, default=d.rx_buffer,
                    help="serial receive buffer in bytes; overflow is lost (default %(default)s)")
     g.add_argument("--bufsize", type=int, default=d.bufsize,
@@ -85,12 +88,18 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--skip-refused", action="store_true",
                    help="buggy firmware: a line refused for its checksum is marked received "
                         "(never run) and the next one is asked for")
+    g.add_argument("--swallow-resent-after-lines", type=int, default=None, metavar="N",
+                   help="buggy firmware, once after N accepted numbered lines: ask for the next line "
+                        "again, take the re-sent line without running or answering it, lose the line "
+                        "after it, and later ask for the one after the swallowed line")
     g.add_argument("--reset-after-lines", type=int, default=None, metavar="N",
                    help="reboot after N accepted numbered lines")
     g.add_argument("--disconnect-after-lines", type=int, default=None, metavar="N",
                    help="unplug (close the pty) after N accepted numbered lines")
     g.add_argument("--runaway-after-lines", type=int, default=None, metavar="N",
                    help="thermal runaway (halt) after N accepted numbered lines")
+    g.add_argument("--mintemp-after-lines", type=int, default=None, metavar="N",
+                   help="MINTEMP error (halt) after N accepted numbered lines")
     g.add_argument("--reconnect-after", type=float, default=None, metavar="S",
                    help="after an unplug, plug a new pty in after S seconds and print its path")
     g = p.add_argument_group("fabric frame")
@@ -114,6 +123,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         time_scale=args.time_scale,
         advanced_ok=not args.no_advanced_ok,
         ok_after_resend=not args.no_ok_after_resend,
+        m114_on_ok=args.m114_on_ok,
         rx_buffer=args.rx_buffer,
         bufsize=args.bufsize,
         planner_blocks=args.planner_blocks,
@@ -131,9 +141,11 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
             slow_rate=args.slow_rate,
             slow_delay_s=args.slow_delay,
             skip_refused=args.skip_refused,
+            swallow_resent_after_lines=args.swallow_resent_after_lines,
             reset_after_lines=args.reset_after_lines,
             disconnect_after_lines=args.disconnect_after_lines,
             runaway_after_lines=args.runaway_after_lines,
+            mintemp_after_lines=args.mintemp_after_lines,
             reconnect_after_s=args.reconnect_after,
         ),
         frame=FrameConfig(center=args.frame_center, flip_axis=args.flip_axis),

@@ -44,6 +44,14 @@ class FaultConfig:
     reset_after_lines: int | None = None
     disconnect_after_lines: int | None = None
     runaway_after_lines: int | None = None
+    mintemp_after_lines: int | None = None
+    """A heater's thermistor reads below MINTEMP (unplugged, broken): Marlin's MINTEMP error, then
+    halted as by kill()."""
+    swallow_resent_after_lines: int | None = None
+    """A buggy firmware, once after that many accepted numbered lines: the next numbered line N is
+    refused as if corrupted (``Resend: N``); the re-sent N is then marked received but neither run
+    nor answered, and the line after it is lost without a word (flushed with it), so the printer
+    later asks for N + 1 with N never run nor acknowledged."""
     skip_refused: bool = False
     """A buggy firmware: a line refused for its checksum is marked received without running, so
     the resend request asks for the line after it (that line is then missing)."""
@@ -55,7 +63,8 @@ class FaultConfig:
         for name in ("corrupt_rate", "drop_ok_rate", "spurious_resend_rate",
                      "unsolicited_rate", "slow_rate"):
             _check_rate(name, getattr(self, name))
-        for name in ("reset_after_lines", "disconnect_after_lines", "runaway_after_lines"):
+        for name in ("reset_after_lines", "disconnect_after_lines", "runaway_after_lines",
+                     "mintemp_after_lines", "swallow_resent_after_lines"):
             _check_trigger(name, getattr(self, name))
         if self.slow_delay_s < 0:
             raise ValueError("slow_delay_s must be >= 0")
@@ -94,6 +103,9 @@ class SimConfig:
     """Acks read ``ok N<line> P<planner free> B<queue free>`` (Marlin ADVANCED_OK)."""
     ok_after_resend: bool = True
     """Print ``ok`` after every ``Resend:`` (as Marlin 2.x does)."""
+    m114_on_ok: bool = False
+    """Answer ``M114`` on the ``ok`` line, as Smoothieware does (``ok C: X:10.0000 Y:20.0000
+    Z:0.0000 E:0.0000``, without ADVANCED_OK's fields), instead of Marlin's position line + ``ok``."""
     rx_buffer: int = 128
     """Serial receive ring buffer in bytes (RX_BUFFER_SIZE); bytes beyond it are lost."""
     bufsize: int = 4

@@ -89,13 +89,22 @@ class FaultInjector:
             return self.config.slow_delay_s
         return 0.0
 
+    def swallow_due(self) -> bool:
+        """Whether the swallow_resent fault starts on the numbered line now arriving (once)."""
+        after = self.config.swallow_resent_after_lines
+        if after is None or "swallow" in self._fired or self._accepted < after:
+            return False
+        self._fired.add("swallow")
+        return True
+
     def line_accepted(self) -> list[str]:
         """Count an accepted numbered line; return the one-shot triggers that fire now."""
         self._accepted += 1
         fired: list[str] = []
         for name, after in (("reset", self.config.reset_after_lines),
                             ("disconnect", self.config.disconnect_after_lines),
-                            ("runaway", self.config.runaway_after_lines)):
+                            ("runaway", self.config.runaway_after_lines),
+                            ("mintemp", self.config.mintemp_after_lines)):
             if after is not None and name not in self._fired and self._accepted >= after:
                 self._fired.add(name)
                 fired.append(name)

@@ -47,6 +47,8 @@ ERR_CHECKSUM = "checksum mismatch, Last Line: "
 ERR_NO_CHECKSUM = "No Checksum with line number, Last Line: "
 ERR_NO_LINE_NUMBER = "No Line Number with checksum, Last Line: "
 ERR_RUNAWAY = "Error:Thermal Runaway, system stopped! Heater_ID: 0"
+# temperature.cpp _temp_error(): "Error:" + STR_T_MINTEMP + STR_STOPPED_HEATER + the heater index
+ERR_MINTEMP = "Error:MINTEMP triggered, system stopped! Heater_ID: 0"
 
 BANNER_SETTINGS = (
     "echo:; Steps per unit:",
@@ -197,6 +199,8 @@ class Firmware:
         self._lb = bytearray()
         self._lb_skip = False
         self._flush_until: float | None = None  # bytes arriving by then go with the last flush
+        self._swallow: int | None = None  # swallow_resent: the line to take silently when re-sent
+        self._lose_next = False  # swallow_resent: the line after the swallowed one is lost
         self.queue: deque[QueuedCommand] = deque()
         self._current: _Running | None = None
         self.halted_at: float | None = None
@@ -257,6 +261,8 @@ class Firmware:
         self._lb.clear()
         self._lb_skip = False
         self._flush_until = None
+        self._swallow = None
+        self._lose_next = False
 
     def _stop_motion(self) -> None:
         partial = self.planner.quickstop(self.t)
@@ -403,12 +409,15 @@ class Firmware:
         elif code == "M410" and not self.halted:
             self._stop_motion()
 
-    def halt(self, *, runaway: bool = False) -> None:
-        """kill(): stop everything; answer every later line with an error until reset."""
+    def halt(self, *, runaway: bool = False, error: str | None = None) -> None:
+        """kill(): stop everything; answer every later line with an error until reset. ``error``:
+        the line printed first (a thermal error); ``runaway``: Marlin's thermal runaway line."""
         if self.halted:
             return
         if runaway:
-            self.emit(ERR_RUNAWAY)
+            error = ERR_RUNAWAY
+        if error is not None:
+            self.emit(error)
         self.emit(ERR_KILLED)
         self.halted = True
         self.halted_at = self.t
@@ -515,6 +524,8 @@ class Firmware:
                     return
                 self._line_error(ERR_CHECKSUM)
                 return
+            if self._swallow_resent(number):
+                return
             self.last_n = number
             m = _N_DIGITS.match(text)
             n_text = m.group(1) if m else ""
@@ -536,6 +547,25 @@ class Firmware:
         if len(self.queue) > self.stats.queue_peak:
             self.stats.queue_peak = len(self.queue)
 
+    def _swallow_resent(self, number: int) -> bool:
+        """The swallow_resent fault on a numbered line that passed the checks: True when the line
+        was taken by it (refused as corrupted, swallowed, or lost)."""
+        if self._lose_next:
+            self._lose_next = False  # lost with the swallowed line: no answer, number not kept
+            return True
+        if self._swallow == number:
+            self._swallow = None
+            self.last_n = number  # marked received, never queued, never answered
+            self.stats.swallowed_line = number
+            self._lose_next = True
+            return True
+        if self.faults.swallow_due():
+            self._swallow = number
+            self.stats.checksum_errors += 1
+            self._line_error(ERR_CHECKSUM)
+            return True
+        return False
+
     def _after_numbered_line(self) -> None:
         if self.faults.spurious_resend():
             self.stats.spurious_resends += 1
@@ -545,6 +575,8 @@ class Firmware:
                 self.reset(self.t)
             elif name == "runaway":
                 self.halt(runaway=True)
+            elif name == "mintemp":
+                self.halt(error=ERR_MINTEMP)
             else:
                 self._on_trigger(name)
 
@@ -794,6 +826,12 @@ class Firmware:
 
     def _m114(self, g: GCode, cmd: QueuedCommand) -> None:
         x, y, z, e = self.position
+        if self.config.m114_on_ok:
+            # Smoothieware: the position is the text after "ok" (GcodeDispatch prints "ok %s" with
+            # the gcode's txt_after_ok; Robot::print_position writes "C: X:%1.4f Y:%1.4f Z:%1.4f").
+            cmd.skip_ok = True
+            self.emit(f"ok C: X:{x:.4f} Y:{y:.4f} Z:{z:.4f} E:{e:.4f}", True)
+            return
         sx, sy, sz, _ = STEPS_PER_MM
         ax, ay, az, _ = self.planner.position_at(self.t)
         self.emit(f"X:{x:.2f} Y:{y:.2f} Z:{z:.2f} E:{e:.2f} "

@@ -34,6 +34,8 @@ class Stats:
     spurious_resends: int = 0
     corrupted_lines: int = 0
     skipped_lines: int = 0
+    swallowed_line: int = -1
+    """The line number the swallow_resent fault took without running it (-1: none)."""
     cut_tails_queued: int = 0
     """Tails of flushed lines queued as unnumbered commands (cut_tail "marlin2")."""
     unsolicited_lines: int = 0

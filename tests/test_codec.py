@@ -34,11 +34,38 @@ def test_encode_rejects_what_the_firmware_would_mangle() -> None:
             codec.encode(1, bad)
 
 
-def test_longest_allowed_line_is_95_characters() -> None:
-    prefix = "N1 M117 "
-    command = "M117 " + "a" * (95 - len(prefix) - len("*00"))
-    text = codec.encode(1, command).decode().rstrip("\n")
-    assert len(text) <= 95
+def command_encoding_to(length: int, number: int = 1) -> str:
+    """An ``M117`` command whose numbered line ``N<number> M117 …*<checksum>`` is exactly ``length``
+    characters long (the checksum's digits depend on the text: try each message length)."""
+    for filler in range(length, 0, -1):
+        command = "M117 " + "a" * filler
+        body = f"N{number} {command}"
+        if len(f"{body}*{xor(body)}") == length:
+            return command
+    raise AssertionError(f"no M117 line of {length} characters")
+
+
+# Marlin's MAX_CMD_SIZE is 96 bytes with the terminating NUL: 95 characters fit, a 96th is cut off.
+def test_a_95_character_line_is_encoded_whole() -> None:
+    command = command_encoding_to(95)
+    text = codec.encode(1, command).decode()
+    assert len(text) == 96 and text.endswith("\n"), "95 characters and the newline"
+    assert text == f"N1 {command}*{xor(f'N1 {command}')}\n"
+
+
+def test_a_96_character_line_is_refused_naming_the_limit() -> None:
+    command = command_encoding_to(96)
+    with pytest.raises(ValueError, match=r"encodes to 96 characters; the firmware's limit is 95"):
+        codec.encode(1, command)
+
+
+def test_check_sendable_leaves_room_for_the_widest_line_number() -> None:
+    """A command is checked with the widest line number a session reaches (9 999 999): one that
+    fits at line 1 but not there is refused before it is queued."""
+    fits_at_line_1 = command_encoding_to(95)
+    with pytest.raises(ValueError, match="limit is 95"):
+        codec.check_sendable(fits_at_line_1)
+    codec.check_sendable(command_encoding_to(95, number=9_999_999))
 
 
 def test_strip_comment() -> None:
@@ -125,6 +152,14 @@ ERROR_TABLE = [
     ("Error:Thermal Runaway, system stopped! Heater_ID: bed", ErrorKind.THERMAL, None, True),
     ("Error:MAXTEMP triggered, system stopped! Heater_ID: 0", ErrorKind.THERMAL, None, True),
     ("Error:Heating failed, system stopped! Heater_ID: 0", ErrorKind.THERMAL, None, True),
+    # Marlin 2.x temperature.cpp _temp_error(): SERIAL_ERROR_START ("Error:"), the message
+    # (language.h STR_T_MINTEMP "MINTEMP triggered"), STR_STOPPED_HEATER (", system stopped!
+    # Heater_ID: ") and the heater's index, or STR_HEATER_BED "bed"; then kill() prints
+    # STR_ERR_KILLED "Printer halted. kill() called!".
+    ("Error:MINTEMP triggered, system stopped! Heater_ID: 0", ErrorKind.THERMAL, None, True),
+    ("Error:MINTEMP triggered, system stopped! Heater_ID: bed", ErrorKind.THERMAL, None, True),
+    ("Error:MAXTEMP triggered, system stopped! Heater_ID: bed", ErrorKind.THERMAL, None, True),
+    ("Error: Printer halted. kill() called!", ErrorKind.HALTED, None, True),
     ("Error:Printer stopped due to errors. Fix the error and use M999 to restart. "
      "(Temperature is reset. Set it after restarting)", ErrorKind.STOPPED, None, True),
     ("Error: G0/G1: insufficient axes homed", ErrorKind.OTHER, None, False),  # RepRapFirmware
@@ -175,7 +210,7 @@ def test_power_is_attached_to_its_heater() -> None:
     ("X:0.000 Y:0.000 Z:5.000 E:0.000", (0.0, 0.0, 5.0, 0.0)),  # Klipper
     ("X:1.000 Y:2.000 Z:3.000 E0:0.0 Count 80 160 1200 Machine 1.000 2.000 3.000", (1.0, 2.0, 3.0, 0.0)),  # RRF
     ("X:-5.50 Y:3.25 Z:10.00 E:-2.00 Count X:-440 Y:260 Z:4000", (-5.5, 3.25, 10.0, -2.0)),
-])
+])  # (Marlin's own line before its ok)
 def test_position(line: str, xyze: tuple) -> None:
     event = codec.parse_line(line)
     assert isinstance(event, codec.Position)
@@ -215,6 +250,51 @@ def test_start_action_unknown_echo_other() -> None:
     assert codec.parse_line("\x00\xff garbage") == codec.Other("\x00\xff garbage")
 
 
-def test_every_line_gives_an_event() -> None:
-    for line in ["", " ", "ok:", "Resend:", "Cap:", "T:", "X:", "Error:", "!!", "echo:", "rs"]:
-        assert codec.parse_line(line) is not None
+ODD_LINES = [
+    # line, the event it must give: fragments of real answers, cut or empty
+    ("", codec.Other("")),
+    (" ", codec.Other("")),
+    ("ok:", codec.Ok()),
+    ("Resend:", codec.Other("Resend:")),           # no number: nothing to resend
+    ("Cap:", codec.Other("Cap:")),
+    ("Cap:EEPROM", codec.Other("Cap:EEPROM")),      # no :0/:1
+    ("T:", codec.Other("T:")),                      # no reading
+    ("X:", codec.Other("X:")),                      # no position
+    ("X:1.0 Y:2.0", codec.Other("X:1.0 Y:2.0")),    # cut before Z
+    ("Error:", codec.Error("", ErrorKind.OTHER)),
+    ("!!", codec.Error("", ErrorKind.OTHER)),
+    ("echo:", codec.Echo("")),
+    ("rs", codec.Other("rs")),
+    ("ok C:", codec.Ok(text="C:")),                 # a cut Smoothieware M114 answer: no position
+]
+
+
+@pytest.mark.parametrize("line, event", ODD_LINES)
+def test_every_line_gives_the_right_event(line: str, event: codec.Event) -> None:
+    assert codec.parse_line(line) == event
+
+
+# Smoothieware answers M114 on the ok line: src/modules/robot/Robot.cpp (print_position: subcode 0
+# writes "C: X:%1.4f Y:%1.4f Z:%1.4f" into the gcode's txt_after_ok) and
+# src/modules/communication/GcodeDispatch.cpp (prints "ok %s\r\n" with txt_after_ok); an
+# extruder appends " E:…" (the issue's example). Marlin prints the position line before its ok.
+OK_POSITION_TABLE = [
+    ("ok C: X:10.00 Y:20.00 Z:0.00 E:0.00", (10.0, 20.0, 0.0, 0.0)),            # the issue's report
+    ("ok C: X:10.0000 Y:20.0000 Z:0.0000", (10.0, 20.0, 0.0, None)),           # Robot.cpp, no extruder
+    ("ok C: X:-5.5000 Y:3.2500 Z:12.0000 E:1.2500", (-5.5, 3.25, 12.0, 1.25)),
+    ("ok C: X:110.0000 Y:95.0000 Z:5.0000 E:0.0000 ", (110.0, 95.0, 5.0, 0.0)),  # trailing space
+]
+
+
+@pytest.mark.parametrize("line, xyze", OK_POSITION_TABLE)
+def test_position_on_the_ok_line(line: str, xyze: tuple) -> None:
+    event = codec.parse_line(line)
+    assert isinstance(event, codec.Ok)
+    assert event.position == codec.Position(*xyze)
+    assert event.line is None and not event.advanced and event.temperatures is None
+
+
+def test_a_plain_ok_carries_no_position() -> None:
+    for line in ("ok", "ok N12 P15 B3", "ok T:210.0 /210.0 B:60.0 /60.0"):
+        event = codec.parse_line(line)
+        assert isinstance(event, codec.Ok) and event.position is None, line

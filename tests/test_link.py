@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 import os
 import re
 import select
@@ -80,6 +81,34 @@ async def test_send_and_queries(make_sim) -> None:
     assert (position.x, position.y, position.z) == (12.5, 7.0, 3.0)
     answer = await link.send("G999")
     assert any(getattr(e, "command", None) == "G999" for e in answer.events)
+    await link.close()
+
+
+@pytest.mark.parametrize("advanced_ok", [True, False], ids=["advanced-ok", "plain-ok"])
+async def test_a_position_on_the_ok_line_is_taken(make_sim, advanced_ok: bool) -> None:
+    """Smoothieware answers M114 with ``ok C: X:… Y:… Z:… E:…`` (no position line before it, no
+    N/P/B fields): the position is taken from the ok, the ok acknowledges the M114 (not a line
+    after it), and the capabilities learn where the firmware puts it."""
+    sim = make_sim(m114_on_ok=True, advanced_ok=advanced_ok)
+    link = link_for(sim)
+    await link.connect()
+    assert link.capabilities.position_report == "line", "not known before the first M114"
+    await link.send("G28")
+    await link.send("G1 X12.5 Y7 Z3 F6000")
+    position = await asyncio.wait_for(link.query_position(grace_s=0.0), 5)
+    assert (position.x, position.y, position.z, position.e) == (12.5, 7.0, 3.0, 0.0)
+    assert link.status.position == (12.5, 7.0, 3.0, 0.0)
+    assert link.capabilities.position_report == "ok"
+    # the acknowledgements stay in step: the next command's answer is its own
+    await link.send("G1 X-4.25 Y30 F6000")
+    again = await link.query_position(grace_s=0.0)
+    assert (again.x, again.y) == (-4.25, 30.0)
+    temps = await link.query_temperatures()
+    assert temps.hotend is not None
+    program = [*moves(300)[:150], "M114", *moves(300)[150:]]
+    before = len(sim.commands())
+    await link.stream(program)
+    assert [c.command for c in sim.commands()[before:]] == program
     await link.close()
 
 
@@ -166,6 +195,30 @@ async def test_a_printer_that_skips_a_refused_line_stops_the_stream(make_sim) ->
     await link.close()
 
 
+async def test_a_printer_that_swallows_a_resent_line_stops_the_stream(make_sim) -> None:
+    """Issue 22: the printer asks for line N again, takes the re-sent N without running or answering
+    it and later asks for N + 1. The stream stops naming N (it is not counted as done), N never
+    ran, everything before it ran once in order, and the link numbers lines again: it is usable."""
+    sim = make_sim(faults=FaultConfig(swallow_resent_after_lines=300))
+    link = link_for(sim)
+    await link.connect()
+    program = moves(1500, seed=4)
+    with pytest.raises(ProtocolError, match=r"never line (\d+) \(program line (\d+): ") as caught:
+        await link.stream(program)
+    swallowed = sim.stats().swallowed_line
+    message = str(caught.value)
+    assert re.search(r"never line (\d+)", message).group(1) == str(swallowed)
+    index = int(re.search(r"program line (\d+)", message).group(1)) - 1
+    assert program[index] in message
+    assert swallowed not in [c.line for c in sim.commands()], "the swallowed line never ran"
+    executed = executed_program(sim)
+    assert executed[:index] == program[:index], "everything before it ran, once, in order"
+    assert program[index] not in executed, "the line named is the one that did not run"
+    assert link.state is LinkState.READY
+    await link.send("M400")                     # the link works again: the safe stop can go out
+    await link.close()
+
+
 async def test_without_ok_after_resend(make_sim) -> None:
     sim = make_sim(faults=FaultConfig(corrupt_rate=0.05), ok_after_resend=False, seed=11)
     link = link_for(sim, capabilities=Capabilities(ok_after_resend=False))
@@ -217,6 +270,23 @@ async def test_disconnect_mid_job_fails_clearly_without_duplicates(make_sim) -> 
     assert_prefix_without_duplicates(executed_program(sim), program)
 
 
+async def test_an_unplugged_port_is_one_error_line_without_a_traceback(make_sim, caplog) -> None:
+    """A vanished port is the workshop's event, not a bug: one ERROR record naming the port and
+    what to do, no traceback at WARNING or above."""
+    sim = make_sim(faults=FaultConfig(disconnect_after_lines=300))
+    link = link_for(sim)
+    port = sim.port
+    await link.connect()
+    caplog.set_level("DEBUG", logger="ribbond.printer")
+    with pytest.raises(Disconnected, match=rf"printer disconnected: {re.escape(port)}: "):
+        await link.stream(moves(2000))
+    loud = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert [r.levelname for r in loud] == ["ERROR"], [r.getMessage() for r in loud]
+    message = loud[0].getMessage()
+    assert message.startswith(f"printer disconnected: {port}: ") and "reconnect" in message, message
+    assert loud[0].exc_info is None
+
+
 async def test_thermal_runaway_halts_the_stream(make_sim) -> None:
     sim = make_sim(faults=FaultConfig(runaway_after_lines=200))
     link = link_for(sim)
@@ -224,6 +294,22 @@ async def test_thermal_runaway_halts_the_stream(make_sim) -> None:
     with pytest.raises(PrinterHalted, match="Thermal Runaway"):
         await link.stream(moves(2000))
     assert link.state is LinkState.HALTED
+    await link.close()
+
+
+async def test_a_mintemp_error_halts_the_stream_and_the_link(make_sim) -> None:
+    """MINTEMP (a thermistor unplugged or broken) is fatal: the stream stops with the printer's
+    own words (the MINTEMP line halts the link, not only kill()'s line after it), the link is
+    halted, and what ran is the program's beginning."""
+    sim = make_sim(faults=FaultConfig(mintemp_after_lines=200))
+    link = link_for(sim)
+    await link.connect()
+    program = moves(2000)
+    with pytest.raises(PrinterHalted, match="MINTEMP triggered, system stopped! Heater_ID: 0"):
+        await link.stream(program)
+    assert link.state is LinkState.HALTED
+    assert_prefix_without_duplicates(executed_program(sim), program)
+    assert len(executed_program(sim)) < 200
     await link.close()
 
 

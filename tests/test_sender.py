@@ -324,6 +324,73 @@ async def test_a_request_for_a_later_line_after_the_refused_one_was_resent_is_ho
     assert done.result().lines == 8
 
 
+def resend_episode(sender: Sender, wire: Wire, asked: int) -> None:
+    """Line ``asked`` refused (checksum): the request, then one per stale line behind it, as Marlin
+    with ADVANCED_OK prints them; the hold then ends and the lines go out again."""
+    last = wire.numbers()[-1]
+    feed(sender, f"Error:checksum mismatch, Last Line: {asked - 1}", f"Resend: {asked}", "ok")
+    for _ in range(asked + 1, last + 1):
+        feed(sender, f"Error:Line Number is not Last Line Number+1, Last Line: {asked - 1}",
+             f"Resend: {asked}", "ok")
+
+
+async def test_a_resent_line_asked_past_and_never_acknowledged_stops_the_stream() -> None:
+    """Issue 22: the printer asks for 2 again, takes the re-sent 2 without a word, asks for 3, and
+    acknowledges 3: 2 never ran. The stream stops naming it, with nothing from 2 on counted."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10))
+    commands = program(10)
+    done = sender.stream(commands)
+    feed(sender, "ok N0 P15 B3", "ok N1 P15 B3")
+    resend_episode(sender, wire, 2)
+    assert wire.numbers().count(2) == 2, "line 2 went out again"
+    # 2 swallowed, 3 lost with it: the next line draws a request for 3
+    feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 2", "Resend: 3", "ok")
+    await asyncio.sleep(0.01)
+    feed(sender, "ok N3 P15 B3")
+    with pytest.raises(ProtocolError, match=rf"acknowledged line 3 but never line 2 \(program line 3: "
+                                            rf"{re.escape(commands[2])}\).*resume from it"):
+        await asyncio.wait_for(done, 1)
+    assert sender.last_acknowledged_line == 1
+
+
+async def test_a_resent_line_acknowledged_after_a_request_past_it_counts() -> None:
+    """Marlin's own order: the re-sent 2 waits in its queue, 3 is refused (a request for 3), then
+    2's ok comes: nothing is missing and the stream goes on."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10))
+    done = sender.stream(program(10))
+    feed(sender, "ok N0 P15 B3", "ok N1 P15 B3")
+    resend_episode(sender, wire, 2)
+    feed(sender, "Error:checksum mismatch, Last Line: 2", "Resend: 3", "ok")
+    feed(sender, "ok N2 P15 B3")
+    await asyncio.sleep(0.01)
+    next_line = 3
+    while not done.done():
+        feed(sender, f"ok N{next_line} P15 B3")
+        next_line += 1
+        await asyncio.sleep(0.01)
+    assert done.result().lines == 10
+
+
+async def test_a_probe_answer_does_not_count_an_unproven_line() -> None:
+    """The swallowed line's ok never comes: the silence probe's ``ok T:`` acknowledges everything
+    before the probe, but not a line the printer claimed and never acknowledged."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10, default_s=0.1, nudge_s=0))
+    sender.start()
+    done = sender.stream(program(4))
+    feed(sender, "ok N0 P15 B3", "ok N1 P15 B3")
+    resend_episode(sender, wire, 2)
+    feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 2", "Resend: 3", "ok")
+    await asyncio.sleep(0.01)
+    deadline = asyncio.get_running_loop().time() + 2
+    while not any(c == "M105" for _, c in wire.lines):
+        assert asyncio.get_running_loop().time() < deadline, "no probe"
+        await asyncio.sleep(0.02)
+    feed(sender, "ok T:20.0 /0.0 B:20.0 /0.0 @:0 B@:0")
+    with pytest.raises(ProtocolError, match="never line 2"):
+        await asyncio.wait_for(done, 1)
+    assert sender.last_acknowledged_line == 1
+
+
 async def test_a_silent_printer_is_nudged_with_one_bare_newline_per_silence() -> None:
     # Noise that turns a line's newline into another byte leaves the printer waiting for the rest
     # of that line: an empty line ends it (a checksum error follows) and is ignored otherwise.

@@ -134,6 +134,35 @@ def test_runaway_after_lines() -> None:
         assert host.read_quiet() == [HALTED]
 
 
+def test_swallow_resent_takes_the_resent_line_silently_then_asks_past_it() -> None:
+    """The buggy firmware of issue 22: it asks for line 2 again, takes the re-sent 2 without running
+    or answering it, loses 3 with it, and asks for 3 when 4 comes: 2 never ran."""
+    with connected(faulty(swallow_resent_after_lines=1)) as (sim, host):
+        assert host.command("G90", 1) == ["ok N1 P15 B3"]
+        assert host.command("M117 two", 2) == ["Error:checksum mismatch, Last Line: 1", "Resend: 2", "ok"]
+        host.send("M117 two", 2)
+        assert host.read_quiet() == [], "the re-sent line is swallowed without a word"
+        host.send("M117 three", 3)
+        assert host.read_quiet() == [], "and the line after it is lost"
+        assert host.command("M117 four", 4) == [
+            "Error:Line Number is not Last Line Number+1, Last Line: 2", "Resend: 3", "ok"]
+        assert host.command("M117 three", 3) == ["ok N3 P15 B3"]
+        assert [(c.line, c.command) for c in sim.commands()] == [(1, "G90"), (3, "M117 three")]
+        assert sim.stats().swallowed_line == 2
+
+
+def test_mintemp_after_lines() -> None:
+    """Marlin's MINTEMP error (temperature.cpp _temp_error: "Error:" "MINTEMP triggered"
+    ", system stopped! Heater_ID: " 0), then kill()'s line; later lines draw the halted error."""
+    with connected(faulty(mintemp_after_lines=2)) as (sim, host):
+        assert host.command("G90", 1) == ["ok N1 P15 B3"]
+        host.send("G90", 2)
+        assert host.read_quiet() == ["Error:MINTEMP triggered, system stopped! Heater_ID: 0", HALTED]
+        assert sim.halted_at is not None
+        host.send("G90", 3)
+        assert host.read_quiet() == [HALTED]
+
+
 def _assert_unplugged(host: PtyHost) -> None:
     with pytest.raises(OSError) as info:
         for _ in range(20):

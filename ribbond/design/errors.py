@@ -9,7 +9,7 @@ class MeshError(ValueError):
     Attributes
     ----------
     problem : str
-        a short, stable key for the kind of problem (``"unreadable"``, ``"empty"``,
+        a short, stable key for the kind of problem (``"unreadable"``, ``"empty"``, ``"too_small"``,
         ``"non_finite"``, ``"zero_area"``, ``"non_manifold_edge"``, ``"non_manifold_vertex"``,
         ``"orientation"``, ``"components"``, ``"closed"``, ``"not_disk"``, ``"too_many_faces"``,
         ``"bad_index"``), for programs (the daemon's API) that react to it.

@@ -32,6 +32,9 @@ __all__ = ["CleanedMesh", "TargetMesh", "check_disk", "clean_mesh", "load_target
 _LIST_LIMIT = 5
 #: A face is degenerate when its area is at most this times the squared bounding-box diagonal.
 _ZERO_AREA = 1e-12
+#: The fewest faces the engine designs: the deployed shape's bending lives on interior edges (two
+#: faces sharing an edge, ``ribbond.deploy``), and a single triangle has none.
+MIN_FACES = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -210,6 +213,7 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     Checks, in this order (the first failing one raises):
 
     - ``"empty"``: no faces;
+    - ``"too_small"``: fewer than ``MIN_FACES`` faces (one triangle has no interior edge to bend about);
     - ``"non_finite"``: NaN or infinite coordinates (vertex indices);
     - ``"bad_index"``: face indices outside ``V``, or a face repeating a vertex (face indices);
     - ``"zero_area"``: faces with area ≤ 1e-12 × (bounding-box diagonal)² (faces, centroids);
@@ -244,6 +248,11 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     n, m = len(V), len(F)
     if m == 0:
         raise MeshError("empty", "the mesh has no faces")
+    if m < MIN_FACES:
+        raise MeshError("too_small", f"the mesh has {_count(m, 'face')}: the engine designs surfaces of at "
+                                     f"least {MIN_FACES} faces (a surface's bending lives on the edges two "
+                                     "faces share, and a single triangle has none: its deployed shape "
+                                     "cannot be predicted); subdivide it or give the whole surface")
     _check_finite(V, None)
     _check_indices(V, F, repeats=True)
 

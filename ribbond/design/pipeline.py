@@ -21,6 +21,7 @@ import shapely
 from ..deploy.predict import Prediction, predict_deployed
 from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
 from ..gcode.program import GcodeError, Programs, make_programs
+from . import linalg
 from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
@@ -212,7 +213,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     timings["flatten"] = time.perf_counter() - t
     progress.stage_finished("flatten", timings["flatten"],
                             f"{flat.iterations} iterations, "
-                            + ("converged" if flat.converged else "stopped at the iteration cap"))
+                            + ("converged" if flat.converged else "stopped at the iteration cap")
+                            + f"; sparse solver {linalg.BACKEND_DESCRIPTION}")
 
     c, s = np.cos(rotation), np.sin(rotation)
     placed = np.array([[c, s], [-s, c]])

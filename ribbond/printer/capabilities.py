@@ -10,6 +10,8 @@ nothing else keeps firmware flags.
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 from . import codec
@@ -39,6 +41,10 @@ class Capabilities(BaseModel):
     queue_slots: int = Field(default=4, ge=1, le=64)
     #: Planner blocks (Marlin's BLOCK_BUFFER_SIZE), learned from the largest ``P`` seen + 1.
     planner_blocks: int | None = None
+    #: Where ``M114``'s position comes: "line" (its own line before the ``ok``, Marlin) or "ok"
+    #: (on the ``ok`` line, Smoothieware: ``ok C: X:… Y:… Z:…``); learned from the first answer.
+    #: Such an ``ok`` carries no ``N``/``P``/``B``: the sender takes it as ``M114``'s own.
+    position_report: Literal["line", "ok"] = "line"
 
     def has(self, name: str) -> bool:
         """True only when the firmware reported ``Cap:<name>:1``."""
@@ -66,7 +72,10 @@ class Capabilities(BaseModel):
         self.reported = {**self.reported, cap.name: cap.enabled}
 
     def learn_ok(self, ok: codec.Ok) -> None:
-        """Take what an acknowledgement tells about the firmware (ADVANCED_OK and slot counts)."""
+        """Take what an acknowledgement tells about the firmware (ADVANCED_OK and slot counts,
+        where ``M114`` puts the position)."""
+        if ok.position is not None and self.position_report != "ok":
+            self.position_report = "ok"
         if ok.queue_free is None or ok.planner_free is None:
             return
         if not self.advanced_ok:

@@ -5,7 +5,9 @@ Nothing here does I/O or keeps state. Encoding adds the line number and XOR chec
 The parser is lenient in the ways established hosts are, because firmwares differ: ``ok`` with or
 without ``N``/``P``/``B`` fields or a temperature report after it, ``Resend: 12``, ``Resend:12``,
 ``rs N12`` and ``rs 12``, ``echo:``-prefixed or bare ``busy:`` lines, leading spaces, and ``Error:``
-lines whose text says whether the printer has halted.
+lines whose text says whether the printer has halted. ``M114``'s position may come on its own line
+before the ``ok`` (Marlin, Klipper, RepRapFirmware) or on the ``ok`` line itself (Smoothieware:
+``ok C: X:10.0000 Y:20.0000 Z:0.0000``); both parse to the same :class:`Position`.
 """
 
 from __future__ import annotations
@@ -111,11 +113,24 @@ class Temperatures:
 
 
 @dataclass(frozen=True)
+class Position:
+    """The answer to ``M114``: ``X:0.00 Y:0.00 Z:0.00 E:0.00 Count …``, on its own line or on the
+    ``ok`` line. ``e`` is None when the firmware reports no extruder (Smoothieware's robot prints
+    only X, Y and Z)."""
+
+    x: float
+    y: float
+    z: float
+    e: float | None = None
+
+
+@dataclass(frozen=True)
 class Ok:
     """An acknowledgement. ``line`` is the ``N`` field of ADVANCED_OK (the acknowledged line).
 
     ``planner_free`` and ``queue_free`` are the ``P`` and ``B`` fields; ``temperatures`` is set for
-    the ``ok T:…`` answer to ``M105``; ``text`` is whatever followed ``ok``.
+    the ``ok T:…`` answer to ``M105``, ``position`` for the ``ok C: X:… Y:… Z:…`` answer to ``M114``
+    (Smoothieware); ``text`` is whatever followed ``ok``.
     """
 
     line: int | None = None
@@ -123,6 +138,7 @@ class Ok:
     queue_free: int | None = None
     temperatures: Temperatures | None = None
     text: str = ""
+    position: Position | None = None
 
     @property
     def advanced(self) -> bool:
@@ -173,16 +189,6 @@ class TemperatureReport:
 
     temperatures: Temperatures
     waiting: bool = False  # heating waits end their lines with ``W:<seconds>`` or ``W:?``
-
-
-@dataclass(frozen=True)
-class Position:
-    """The answer to ``M114``: ``X:0.00 Y:0.00 Z:0.00 E:0.00 Count …``."""
-
-    x: float
-    y: float
-    z: float
-    e: float
 
 
 @dataclass(frozen=True)
@@ -264,6 +270,10 @@ _LAST_LINE = re.compile(r"Last Line:\s*(-?\d+)", re.IGNORECASE)
 _POSITION = re.compile(
     rf"^X:\s*({_NUMBER})\s+Y:\s*({_NUMBER})\s+Z:\s*({_NUMBER})\s+E\d?:\s*({_NUMBER})"
 )
+# Smoothieware's M114 after "ok": "C: X:10.0000 Y:20.0000 Z:0.0000", an extruder's " E:…" after it.
+_OK_POSITION = re.compile(
+    rf"^C:\s*X:\s*({_NUMBER})\s+Y:\s*({_NUMBER})\s+Z:\s*({_NUMBER})(?:\s+E\d?:\s*({_NUMBER}))?"
+)
 _FIRMWARE_FIELD = re.compile(
     r"(FIRMWARE_NAME|FIRMWARE_VERSION|SOURCE_CODE_URL|PROTOCOL_VERSION|MACHINE_TYPE|KINEMATICS"
     r"|EXTRUDER_COUNT|UUID|FIRMWARE_URL):"
@@ -288,6 +298,11 @@ def parse_temperatures(text: str) -> Temperatures | None:
 
 
 def _parse_ok(rest: str) -> Ok:
+    position = _OK_POSITION.match(rest)
+    if position:
+        x, y, z, e = position.groups()
+        return Ok(text=rest.strip(), position=Position(float(x), float(y), float(z),
+                                                       float(e) if e is not None else None))
     temperatures = parse_temperatures(rest) if ("T:" in rest or "B:" in rest) else None
     fields: dict[str, int] = {}
     if temperatures is None:

@@ -33,4 +33,9 @@ class StreamCancelled(LinkError):
 
 
 class NotReady(LinkError):
-    """The link is not in a state that allows the request (not connected, halted, busy)."""
+    """The link is not in a state that allows the request (not connected, halted, busy);
+    ``state`` names the link's state when it is known (``halted``, ``disconnected``, ...)."""
+
+    def __init__(self, message: str, state: str | None = None) -> None:
+        super().__init__(message)
+        self.state = state

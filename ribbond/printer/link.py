@@ -18,7 +18,7 @@ from pydantic import BaseModel
 
 from . import codec
 from .capabilities import Capabilities
-from .errors import Disconnected, LinkError, NotReady, PrinterHalted, PrinterReset
+from .errors import Disconnected, LinkError, NotReady, PrinterHalted, PrinterReset, ProtocolError
 from .sender import Answer, Sender, StreamProgress, StreamResult, Timeouts
 from .transport import SerialTransport
 
@@ -60,7 +60,8 @@ class PrinterStatus(BaseModel):
     capabilities: dict[str, bool] = {}
     advanced_ok: bool = False
     heaters: dict[str, HeaterStatus] = {}
-    position: tuple[float, float, float, float] | None = None
+    #: x, y, z and e (None when the firmware reports no extruder position).
+    position: tuple[float, float, float, float | None] | None = None
     last_error: str | None = None
     busy: str | None = None
     lines_acknowledged: int = -1
@@ -319,9 +320,12 @@ class PrinterLink:
         raise LinkError(f"printer answered M105 without temperatures: {answer.ok.text!r}")
 
     async def query_position(self, grace_s: float = 1.0) -> codec.Position:
-        """Ask for the position (``M114``). Some firmwares print it after the ``ok``: wait a little."""
+        """Ask for the position (``M114``), wherever the firmware puts it: on its own line before
+        the ``ok`` (Marlin), on the ``ok`` line (Smoothieware), or after the ``ok`` (wait a little)."""
         asked_at = time.monotonic()
         answer = await self.send("M114")
+        if answer.ok.position is not None:
+            return answer.ok.position
         found = answer.first(codec.Position)
         if isinstance(found, codec.Position):
             return found
@@ -347,9 +351,28 @@ class PrinterLink:
         self._set_state(LinkState.STREAMING)
         try:
             return await self.sender.stream(commands, progress, barriers)
+        except ProtocolError:
+            await self._resync()
+            raise
         finally:
             if self._state in (LinkState.STREAMING, LinkState.PAUSED):
                 self._set_state(LinkState.READY)
+
+    async def _resync(self) -> None:
+        """After the sender stopped on a protocol error (the printer asked for what cannot be
+        given, or never acknowledged a line), its line numbers no longer match the printer's:
+        number from 0 again (a new handshake) so that the safe stop and a resume can be sent."""
+        if self._state not in (LinkState.STREAMING, LinkState.PAUSED):
+            return
+        log.warning("numbering the printer's lines again after a protocol error")
+        self._set_state(LinkState.CONNECTING)
+        try:
+            await self._handshake()
+        except (LinkError, OSError) as exc:
+            log.error("handshake after a protocol error failed: %s", exc)
+            await self.close()
+            return
+        self._set_state(LinkState.READY)
 
     def pause(self) -> None:
         """Stop feeding lines; what the printer already has is still executed."""
@@ -405,7 +428,7 @@ class PrinterLink:
     def _require(self, *states: LinkState) -> None:
         if self._state not in states:
             allowed = ", ".join(s.value for s in states)
-            raise NotReady(f"link is {self._state.value}; this needs it {allowed}")
+            raise NotReady(f"link is {self._state.value}; this needs it {allowed}", self._state.value)
 
     # ------------------------------------------------------------------ what the printer says
 
@@ -431,6 +454,8 @@ class PrinterLink:
         if isinstance(event, codec.Ok):
             temperatures = event.temperatures
             self._status.busy = None
+            if event.position is not None:
+                self._observe(event.position)
         elif isinstance(event, codec.TemperatureReport):
             temperatures = event.temperatures
         elif isinstance(event, codec.Position):
@@ -477,7 +502,10 @@ class PrinterLink:
 
     def _on_lost(self, reason: Exception) -> None:
         acked = self._sender.last_acknowledged_line if self._sender else -1
-        error = Disconnected(f"printer disconnected: {reason} (last acknowledged line: {acked})")
+        # One line: an unplugged printer is an event of the workshop, not a bug to trace.
+        log.error("printer disconnected: %s: %s; reconnect it (ribbond connects again on its own; "
+                  "a job it interrupted can be resumed)", self.port, reason)
+        error = Disconnected(f"printer disconnected: {self.port}: {reason} (last acknowledged line: {acked})")
         if self._sender is not None:
             self._sender.stop(error)
         self._transport = None

@@ -233,6 +233,7 @@ class Sender:
         self._stale_seen = 0
         self._pending_resend: int | None = None  # lowest line asked for and not yet acknowledged
         self._refused: int | None = None  # the line the last line-check Error refused
+        self._unproven: int | None = None  # a re-sent line the printer asked past, unacknowledged
         self._last_heard = time.monotonic()
         self._nudged_at = -1.0  # the _last_heard of the silence already nudged
         self._nudge_behind: int | None = None  # a nudge's byte waits behind this line in the buffer
@@ -289,6 +290,7 @@ class Sender:
         self._cursor = 0
         self._acked_through = -1
         self._resend_ok_due = False
+        self._pending_resend = self._unproven = None
         self._nudge_behind = None  # numbers restart: an old nudge's line would never be acknowledged
         return self.send(_LINE_NUMBER_RESET)
 
@@ -366,20 +368,21 @@ class Sender:
         self.capabilities.learn_ok(ok)
         if self._resend_ok_due:
             self._resend_ok_due = False
-            if not ok.advanced and ok.temperatures is None:
+            if not ok.advanced and ok.temperatures is None and ok.position is None:
                 return  # the ok Marlin prints right after each Resend: line
         if ok.advanced:
             if ok.line is not None:
                 self._ack_through(ok.line, ok)
             else:
                 self._ack_oldest(ok)  # an unnumbered command acknowledged in order
-        elif ok.temperatures is not None:
-            # The answer to M105, processed in order: every line before the oldest unacknowledged
-            # M105 has been processed too.
-            probe = next((line for line in self._history_from(self._acked_through + 1)
-                          if _command_word(line.command) == "M105"), None)
-            if probe is not None:
-                self._ack_through(probe.number, ok)
+        elif ok.temperatures is not None or ok.position is not None:
+            # The answer to M105 (or, on Smoothieware, M114), processed in order: every line
+            # before the oldest unacknowledged such command has been processed too.
+            word = "M105" if ok.temperatures is not None else "M114"
+            query = next((line for line in self._history_from(self._acked_through + 1)
+                          if _command_word(line.command) == word), None)
+            if query is not None:
+                self._ack_through(query.number, ok)
             else:
                 self._ack_oldest(ok)
         elif self.capabilities.advanced_ok:
@@ -410,7 +413,7 @@ class Sender:
         """Every line up to ``number`` has been processed, whether it is in flight or was taken out
         of flight by a resend request that needed no resend."""
         number = min(number, self._next_number - 1)
-        if number <= self._acked_through:
+        if number <= self._acked_through or self._unproven_skipped(number, ok):
             return
         program_lines = 0
         for n in range(self._acked_through + 1, number + 1):
@@ -452,6 +455,7 @@ class Sender:
             self._fail(ProtocolError(f"printer asked to resend line {number}, which is no longer in "
                                      f"the history of {self._history_size} lines"))
             return
+        self._note_asked_past(number)
         if refused is not None and number > refused:
             # The request that answers an error asks past the line the error refused: the printer
             # marked that line received without running it.
@@ -496,6 +500,37 @@ class Sender:
         if self._stale_expected == 0:
             self._hold.cancel()
             self._end_hold()
+
+    def _note_asked_past(self, number: int) -> None:
+        """The printer asks for ``number`` while the line it last asked for again, and was sent
+        again, is still unacknowledged: it says it holds that line. Marlin does (the line waits in
+        its queue and its ok follows), a firmware that swallowed the line never acknowledges it. With
+        ADVANCED_OK every numbered line gets its own ``ok N<line>``, so from now on only that ok
+        proves the line ran (see ``_ack_through``); plain oks carry no number to tell them apart."""
+        pending = self._pending_resend
+        if (self.capabilities.advanced_ok and self._hold is None and self._unproven is None
+                and pending is not None and self._acked_through < pending < min(number, self._cursor)):
+            self._unproven = pending
+
+    def _unproven_skipped(self, number: int, ok: codec.Ok) -> bool:
+        """Whether acknowledging through ``number`` would count the unproven line as done without
+        its own ok: then the stream stops, naming it. Running it again is not safe (a move or an
+        extrusion twice), so it is left to the resume, which starts from the line before it."""
+        unproven = self._unproven
+        if unproven is None or number < unproven:
+            return False
+        if ok.line == unproven:
+            self._unproven = None  # its own ok: it ran
+            return False
+        line = self._history.get(unproven)
+        where = (f" (program line {line.program_index + 1}: {line.command})"
+                 if line is not None and line.program_index is not None else "")
+        self._fail(ProtocolError(
+            f"printer acknowledged line {number} but never line {unproven}{where}, which it had asked "
+            f"for again, was sent again and then asked past: that line may never have run. Stopped "
+            f"with every line before it acknowledged (last line acknowledged: {self._acked_through}); "
+            f"resume from it"))
+        return True
 
     def _on_line_error(self, error: codec.Error) -> None:
         """An error from the line checks names the last line the printer accepted: the line after

@@ -27,6 +27,14 @@ class PortError(OSError):
     """The serial port could not be opened or was lost."""
 
 
+def _lost_reason(exc: OSError) -> OSError:
+    """Why the port went away, in the operator's words where the errno says it: EIO is how Linux
+    reports a vanished USB device (or a closed pty master), on reads and on writes."""
+    if exc.errno == errno.EIO:
+        return PortError("the device is gone (unplugged or switched off)")
+    return exc
+
+
 class SerialTransport:
     """An open serial port driven by the running event loop.
 
@@ -149,7 +157,7 @@ class SerialTransport:
         except BlockingIOError:
             return 0
         except OSError as exc:
-            self._lose(exc)
+            self._lose(_lost_reason(exc))
             return len(data)
         self.bytes_out += sent
         return sent
@@ -169,12 +177,10 @@ class SerialTransport:
         except BlockingIOError:
             return
         except OSError as exc:
-            # EIO is how Linux reports a vanished USB device or a closed pty master.
-            reason = exc if exc.errno != errno.EIO else PortError(f"serial port {self.port} disconnected")
-            self._lose(reason)
+            self._lose(_lost_reason(exc))
             return
         if not data:
-            self._lose(PortError(f"serial port {self.port} closed"))
+            self._lose(PortError("the port was closed"))
             return
         self.bytes_in += len(data)
         self._rx.extend(data)
@@ -200,7 +206,7 @@ class SerialTransport:
             return
         self._lost = True
         self._detach()
-        log.warning("serial port lost: %s", reason)
+        log.debug("serial port %s lost: %r", self.port, reason)  # the link reports it, once
         self._on_lost(reason)
 
     def _detach(self) -> None:

@@ -128,13 +128,13 @@ function renderPrinter() {
   drawChart($("chart"), state.temps);
 }
 
-/** Take a printer status (from an event or GET /printer): keep ten minutes of temperatures. */
+/** Take a printer status (from an event or GET /printer): keep 30 minutes of temperatures (as the daemon does). */
 function takePrinter(status) {
   state.printer = status;
   const h = status.heaters || {};
   if (h.T || h.B) {
     state.temps.push({ t: Date.now() / 1000, T: h.T?.current, Tt: h.T?.target, B: h.B?.current, Bt: h.B?.target });
-    const cut = Date.now() / 1000 - 600;
+    const cut = Date.now() / 1000 - TEMPS_SPAN_S;
     while (state.temps.length && state.temps[0].t < cut) state.temps.shift();
   }
   renderPrinter();
@@ -222,7 +222,11 @@ $("console-form").addEventListener("submit", async (e) => {
   $("console-in").value = "";
   try {
     const r = await api.post("/printer/gcode", { commands: [line] });
-    for (const a of r.answers) for (const l of a.answer) add(l, "answer");
+    for (const a of r.answers) {
+      if (a.sent) add(`sent as: ${a.sent}`, "note");
+      for (const l of a.answer) add(l, "answer");
+    }
+    for (const n of r.notes || []) add(`note: ${n}`, "note");   // clamped feeds, G90 restored, unchecked
   } catch (err) { add(err.message, "error"); }
 });
 
@@ -257,7 +261,7 @@ function renderJobs() {
     jobs.map((j) => {
       const ended = ENDED.has(j.state);
       const dur = ended ? j.updated - j.created : (j.elapsed_s ?? null);
-      const st = STREAMS.has(j.state) || j.state === "compiling" ? `${LABEL[j.state]} ${percent(j)}` : LABEL[j.state];
+      const st = STREAMS.has(j.state) || j.state === "compiling" ? `${labelOf(j)} ${percent(j)}` : labelOf(j);
       return `<tr data-job="${esc(j.id)}" class="${j.waits_for_operator ? "waits" : ""}">
         <td><a href="#/job/${esc(j.id)}">${esc(j.mesh_name)}</a></td>
         <td><span class="state ${esc(j.state)}">${esc(st)}</span></td><td>${esc(sizeOf(j))}</td>
@@ -413,7 +417,8 @@ function renderActions(j) {
   if (box.dataset.key === key) return;
   box.dataset.key = key;
   box.innerHTML = cmds.map((c) => `<button data-action="${c}" ${busy || (parking && c === "resume") ? "disabled" : ""}
-    class="${c === "cancel" || c === "delete" ? "warn" : c === "start" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("");
+    class="${c === "cancel" || c === "delete" ? "warn" : c === "start" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("")
+    + optionButtons(j, cmds, busy);
 }
 $("j-actions").addEventListener("click", async (e) => {
   const b = e.target.closest("button[data-action]");
@@ -435,7 +440,7 @@ $("j-actions").addEventListener("click", async (e) => {
       state.jobs.set(j.id, j);
       renderJobPage();
     } else {
-      const j = await api.post(`/jobs/${id}/${c}`);
+      const j = await api.post(`/jobs/${id}/${c}`, b.dataset.body ? JSON.parse(b.dataset.body) : undefined);
       // an event may have brought a newer state already (a started job reaching the frame gate)
       const cur = state.jobs.get(j.id);
       if (!cur || (j.updated ?? 0) >= (cur.updated ?? 0)) state.jobs.set(j.id, { ...cur, ...j });
@@ -520,15 +525,16 @@ function renderJobPage() {
   $("home").hidden = !home;
   $("jobpage").hidden = home;
   renderJobs();
+  renderTitle();
   if (home) return;
   const j = state.jobs.get(state.route.id);
   if (!j) { $("j-title").textContent = "No such job"; return; }
   loadDesign(j);
   $("j-title").textContent = j.mesh_name;
-  $("j-state").textContent = LABEL[j.state];
+  $("j-state").textContent = labelOf(j);
   $("j-state").className = `state ${j.state}`;
   const stage = j.stage && !["compiling", "awaiting_flip", "aligning", "fitted"].includes(j.state) ? j.stage : "";
-  $("j-stage").textContent = stage.replace(/_/g, " ") === LABEL[j.state] ? "" : stage;
+  $("j-stage").textContent = stage.replace(/_/g, " ") === labelOf(j) ? "" : stage;
   $("j-next").textContent = nextText(j);
   $("j-next").hidden = !$("j-next").textContent;
   $("j-error").hidden = !j.error || ["awaiting_flip", "aligning"].includes(j.state);     // the step says it
@@ -621,6 +627,7 @@ function renderJobPage() {
     $("j-summary").innerHTML = `<dt>Commands</dt><dd>${esc(j.lines_total ?? "–")}</dd>` +
       `<dt>Estimated time</dt><dd>${duration(j.estimate_s?.front)}</dd><dt>Runs before this one</dt><dd>${j.runs?.length ?? 0}</dd>`;
   }
+  renderOperatorView(j);
 }
 
 $("flip-done").addEventListener("click", async () => {
@@ -672,6 +679,95 @@ $("align-result").addEventListener("click", async (ev) => {
   renderJobPage();
 });
 
+// ------------------------------------------------------------------ what the operator sees (issue 22)
+
+const TEMPS_SPAN_S = 1800;
+/** States in which a job's page shows the temperatures: it heats, prints, or is about to. */
+const HOT = new Set([...STREAMS, "paused", "awaiting_check"]);
+/** Files of a job offered for download, by kind. */
+const DOWNLOADS = { design: ["design.json", "combined.gcode", "front.gcode", "back.gcode"], gcode: ["program.gcode"] };
+
+/** A job's state in words; a plain G-code job prints a program, not a front. */
+function labelOf(j) {
+  if (j.kind === "gcode" && j.state === "printing_front") return "printing program";
+  return LABEL[j.state] ?? j.state;
+}
+
+/** The chart starts from the daemon's last 30 minutes, not empty. */
+async function loadTemperatures() {
+  const history = await api.get("/printer/temperatures");
+  const since = state.temps.length ? state.temps[0].t : Infinity;
+  state.temps = [...history.samples.filter((p) => p.t < since), ...state.temps];
+  renderPrinter();
+}
+
+/** The tab's title: the job of the page (or the one holding the printer) with its state and progress. */
+function renderTitle() {
+  const shown = state.route.page === "job" ? state.jobs.get(state.route.id)
+    : [...state.jobs.values()].find((j) => STREAMS.has(j.state) || j.state === "paused");
+  if (!shown) { document.title = "ribbond"; return; }
+  const progress = STREAMS.has(shown.state) || shown.state === "compiling" || shown.state === "paused";
+  document.title = `${progress ? `${percent(shown)} ` : ""}${labelOf(shown)} — ribbond`;
+}
+
+function renderTemps(j) {
+  const h = state.printer?.heaters || {};
+  const show = HOT.has(j.state) && (h.T || h.B);
+  $("j-temps").hidden = !show;
+  if (show) $("j-temps").textContent = `Nozzle ${heater(h.T)} · Bed ${heater(h.B)}`;
+}
+
+function renderVerdict(j) {
+  const lines = j.verdict || [];
+  const box = $("j-verdict");
+  box.hidden = !lines.length;
+  const key = JSON.stringify(lines);
+  if (box.dataset.key === key) return;
+  box.dataset.key = key;
+  box.innerHTML = lines.map((l) => `<li class="${/OUTSIDE|NOT a sign|clamped/.test(l) ? "bad" : ""}">${esc(l)}</li>`).join("");
+}
+
+function renderFiles(j) {
+  const names = j.kind === "gcode" ? DOWNLOADS.gcode : j.design_dir ? DOWNLOADS.design : [];
+  const pr = state.designs.get(j.id)?.report?.print || {};
+  const shown = names.filter((n) => !/^(front|back)\.gcode$/.test(n) || pr[n.split(".")[0]]?.lines);
+  const box = $("j-files");
+  box.hidden = !shown.length;
+  const key = `${j.id}:${shown.join(",")}`;
+  if (box.dataset.key === key) return;
+  box.dataset.key = key;
+  box.innerHTML = "Download: " + shown.map((n) =>
+    `<a href="/jobs/${encodeURIComponent(j.id)}/files/${n}" download="${esc(j.id)}-${n}" data-file="${n}">${n}</a>`).join("");
+}
+// with a token the files need the header: fetched, then saved from an object URL
+$("j-files").addEventListener("click", async (e) => {
+  const a = e.target.closest("a[data-file]");
+  if (!a || !api.token()) return;
+  e.preventDefault();
+  const url = await api.fileURL(state.route.id, a.dataset.file);
+  if (!url) { toast(`${a.dataset.file}: not there (yet)`, "error"); return; }
+  const save = Object.assign(document.createElement("a"), { href: url, download: a.getAttribute("download") });
+  save.click();
+  setTimeout(() => URL.revokeObjectURL(url), 10000);
+});
+
+/** Resume options the daemon takes: reprint the ribbon begun (interrupted), keep the alignment (frame not moved). */
+function optionButtons(j, cmds, busy) {
+  const extra = [];
+  if (j.state === "interrupted" && cmds.includes("resume"))
+    extra.push(["resume", { partial: "reprint" }, "Resume, reprinting the ribbon begun"]);
+  if (cmds.includes("frame-ok") && j.side === "back" && j.correction)
+    extra.push(["frame-ok", { keep_alignment: true }, "Frame not moved: keep the alignment"]);
+  return extra.map(([c, body, text]) => `<button data-action="${c}" data-body='${esc(JSON.stringify(body))}'
+    ${busy ? "disabled" : ""}>${text}</button>`).join("");
+}
+
+function renderOperatorView(j) {
+  renderVerdict(j);
+  renderTemps(j);
+  renderFiles(j);
+}
+
 // ------------------------------------------------------------------ live events
 
 function onEvent(type, ev) {
@@ -693,6 +789,7 @@ function onEvent(type, ev) {
     renderPrinter();
   } else if (type === "printer" && ev.printer) {
     takePrinter(ev.printer);
+    if (state.route.page === "job" && state.jobs.has(state.route.id)) renderTemps(state.jobs.get(state.route.id));
     return;
   }
   renderJobPage();
@@ -731,7 +828,7 @@ function route() {
 }
 window.addEventListener("hashchange", () => { $("toast").hidden = true; route(); });
 
-function refreshAll() { quiet(loadJobs()); pollPrinter(); }
+function refreshAll() { quiet(loadJobs()); quiet(loadTemperatures()); pollPrinter(); }
 
 async function main() {
   try {

@@ -1,8 +1,8 @@
-// The temperatures of the last 10 minutes on a canvas: nozzle and bed, targets dashed.
+// The temperatures of the last 30 minutes on a canvas: nozzle and bed, targets dashed.
 
 const SERIES = [["T", "#d9480f", false], ["Tt", "#d9480f", true], ["B", "#1c7ed6", false], ["Bt", "#1c7ed6", true]];
 
-export function drawChart(canvas, points, span = 600) {
+export function drawChart(canvas, points, span = 1800) {
   const dpr = window.devicePixelRatio || 1;
   const w = canvas.clientWidth || 300, h = canvas.clientHeight || 120;
   if (canvas.width !== Math.round(w * dpr)) { canvas.width = Math.round(w * dpr); canvas.height = Math.round(h * dpr); }
@@ -22,7 +22,7 @@ export function drawChart(canvas, points, span = 600) {
     g.beginPath(); g.moveTo(left, y(v)); g.lineTo(w - 4, y(v)); g.stroke();
     g.fillText(`${v}°`, 2, y(v) + 3);
   }
-  g.fillText("10 min ago", left, h - 2);
+  g.fillText(`${Math.round(span / 60)} min ago`, left, h - 2);
   g.fillText("now", w - 24, h - 2);
   for (const [k, color, dashed] of SERIES) {
     g.strokeStyle = color;
@@ -37,4 +37,7 @@ export function drawChart(canvas, points, span = 600) {
     g.stroke();
   }
   g.setLineDash([]);
+  // what is drawn, for people reading the page's source and for the tests
+  canvas.dataset.points = String(points.length);
+  canvas.dataset.oldest = points.length ? String(points[0].t) : "";
 }

@@ -17,6 +17,7 @@ from ribbond.config import (
     DaemonConfig,
     FlipPolicy,
     Limits,
+    ManualSettings,
     SerialSettings,
     config_path,
     is_loopback,
@@ -87,6 +88,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
                         token_file=tmp_path / "secrets" / "token", allowed_hosts=["printer.local", "[::1]:8125"]),
         limits=Limits(max_upload_mb=12.5, max_faces=1000, max_jobs=3),
         flip=FlipPolicy(heaters="off", lower_to=150.0, off_after_s=60.0),
+        manual=ManualSettings(raw_console=True),
         log_level="debug",
     )
     # Every field differs from its default, so a field the loader dropped would show.
@@ -323,3 +325,14 @@ def test_token_not_in_repr() -> None:
 ])
 def test_tokens_match(given: str | None, expected: str, match: bool) -> None:
     assert tokens_match(given, expected) is match
+
+
+def test_a_token_file_configured_on_loopback_is_used(tmp_path: Path) -> None:
+    """Issue 22 item 5: a configured ``token_file`` counts on loopback too (created if missing);
+    the default file in the state directory is not read there."""
+    token_file = tmp_path / "keys" / "tok"
+    config = DaemonConfig(state_dir=tmp_path / "state", api=ApiSettings(token_file=token_file))
+    token = resolve_token(config)
+    assert token is not None and token_file.read_text(encoding="utf-8").strip() == token
+    assert resolve_token(config) == token
+    assert resolve_token(DaemonConfig(state_dir=tmp_path / "state")) is None

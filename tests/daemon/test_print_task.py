@@ -47,7 +47,7 @@ async def test_a_cancel_before_the_stream_begins_sends_no_program_line(tmp_path:
     x0, y0, _, _ = profile.frame.bounds
     moves = [f"G1 X{x0 + 10 + i:.1f} Y{y0 + 10:.1f} F600" for i in range(20)]
     upload = tmp_path / "upload"
-    upload.write_text("\n".join(["G90", *moves]) + "\n")
+    upload.write_text("\n".join(["G28", "G90", "G1 Z5 F600", *moves]) + "\n")
     try:
         service.frame.ready()                  # the operator loaded a fresh frame (ribbonctl frame-ready)
         job = await service.submit_gcode(upload, "moves.gcode", start=True)

@@ -269,13 +269,15 @@ def test_part_events_per_run_and_a_version_2_database_gains_the_table(tmp_path: 
     with JobStore(db) as store:
         job = store.create(mesh_name="m.obj", mesh_path="/m.obj", parameters={}, start_when_ready=False)
     conn = sqlite3.connect(db)                      # as ribbond before issue 16 left it
-    conn.executescript("DROP TABLE part_events; DROP TABLE frame; ALTER TABLE jobs DROP COLUMN same_frame; "
-                       "ALTER TABLE jobs DROP COLUMN program; ALTER TABLE jobs DROP COLUMN print_progress; "
-                       "PRAGMA user_version = 2;")
+    # (and before issue 22's notes column, the frame, same_frame, program and print_progress)
+    conn.executescript("DROP TABLE part_events; DROP TABLE frame; ALTER TABLE jobs DROP COLUMN notes; "
+                       "ALTER TABLE jobs DROP COLUMN same_frame; ALTER TABLE jobs DROP COLUMN program; "
+                       "ALTER TABLE jobs DROP COLUMN print_progress; PRAGMA user_version = 2;")
     conn.close()
     with JobStore(db) as store:
-        assert SCHEMA_VERSION == 4
-        assert store.frame()["state"] == "used"          # (schema 4: nothing confirmed yet)
+        assert SCHEMA_VERSION == 5
+        assert store.get(job.id).notes == []
+        assert store.frame()["state"] == "used"          # (schema 5: nothing confirmed yet)
         for part, event in ((0, "started"), (0, "done"), (1, "started"), (1, "reprint"), (1, "started"),
                             (2, "started"), (2, "skipped")):
             store.record_part(job.id, "front", part, event, line=part * 10, durable=part != 1)

@@ -236,7 +236,7 @@ def test_emergency_stop_shows_no_stale_temperatures_and_recover(shared_daemon: D
     printer = ctl(shared_daemon, "printer")
     assert printer.returncode == 0 and "halted" in printer.stdout and "°C" not in printer.stdout
     assert "ribbonctl recover" in printer.stdout
-    assert ctl(shared_daemon, "home").returncode == 1                      # 503: halted
+    assert ctl(shared_daemon, "home").returncode == 1                      # 409: halted
     recovered = ctl(shared_daemon, "recover")
     assert recovered.returncode == 0 and "ready" in recovered.stdout, recovered.stdout + recovered.stderr
     again = ctl(shared_daemon, "recover")

@@ -290,7 +290,7 @@ def test_an_upload_over_the_limit_is_413_through_ribbonctl(gated: Daemon, tmp_pa
         assert "exceeds the limit" in proc.stderr and "limits.max_upload_mb" in proc.stderr, proc.stderr
         # Without the token it is the token that is reported (before any of the body is read).
         proc = ctl(gated, *args)
-        assert proc.returncode == 3 and "missing or wrong API token" in proc.stderr, proc.stderr
+        assert proc.returncode == 2 and "the daemon needs a token" in proc.stderr, proc.stderr
     # Through a declared length too, and nothing is left of the refused uploads.
     assert gated.client is not None
     with big.open("rb") as handle:
@@ -335,3 +335,77 @@ def test_beyond_loopback_the_machine_name_passes_and_the_token_is_required(tmp_p
         assert r.status_code == 421
     finally:
         daemon.stop()
+
+
+def test_a_token_file_is_enforced_on_loopback_too(tmp_path: Path) -> None:
+    """Issue 22 item 5: ``host = "127.0.0.1"`` with ``token_file`` set: a wrong token or none is 401,
+    the file's token passes; the log says the API is protected and by which file; ribbonctl says the
+    daemon refused the token and exits 2 (bad input), not 3 (cannot reach)."""
+    token_file = tmp_path / "secret" / "token"
+    token_file.parent.mkdir(mode=0o700)
+    fd = os.open(token_file, os.O_CREAT | os.O_WRONLY, 0o600)
+    os.write(fd, b"loopback-token\n")
+    os.close(fd)
+    daemon = Daemon(tmp_path / "state", no_printer(tmp_path), api=f'token_file = "{token_file}"',
+                    token="loopback-token")
+    try:
+        daemon.start()
+        wrong = httpx.get(f"{daemon.url}/jobs", headers={"Authorization": "Bearer not-the-token"})
+        assert wrong.status_code == 401, wrong.text
+        assert httpx.get(f"{daemon.url}/jobs").status_code == 401
+        assert httpx.post(f"{daemon.url}/printer/emergency-stop").status_code == 401
+        assert daemon.client is not None and daemon.client.get("/jobs").status_code == 200
+        assert f"API on {daemon.url}: protected by the token in {token_file}" in daemon.log_tail()
+
+        def ctl(*args: str) -> subprocess.CompletedProcess[str]:
+            return subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url], cwd=ROOT,
+                                  text=True, capture_output=True, timeout=60)
+
+        refused = ctl("status", "--token", "not-the-token")
+        assert refused.returncode == 2, refused
+        assert "the daemon refused the token" in refused.stderr and "cannot reach" not in refused.stderr
+        assert len(refused.stderr.strip().splitlines()) == 1
+        missing = ctl("status")
+        assert missing.returncode == 2 and "the daemon needs a token" in missing.stderr, missing
+        watch = ctl("watch", "0123456789ab", "--token", "not-the-token")   # the event stream's 401 too
+        assert watch.returncode == 2 and "the daemon refused the token" in watch.stderr, watch
+        right = ctl("status", "--token-file", str(token_file))
+        assert right.returncode == 0 and "no jobs" in right.stdout, right
+    finally:
+        daemon.stop()
+
+
+def test_loopback_without_a_token_is_open_and_says_so(tmp_path: Path) -> None:
+    daemon = Daemon(tmp_path / "state", no_printer(tmp_path))
+    try:
+        daemon.start()
+        assert httpx.get(f"{daemon.url}/jobs").status_code == 200
+        assert (f"API on {daemon.url}: open: no token; anyone on this machine can drive the printer"
+                in daemon.log_tail())
+        assert not (daemon.state_dir / "api-token").exists()
+    finally:
+        daemon.stop()
+
+
+def test_messages_are_not_cut_between_two_quoted_values(gated: Daemon) -> None:
+    """Issue 22 item 10: the prose between a quoted value and an apostrophe ("daemon's") was taken
+    for a long quoted value and cut mid-word ("…(designs are made for the da…'s printer)")."""
+    c = gated.client
+    assert c is not None
+    r = c.post("/jobs", files={"mesh": ("m.obj", b"v 0 0 0\n")},
+               data={"parameters": json.dumps({**PARAMETERS, "printer_profile": "generic-marlin"})})
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert "…" not in detail, detail
+    assert "leave printer_profile out (designs are made for the daemon's printer)" in detail, detail
+
+
+def test_a_long_message_is_cut_after_a_whole_word() -> None:
+    from ribbond.apierrors import DETAIL_MAX, bounded
+
+    words = " ".join(["flattening"] * 1000)          # 10 999 characters; 2000 is not between two words
+    cut = bounded(words)
+    assert len(cut) <= DETAIL_MAX + 2 and cut.endswith(" …")
+    assert set(cut[:-2].split(" ")) == {"flattening"}         # no word cut in two
+    rest = ": unknown; the daemon's tables are listed by ribbonctl tables list"
+    assert bounded(f"table {'x' * 100!r}{rest}") == f"table {'x' * ECHO_MAX + '…'!r}{rest}"

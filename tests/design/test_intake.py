@@ -311,3 +311,28 @@ def test_check_disk_is_fast_on_a_big_grid() -> None:
     loop = check_disk(V, F)
     assert len(loop) == 600
     assert time.perf_counter() - start < 2.0  # vectorized: ≈ 0.1 s
+
+
+def test_one_triangle_is_too_small() -> None:
+    """Issue 22 item 10: a single triangle has no interior edge (the deployed shape's bending lives
+    there): refused at intake, not at the deploy stage. Two triangles sharing an edge pass."""
+    V = np.array([[0.0, 0.0, 0.0], [40.0, 0.0, 0.0], [0.0, 40.0, 5.0], [40.0, 40.0, 0.0]])
+    err = refusal(V[:3], np.array([[0, 1, 2]]))
+    assert err.problem == "too_small"
+    assert "1 face" in str(err) and "at least 2 faces" in str(err)
+    loop = check_disk(V, np.array([[0, 1, 2], [1, 3, 2]]))
+    assert sorted(loop.tolist()) == [0, 1, 2, 3]
+
+
+def test_ribbonctl_design_refuses_one_triangle_before_any_stage(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    mesh = tmp_path / "one.obj"
+    mesh.write_text("v 0 0 0\nv 40 0 0\nv 0 40 5\nf 1 2 3\n")
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", "design", str(mesh), "-o", str(tmp_path / "d"), "-q"],
+                          cwd=root, text=True, capture_output=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr                 # bad input, not "cannot make this design"
+    assert "at least 2 faces" in proc.stderr and "F must have shape" not in proc.stderr, proc.stderr
+    assert not (tmp_path / "d").exists()

@@ -63,6 +63,16 @@ class Move:
     def length(self) -> float:
         return math.dist(self.start, self.end)
 
+    def axis_speeds(self) -> dict[str, float]:
+        """Each axis' speed along this move, mm/s, as Marlin plans it: the feed is the speed along
+        the XYZ path (along E for a move of E alone), each axis moving its share of it."""
+        deltas = dict(zip("XYZ", (b - a for a, b in zip(self.start, self.end))), E=self.e)
+        xyz = math.sqrt(sum(d * d for a, d in deltas.items() if a != "E"))
+        length = xyz if xyz > 0 else abs(self.e)
+        if not length:
+            return {a: 0.0 for a in deltas}
+        return {a: self.feed / 60.0 * abs(d) / length for a, d in deltas.items()}
+
     @property
     def moves_xy(self) -> bool:
         return _moved(self.start[0], self.end[0]) or _moved(self.start[1], self.end[1])

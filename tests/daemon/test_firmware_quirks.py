@@ -1,0 +1,167 @@
+"""Printers that are not our simulator's stock Marlin (issue 22, items 9 and 10), end to end: a real
+simulator process answering as another firmware does, or failing as a buggy one does, on its pty; a
+real ribbond process; ribbonctl and HTTP.
+
+Expectations come from the protocol and the simulator's own records (the commands it executed,
+the line it swallowed), never from an earlier run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import re
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from ribbond.printer.link import prepare_program
+from sim.process import SimProcess
+
+from .conftest import BAUD, CENTER, ROOT, TIME_SCALE, Daemon, Sim, running, submit, wait_for
+
+pytestmark = pytest.mark.timeout(240)
+
+
+class QuirkySim(Sim):
+    """A simulator started with more options (another firmware's answers, an injected fault)."""
+
+    def __init__(self, *options: str) -> None:  # noqa: D107 - Sim's attributes, other options
+        self.process = SimProcess(["--time-scale", str(TIME_SCALE), "--baud", str(BAUD), *options],
+                                  cwd=ROOT).start()
+        self.port = self.process.port
+        self.side = "front"
+
+
+@contextlib.contextmanager
+def quirky_printer(state_dir: Path, *options: str) -> Iterator[tuple[QuirkySim, Daemon]]:
+    sim = QuirkySim(*options)
+    try:
+        with running(state_dir, sim.port) as daemon:
+            yield sim, daemon
+    finally:
+        sim.stop()
+
+
+def ribbonctl(daemon: Daemon, *args: str) -> dict[str, Any]:
+    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url, "--json"],
+                          cwd=ROOT, text=True, capture_output=True, timeout=120)
+    assert proc.returncode == 0, f"ribbonctl {' '.join(args)} exited {proc.returncode}: {proc.stderr}"
+    return dict(json.loads(proc.stdout))
+
+
+def true_mark(x: float, y: float, dx: float, dy: float, rotation_deg: float) -> tuple[float, float]:
+    """A front-side mark (x, y) after the flip about x = 110, the frame put back off by (dx, dy) and
+    rotation_deg about the frame's centre (sim/frame.py's model)."""
+    a = math.radians(rotation_deg)
+    cx, cy = CENTER
+    px, py = 2 * cx - x, y
+    return (cx + math.cos(a) * (px - cx) - math.sin(a) * (py - cy) + dx,
+            cy + math.sin(a) * (px - cx) + math.cos(a) * (py - cy) + dy)
+
+
+# ---------------------------------------------------------------------------------- item 9a
+
+
+def test_a_firmware_answering_m114_on_the_ok_line_homes_jogs_and_aligns(tmp_path: Path,
+                                                                      meshes: dict[str, Path]) -> None:
+    """Smoothieware answers M114 with ``ok C: X:… Y:… Z:…`` and has no ADVANCED_OK: ribbonctl
+    home, goto and jog work and report the printer's position, and the back side is aligned by
+    jogging onto each mark and ``align --here``; the fit recovers the frame's misalignment."""
+    with quirky_printer(tmp_path / "state", "--m114-on-ok", "--no-advanced-ok") as (sim, daemon):
+        homed = ribbonctl(daemon, "home")
+        assert homed["position"][:3] == [0.0, 0.0, 0.0], homed
+        went = ribbonctl(daemon, "goto", "60", "70")
+        assert went["position"][:2] == [60.0, 70.0], went
+        jogged = ribbonctl(daemon, "jog", "1.5", "-2")
+        assert jogged["position"][:2] == [61.5, 68.0], jogged
+        assert daemon.client is not None
+        # the printer's own report (asked again: M114, answered on the ok line) agrees
+        status = daemon.client.get("/printer", params={"refresh": "true"}).json()
+        assert status["position"][:2] == [61.5, 68.0], status
+        answers = [c for c in sim.commands() if c["command"] == "M114"]
+        assert answers, "the positions came from M114"
+
+        api = daemon.client
+        job = submit(api, meshes["two_sided"], start=True)
+        wait_for(api, job, "awaiting_flip", timeout=90)
+        dx, dy, rot = (0.5, -0.3, 0.7)
+        sim.flip(dx, dy, rot)
+        assert api.post(f"/jobs/{job}/flip-done").status_code == 200
+        marks = api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"]
+        for k, (x, y) in enumerate(marks, start=1):
+            wait_for(api, job, "aligning", timeout=60, until=lambda j: j["waits_for_operator"])
+            head = api.get("/printer").json()["head"]
+            tx, ty = true_mark(x, y, dx, dy, rot)
+            ribbonctl(daemon, "jog", f"{tx - head[0]:.4f}", f"{ty - head[1]:.4f}")
+            status = ribbonctl(daemon, "align", job, "--here")
+            assert status["mark"] == k
+        assert status["accepted"], status
+        assert status["fit"]["rotation_deg"] == pytest.approx(rot, abs=2e-3)
+        done = wait_for(api, job, "done", timeout=120)
+        assert done["correction"]["rotation_deg"] == pytest.approx(rot, abs=2e-3)
+
+
+# ---------------------------------------------------------------------------------- item 9b
+
+
+def test_a_swallowed_resent_line_interrupts_the_job_naming_it_and_resume_prints_it(
+        tmp_path: Path, meshes: dict[str, Path]) -> None:
+    """The printer asks for line N again, takes the re-sent N without running or answering it and
+    later asks for N + 1: the job does not end done; it is interrupted with the line named, N never
+    ran (the simulator's record), and a resume prints from before it, so N runs."""
+    with quirky_printer(tmp_path / "state", "--swallow-resent-after-lines", "600") as (sim, daemon):
+        api = daemon.client
+        assert api is not None
+        job = submit(api, meshes["one_sided"], start=True)
+        stopped = wait_for(api, job, "interrupted", timeout=120)
+        swallowed = sim.request({"cmd": "stats"})["stats"]["swallowed_line"]
+        assert swallowed > 0, "the fault must have fired"
+        match = re.search(r"never line (\d+) \(program line (\d+): ([^)]*)\)", stopped["error"] or "")
+        assert match, stopped["error"]
+        assert int(match.group(1)) == swallowed
+        index = int(match.group(2)) - 1
+        front = prepare_program(Path(stopped["design_dir"], "front.gcode").read_text(encoding="utf-8").splitlines())
+        assert front[index] == match.group(3)
+        assert swallowed not in [c["line"] for c in sim.commands()], "line N never ran"
+        before = len(sim.commands())
+        assert stopped["last_acked_line"] < index + 1, "nothing from the line named on counts as done"
+
+        r = api.post(f"/jobs/{job}/resume", json={"partial": "reprint"})
+        assert r.status_code == 200, r.text
+        wait_for(api, job, "awaiting_check", timeout=60, until=lambda j: j["waits_for_operator"])
+        assert api.post(f"/jobs/{job}/frame-ok", json={"keep_alignment": False}).status_code == 200
+        wait_for(api, job, "done", timeout=120)
+        rerun = [c["command"] for c in sim.commands()[before:]]
+        assert front[index] in rerun, "the resumed run printed the line that never ran"
+
+
+# ---------------------------------------------------------------------------------- item 10
+
+
+def test_an_unplugged_printer_is_one_error_line_and_the_job_interrupted(tmp_path: Path,
+                                                                       meshes: dict[str, Path]) -> None:
+    """The pty closed mid-stream (a USB cable pulled): the log says so in one ERROR line naming the
+    port, with no traceback; the job is interrupted as before."""
+    with quirky_printer(tmp_path / "state") as (sim, daemon):
+        api = daemon.client
+        assert api is not None
+        job = submit(api, meshes["one_sided"], start=True)
+        wait_for(api, job, "printing_front", timeout=90, until=lambda j: j["last_acked_line"] > 50)
+        port = sim.port
+        sim.request({"cmd": "disconnect"})
+        stopped = wait_for(api, job, "interrupted", timeout=60)
+        assert "disconnected" in (stopped["error"] or ""), stopped["error"]
+        time.sleep(0.5)                               # the print task's own lines after the stop
+        log = daemon.log_path.read_text(encoding="utf-8", errors="replace")
+        errors = [line for line in log.splitlines() if " ERROR " in line]
+        unplugged = [line for line in errors if "printer disconnected:" in line]
+        assert len(unplugged) == 1, errors
+        assert f"printer disconnected: {port}:" in unplugged[0] and "reconnect" in unplugged[0], unplugged
+        assert "Traceback" not in log, log[-3000:]
