@@ -105,7 +105,8 @@ class _Acknowledgements:
             self.switched = True
             job = records.get(job_id)
             if job.state is JobState.HEATING and self.after_heating is not None:   # (not switched: it is set)
-                records.transition(job_id, self.after_heating, stage=f"printing {side}")
+                what = "the program" if stream.program == "program" else side   # a plain program has no sides
+                records.transition(job_id, self.after_heating, stage=f"printing {what}")
         if now - self._last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
             self._last_write = now
             # the progress of the line stored with it: what a restart finds is never less than shown
@@ -350,7 +351,7 @@ class PrintTask:
                 state.rate = rate                             # what this printer does with an estimate
             run.stream = None
         if not acks.switched and after_heating is not None:
-            records.transition(job_id, after_heating, stage=f"printing {side}")
+            records.transition(job_id, after_heating, stage="printing the program" if plain else f"printing {side}")
             self.frame.used(job_id)
 
     # ------------------------------------------------------------------ stops
