@@ -417,7 +417,7 @@ function renderActions(j) {
   if (box.dataset.key === key) return;
   box.dataset.key = key;
   box.innerHTML = cmds.map((c) => `<button data-action="${c}" ${busy || (parking && c === "resume") ? "disabled" : ""}
-    class="${c === "cancel" || c === "delete" ? "warn" : c === "start" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("")
+    class="${c === "cancel" || c === "delete" ? "warn" : c === "start" || c === "frame-ready" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("")
     + optionButtons(j, cmds, busy);
 }
 $("j-actions").addEventListener("click", async (e) => {
