@@ -4,6 +4,8 @@ Starts the simulator (`python -m sim`, its own process on a pty, as firmware run
 and the daemon (`ribbond`, its own process, in a temporary state directory), then as an operator
 would:
 
+0. `ribbonctl frame-ready`: a fresh pre-stretched frame is on the printer (ribbond heats for no job
+   until the operator says so: a frame printed on before must not be printed on again);
 1. `ribbonctl submit examples/meshes/saddle.obj --start`: upload, compile, heat, print the front;
 2. `ribbonctl watch`: the progress bar of the front, until the job waits for the flip (it prints the
    instruction and the command to run); turns the simulated frame over with a small known
@@ -85,6 +87,9 @@ def main() -> int:
             time.sleep(0.1)
         url = (state / "api.url").read_text().strip()
         print(f"simulator on {sim.port}, ribbond on {url} (state in {state})")
+        print("a fresh stretched frame is loaded, front side up")
+        print("$ ribbonctl frame-ready")
+        print("  " + ribbonctl(url, "frame-ready").stdout.strip())
         print(f"$ ribbonctl submit {MESH.relative_to(ROOT)} --size {SIZE_MM:g} --start")
         submit = ribbonctl(url, "submit", str(MESH), "--size", str(SIZE_MM), "--start")
         print(submit.stdout.rstrip())

@@ -2,8 +2,11 @@
 for the operator to turn the frame over (``flip_done``); the head is homed and sent above each
 registration mark in turn, the operator jogs the nozzle onto it (``align_mark``: ``here``, or the
 jog made another way); the last mark fits a rigid correction (``ribbond.alignment``) within the
-profile's tolerances. With ``review`` the fit waits in ``fitted`` for ``accept_fit`` or ``re_seat``
-(back to the flip). The print task waits in ``align`` for the accepted correction."""
+profile's tolerances. With ``review`` the fit waits in ``fitted`` for ``accept_fit`` or ``re_seat``.
+A refused fit, or a re-seat, stays in ``aligning`` (issue 22): the frame is back side up already, so
+it is never turned over again; the marks that fitted are kept and the bad one is measured again
+(every mark when the frame itself sits wrong). The print task waits in ``align`` for the accepted
+correction."""
 
 from __future__ import annotations
 
@@ -23,6 +26,34 @@ from .run import MarkCheck, PrintState, Run
 from .store import JobRecord
 
 
+def _marks(marks: list[int] | tuple[int, ...]) -> str:
+    """``1``, ``1 and 3``, ``1, 2 and 4``."""
+    names = [str(m) for m in marks]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
+def aligning_guidance(j: str, al: MarkCheck | None, error: str | None) -> str:
+    """What the operator does while aligning: wait for the head, or measure the mark it is above;
+    after a refused fit or a re-seat, first what that means for the frame and the marks."""
+    before = ""
+    if al is not None and al.remeasure:
+        every = len(al.remeasure) == len(al.expected)
+        why = f"{error[0].upper()}{error[1:]}. " if error else ""
+        before = (f"{why}Re-seat the frame, back side up (do not turn it over again); every mark is "
+                  "measured again. ") if every else (
+            f"{why}The frame stays back side up (do not turn it over again); "
+            f"mark{'s' if len(al.kept) > 1 else ''} {_marks(al.kept)} fitted and "
+            f"{'are' if len(al.kept) > 1 else 'is'} kept: measure mark{'s' if len(al.remeasure) > 1 else ''} "
+            f"{_marks(al.remeasure)} again. ")
+    if al is None or al.current == 0:
+        nxt = al.next_mark if al is not None else 1
+        return f"{before}aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
+    k, n = al.current, len(al.expected)
+    return (f"{before}mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
+            f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
+            f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
+
+
 class Aligner:
     """The flip and the marks of the job on the printer. ``instruction`` is what the operator is told
     to do next (the service's guidance), sent with each mark's event."""
@@ -36,33 +67,49 @@ class Aligner:
 
     async def align(self, job_id: str, expected: np.ndarray, *, flipped: bool) -> Correction:
         """The flip (unless ``flipped``: the frame is turned already) and the alignment check over the
-        registration marks, again after a refused fit; the accepted correction."""
+        registration marks; after a refused fit or a re-seat, the marks to measure again (the frame
+        stays back side up); the accepted correction."""
         link = self.head.require_link()
         run = self.state.run
         assert run is not None
+        if not flipped:
+            await self.await_flip(job_id)
+        run.alignment = al = MarkCheck(expected=expected)
+        self.records.transition(job_id, JobState.ALIGNING, stage="aligning")
+        # the front program ended with the motors off (M84) and the frame was handled: home again
+        async with self.head.lock:
+            await link.send("G28", timeout=300)
+            self.head.forget()
+        run.check()
+        await self._go_to_mark(1)
         while True:
-            if not flipped:
-                await self.await_flip(job_id)
-            flipped = False
-            run.alignment = MarkCheck(expected=expected)
-            self.records.transition(job_id, JobState.ALIGNING, stage="aligning")
-            # the front program ended with the motors off (M84) and the frame was handled: home again
-            async with self.head.lock:
-                await link.send("G28", timeout=300)
-                self.head.forget()
-            run.check()
-            await self._go_to_mark(1)
             await run.aligned.wait()
             run.check()
-            correction, refused = run.alignment.correction, run.alignment.refused
-            if refused is None and correction is not None:
-                return correction
-            run.flip.clear()
+            if al.correction is not None:
+                return al.correction
+            # refused or re-seated (``_reopen``, done by the operator's request): the head to the
+            # first mark to measure again
             run.aligned.clear()
-            reseat = run.alignment.reseat
-            self.records.transition(job_id, JobState.AWAITING_FLIP, error=None if reseat else str(refused),
-                                    reason="the operator chose to re-seat the frame" if reseat
-                                    else f"alignment refused: {refused}")
+            await self._go_to_mark(al.next_mark or 1)
+
+    def _reopen(self, job_id: str, al: MarkCheck) -> None:
+        """After a refused fit: the bad mark measured again, the others kept (a refusal naming no
+        single mark, or the frame turned or shifted: every mark, once it is re-seated). After a
+        re-seat of the fit under review: every mark. The refusal is the job's ``error`` until the
+        operator measures again. Done in the operator's request, so its answer finds the job so."""
+        refused, every = al.refused, list(range(1, len(al.expected) + 1))
+        if al.reseat:
+            al.reopen(every)
+            self.records.transition(job_id, JobState.ALIGNING, error=None, stage="re-seat: every mark again",
+                                    reason="the operator chose to re-seat the frame")
+            return
+        # a residual naming a mark: that mark was misread (the others agree on a rigid motion)
+        bad = refused.mark if refused is not None and refused.which == "residual" else None
+        al.reopen([bad] if bad is not None else every)
+        marks = ", ".join(str(m) for m in al.remeasure)
+        why = str(refused) if refused is not None else "the fit could not be made"
+        self.records.publish(self.records.store.update(job_id, error=f"alignment refused: {why}",
+                                                       stage=f"alignment refused: mark(s) {marks} again"))
 
     async def await_flip(self, job_id: str) -> None:
         """Wait in ``awaiting_flip`` (the heaters by the idle policy) until ``flip_done``."""
@@ -130,6 +177,9 @@ class Aligner:
         expected = (float(al.expected[mark - 1][0]), float(al.expected[mark - 1][1]))
         measured = await self._measured(expected, jog, here)
         al.measured[mark] = measured
+        if job.error or al.remeasure:                  # they acted on the refusal: it is no longer news
+            al.remeasure = ()
+            self.records.publish(self.records.store.update(job_id, error=None, stage="aligning"))
         nxt = al.next_mark
         status: dict[str, Any] = {"mark": mark, "marks": k, "next_mark": nxt,
                                   "offset": [measured[0] - expected[0], measured[1] - expected[1]],
@@ -166,9 +216,10 @@ class Aligner:
         try:
             check_fit(fit, max_residual=tol.max_residual, max_rotation_deg=tol.max_rotation_deg,
                       max_offset=tol.max_offset)
-        except BaseException as exc:  # refused, or the check itself failed: the printer task decides
+        except BaseException as exc:  # refused, or the check itself failed: these marks again
             if isinstance(exc, AlignmentRefused):
                 al.refused = exc
+            self._reopen(job_id, al)
             run.aligned.set()
             raise
         al.correction = fit.correction()
@@ -195,11 +246,13 @@ class Aligner:
         return await self.records.wait_state(job_id, lambda s: s is not JobState.FITTED, 30)
 
     async def re_seat(self, job_id: str) -> JobRecord:
-        """The operator refuses the fit under review: back to the flip step, to seat the frame again."""
+        """The operator refuses the fit under review: the frame is seated again (back side up, not
+        turned over) and every mark measured again (returns once aligning)."""
         run = self._fitted_run(job_id, "re-seat")
         al = run.alignment
         assert al is not None
         al.correction = None
         al.reseat = True
+        self._reopen(job_id, al)
         run.aligned.set()
         return await self.records.wait_state(job_id, lambda s: s is not JobState.FITTED, 30)

@@ -81,6 +81,9 @@ class JobStatus(JobRecord):
     waits_for_operator: bool = Field(False, description="nothing happens until the operator acts")
     fit: dict[str, Any] | None = Field(None, description="in state fitted: the alignment's fit under review "
                                                          "(rotation_deg, offset, rms_mm, max_residual_mm)")
+    alignment: dict[str, Any] | None = Field(None, description="in state aligning: the registration marks "
+                                               "(marks), those measured and kept (kept) and those to measure "
+                                               "again after a refused fit or a re-seat (remeasure), from 1")
     verdict: list[str] | None = Field(None, description="a design's verdict, one sentence per line: the "
                                                         "stretch bounds, clamped thicknesses, ribbons dropped "
                                                         "or trimmed, the prediction (ribbond.design.verdict)")
@@ -219,7 +222,10 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
     async def submit(mesh: Annotated[UploadFile | None, File(description="OBJ, PLY, STL or OFF: a design")] = None,
                      gcode: Annotated[UploadFile | None, File(description="a plain G-code program")] = None,
                      parameters: Annotated[str, Form(description="design parameters, JSON")] = "{}",
-                     start: Annotated[bool, Form(description="print as soon as it is ready")] = False) -> JobStatus:
+                     start: Annotated[bool, Form(description="print as soon as it is ready")] = False,
+                     same_frame: Annotated[bool, Form(description="a G-code program that prints on the frame as it "
+                                                      "is: no fresh frame is asked for before it")] = False,
+                     ) -> JobStatus:
         """Upload a mesh (a design is compiled from it) or a G-code program (checked against the profile)."""
         if (mesh is None) == (gcode is None):
             raise ValueError("upload either a mesh (field 'mesh') or a G-code program (field 'gcode')")
@@ -233,6 +239,9 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
             raise ValueError("parameters: expected a JSON object")
         if gcode is not None and params:           # said, not silently dropped
             raise ValueError("parameters: a G-code program takes no design parameters (they are a mesh's)")
+        if mesh is not None and same_frame:
+            raise ValueError("same_frame: only a plain G-code program may print on the frame as it is; "
+                             "a design always needs a fresh stretched frame")
         uploads = Path(service.config.state_dir) / "uploads"
         uploads.mkdir(parents=True, exist_ok=True)
         fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
@@ -247,7 +256,7 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
                     out.write(chunk)
             if mesh is not None:
                 return status(service.submit(tmp, mesh.filename or "mesh.obj", params, start))
-            return status(await service.submit_gcode(tmp, upload.filename or "program.gcode", start))
+            return status(await service.submit_gcode(tmp, upload.filename or "program.gcode", start, same_frame))
         finally:
             tmp.unlink(missing_ok=True)
 
@@ -398,8 +407,15 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
 
     @app.get("/printer", responses=responses(422, 503))
     async def printer(refresh: bool = False) -> dict[str, Any]:
-        """Connection, firmware, temperatures, position; ``refresh=true`` asks the printer first."""
-        return await service.manual.printer_status(refresh)
+        """Connection, firmware, temperatures, position, the frame (fresh or used); ``refresh=true``
+        asks the printer first."""
+        return {**await service.manual.printer_status(refresh), "frame": service.frame.status()}
+
+    @app.post("/printer/frame-ready", responses=responses(409, mutating=True))
+    async def frame_ready() -> dict[str, Any]:
+        """A fresh stretched frame is loaded: the job waiting for one goes on (409 while a job holds
+        the printer)."""
+        return service.frame.ready()
 
     @app.get("/printer/temperatures", responses=responses())
     async def temperatures() -> dict[str, Any]:

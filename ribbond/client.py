@@ -3,7 +3,8 @@ default, ``--json`` for scripts. Nothing here imports the design engine (a comma
 fraction of a second, also on a Raspberry Pi).
 
 Jobs: submit, print (a plain G-code program), status, watch, start, pause, resume, cancel,
-flip-done, frame-ok, align, accept, re-seat, delete. The printer: printer, home, jog, goto, gcode, heat, cool, stop, recover.
+flip-done, frame-ok, align, accept, re-seat, delete. The printer: printer, frame-ready, home, jog, goto, gcode, heat,
+cool, stop, recover.
 
 Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
 is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
@@ -294,11 +295,15 @@ def _detail(job: dict[str, Any], printer: dict[str, Any] | None = None, verdict:
     lines = [_line(job)]
     more = progress_text(job, job.get("kind"))
     if job.get("lines_total") and job["state"] in ("heating", "printing_front", "printing_back", "paused"):
-        # last_acked_line counts the lines the printer acknowledged
-        more = f"line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}" + (
+        # last_acked_line counts the lines of ``program`` the printer acknowledged (a resumed side's
+        # program is not the whole side: its name says so)
+        program = job.get("program") or job.get("side") or "front"
+        more = f"{program}: line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}" + (
             f"  {more}" if more else "")
     if more:
         lines.append(f"  {bar_text(job.get('progress') or 0)}  {more}")
+    if job.get("same_frame"):
+        lines.append("  prints on the frame as it is (--same-frame: no fresh frame asked for)")
     temps = temperatures_text(printer) if job["state"] in HOT else ""
     if temps:
         lines.append(f"  temperatures  {temps}  (actual/target)")
@@ -420,7 +425,8 @@ def _deployed_lines(report: dict[str, Any], url: str, job: dict[str, Any]) -> li
 
 def cmd_print(args: argparse.Namespace) -> int:
     c = _client(args)
-    job = c.upload("gcode", args.program, {"start": str(not args.no_start).lower()}, show=not args.json)
+    job = c.upload("gcode", args.program, {"start": str(not args.no_start).lower(),
+                                           "same_frame": str(bool(args.same_frame)).lower()}, show=not args.json)
     if args.no_wait or args.no_start:
         _out(args, job, _detail(job, notes=True) if not args.json else "")
         return 0
@@ -643,7 +649,25 @@ def _printer_text(status: dict[str, Any]) -> str:
     pos = status.get("head") or status.get("position")
     where = f"head at x {pos[0]:.2f} y {pos[1]:.2f} z {pos[2]:.2f}" if pos else ""
     note = status.get("note") or ""
-    return "  ".join(p for p in (status.get("state"), status.get("firmware") or "", heaters, where, note) if p)
+    return "  ".join(p for p in (status.get("state"), status.get("firmware") or "", heaters, where, note,
+                                 _frame_text(status.get("frame"))) if p)
+
+
+def _frame_text(frame: dict[str, Any] | None) -> str:
+    """``frame fresh`` / ``frame used (job J)``, and the job waiting for a fresh one."""
+    if not frame:
+        return ""
+    text = f"frame {frame['state']}" + (f" (job {frame['job_id']})" if frame.get("job_id") else "")
+    if frame.get("waiting_job"):
+        text += f"; job {frame['waiting_job']} waits for a fresh frame: ribbonctl frame-ready"
+    return text
+
+
+def cmd_frame_ready(args: argparse.Namespace) -> int:
+    """A fresh stretched frame is loaded: the job waiting for it goes on."""
+    frame = _client(args).request("POST", "/printer/frame-ready")
+    _out(args, frame, _frame_text(frame))
+    return 0
 
 
 def cmd_printer(args: argparse.Namespace) -> int:
@@ -813,6 +837,8 @@ def add_commands(sub: Any) -> None:
     p.add_argument("program", type=Path, help="a .gcode file")
     p.add_argument("--no-start", action="store_true", help="upload and check only (start it later)")
     p.add_argument("--no-wait", action="store_true", help="return once it is queued")
+    p.add_argument("--same-frame", action="store_true", help="it prints on the frame as it is: no fresh frame "
+                   "is asked for before it (every design needs one)")
     st = cmd("status", "list the jobs, or show one with its progress and what to do next", cmd_status)
     st.add_argument("job", nargs="?")
     st.add_argument("--state", action="append", metavar="STATE", help="only jobs in this state (repeatable)")
@@ -823,7 +849,7 @@ def add_commands(sub: Any) -> None:
                        ("cancel", "cancel a job"),
                        ("flip-done", "the frame is turned over: go on to the alignment"),
                        ("accept", "print the back with the alignment's fit (after align --review)"),
-                       ("re-seat", "refuse the alignment's fit: seat the frame again, then flip-done")):
+                       ("re-seat", "refuse the alignment's fit: seat the frame again (back side up), measure every mark again")):
         a = cmd(name, text, _action(name))
         a.add_argument("job")
     r = cmd("resume", "resume a paused print, or an interrupted one where it was proven to stand", cmd_resume,
@@ -850,7 +876,8 @@ def add_commands(sub: Any) -> None:
                    "head was sent, mm")
     a.add_argument("--review", action="store_true", help="after the last mark, show the fit and wait for "
                    "ribbonctl accept or re-seat (default: an accepted fit prints the back at once)")
-    cmd("printer", "the printer's state, temperatures and head position", cmd_printer)
+    cmd("printer", "the printer's state, temperatures, head position and frame (fresh or used)", cmd_printer)
+    cmd("frame-ready", "a fresh stretched frame is loaded: the job waiting for it goes on", cmd_frame_ready)
     cmd("home", "home the axes (G28)", cmd_home)
     j = cmd("jog", "move the head by DX DY [DZ] mm (within the frame)", cmd_jog)
     j.add_argument("dx", type=float)

@@ -5,8 +5,11 @@
 
 ``fitted`` (issue 14) is the review of the alignment's fit, when the last mark was measured with
 ``review``: the operator sees rotation, offset and residual, then ``accept`` (the back prints with
-that correction) or ``re-seat`` (back to ``awaiting_flip``: put the frame back in its seat, then
-flip-done and the check again). Without ``review`` an accepted fit prints the back at once.
+that correction) or ``re-seat`` (back to ``aligning``: the frame stays back side up, it is seated
+again and every mark is measured again). Without ``review`` an accepted fit prints the back at once.
+A fit the profile's tolerances refuse stays in ``aligning`` (issue 22): the marks that fitted are
+kept, the bad one(s) are measured again (every one when the frame itself sits wrong); the frame is
+never turned over a second time.
 
 Plus ``paused`` (from either printing state, resumable to it), ``cancelled``, ``failed`` (with a
 reason) and ``interrupted`` (the daemon stopped, or the print task failed, while the job held the
@@ -94,9 +97,10 @@ TRANSITIONS: dict[JobState, frozenset[JobState]] = {
     _J.HEATING: frozenset({_J.PRINTING_FRONT, _J.PRINTING_BACK}) | _ENDS | {_J.INTERRUPTED},
     _J.PRINTING_FRONT: frozenset({_J.AWAITING_FLIP, _J.DONE, _J.PAUSED}) | _ENDS | {_J.INTERRUPTED},
     _J.AWAITING_FLIP: frozenset({_J.ALIGNING}) | _ENDS | {_J.INTERRUPTED},
-    _J.ALIGNING: frozenset({_J.PRINTING_BACK, _J.AWAITING_FLIP, _J.FITTED}) | _ENDS | {_J.INTERRUPTED},
-    # accept, or re-seat the frame and align again
-    _J.FITTED: frozenset({_J.PRINTING_BACK, _J.AWAITING_FLIP}) | _ENDS | {_J.INTERRUPTED},
+    # (a refused fit stays aligning: the bad marks are measured again, the frame is not flipped again)
+    _J.ALIGNING: frozenset({_J.PRINTING_BACK, _J.FITTED}) | _ENDS | {_J.INTERRUPTED},
+    # accept, or re-seat the frame (back side up) and measure the marks again
+    _J.FITTED: frozenset({_J.PRINTING_BACK, _J.ALIGNING}) | _ENDS | {_J.INTERRUPTED},
     _J.PRINTING_BACK: frozenset({_J.DONE, _J.PAUSED}) | _ENDS | {_J.INTERRUPTED},
     _J.PAUSED: frozenset({_J.PRINTING_FRONT, _J.PRINTING_BACK}) | _ENDS | {_J.INTERRUPTED},
     # a new print run of the same design

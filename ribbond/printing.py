@@ -25,6 +25,7 @@ from .aligner import Aligner
 from .alignment import expected_marks
 from .design.folder import read_design_folder
 from .design.format import Design
+from .frame import FrameGate, needs_fresh_frame
 from .gcode.profiles import PrinterProfile
 from .gcode.program import Correction, Program, SidePlan, render_side
 from .head import Head
@@ -37,7 +38,7 @@ from .programs import Part, program_parts, program_timeline
 from .records import JobRecords, NotFound
 from .resume import Resumer, resumed_text
 from .run import PrintState, Run, Stream, stream_rate
-from .store import JobRecord, JobStore
+from .store import FRAME_FRESH, JobRecord, JobStore
 
 log = logging.getLogger(__name__)
 
@@ -79,9 +80,11 @@ class _Acknowledgements:
     printing, ``last_acked_line`` stored and a progress event sent at most every ACK_INTERVAL_S."""
 
     def __init__(self, records: JobRecords, state: PrintState, progress: Callable[[JobRecord], dict[str, Any]],
-                 job_id: str, stream: Stream, track: _PartTracker, after_heating: JobState | None) -> None:
+                 job_id: str, stream: Stream, track: _PartTracker, after_heating: JobState | None,
+                 frame_used: Callable[[str], None]) -> None:
         self.records, self.state, self.progress, self.job_id = records, state, progress, job_id
         self.stream, self.track, self.after_heating = stream, track, after_heating
+        self.frame_used, self._printed = frame_used, False
         self.switched = after_heating is None
         self._last_write = 0.0
         if self.switched:
@@ -95,17 +98,23 @@ class _Acknowledgements:
         self.track.acknowledged(p.acknowledged)
         if stream.printing_since is None and p.acknowledged >= first_part:
             stream.printing_since = now
+        if not self._printed and p.acknowledged >= first_part:
+            self._printed = True
+            self.frame_used(job_id)                   # the program prints on the frame: it is no longer fresh
         if not self.switched and p.acknowledged >= first_part:
             self.switched = True
             job = records.get(job_id)
             if job.state is JobState.HEATING and self.after_heating is not None:   # (not switched: it is set)
-                records.transition(job_id, self.after_heating, stage=f"printing {side}")
+                what = "the program" if stream.program == "program" else side   # a plain program has no sides
+                records.transition(job_id, self.after_heating, stage=f"printing {what}")
         if now - self._last_write >= ACK_INTERVAL_S or p.acknowledged == p.total:
             self._last_write = now
-            records.store.record_ack(job_id, p.acknowledged)
-            info = self.progress(records.get(job_id))
-            records.bus.publish({"type": "progress", "job_id": job_id, "side": side, "line": p.acknowledged,
-                                 "lines": p.total, **info})
+            # the progress of the line stored with it: what a restart finds is never less than shown
+            job = records.get(job_id)
+            info = self.progress(job.model_copy(update={"last_acked_line": max(p.acknowledged, job.last_acked_line)}))
+            records.store.record_ack(job_id, p.acknowledged, info["progress"])
+            records.bus.publish({"type": "progress", "job_id": job_id, "side": side, "program": stream.program,
+                                 "line": p.acknowledged, "lines": p.total, **info})
 
 
 class PrintTask:
@@ -114,9 +123,10 @@ class PrintTask:
 
     def __init__(self, head: Head, profile: PrinterProfile, records: JobRecords, state: PrintState,
                  heaters: Heaters, aligner: Aligner, resumer: Resumer,
-                 progress: Callable[[JobRecord], dict[str, Any]]) -> None:
+                 progress: Callable[[JobRecord], dict[str, Any]], frame: FrameGate) -> None:
         self.head, self.profile, self.records, self.state = head, profile, records, state
         self.heaters, self.aligner, self.resumer, self.progress = heaters, aligner, resumer, progress
+        self.frame = frame
         self._background_tasks: set[asyncio.Future[Any]] = set()
 
     # ------------------------------------------------------------------ the queue
@@ -144,6 +154,11 @@ class PrintTask:
                 if waited is None:
                     continue
                 job = waited
+            if needs_fresh_frame(job) and self.records.store.frame()["state"] != FRAME_FRESH:
+                gated = await self.frame.wait_fresh(job_id)   # not over the fabric the last job left
+                if gated is None:
+                    continue
+                job = gated
             state.run = run = Run(job_id)
             await self._run_print(run, job)
 
@@ -234,10 +249,11 @@ class PrintTask:
         resume = run.resume
         front = (Path(job.design_dir or "") / "front.gcode").read_text(encoding="utf-8")
         start = resume.start if resume is not None else 0
+        whole = await self._resumed_side(front, start)
         if start:
             front = resumed_text(front, "front", start, resume, self.profile)
         self.records.transition(job.id, JobState.HEATING, side="front", stage="heating")
-        await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start)
+        await self._stream(job.id, front, "front", JobState.PRINTING_FRONT, part_base=start, whole=whole)
         await self._side_done(job.id, run, link, "front_done")
 
     async def _print_back(self, job: JobRecord, run: Run, link: PrinterLink, design: Design) -> None:
@@ -256,17 +272,29 @@ class PrintTask:
             correction = await self.aligner.align(job.id, expected, flipped=resume is not None and resume.side == "back")
         program = self._corrected_back(job.id, correction)
         start = resume.start if resume is not None and resume.side == "back" else 0
+        whole = await self._resumed_side(program.text, start)
         text = resumed_text(program.text, "back", start, resume, self.profile) if start else program.text
         fields: dict[str, Any] = dict(side="back", correction=correction.model_dump(mode="json"), error=None,
                                       estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
         if kept:
             self.records.transition(job.id, JobState.HEATING, stage="heating", **fields)
-            await self._stream(job.id, text, "back", JobState.PRINTING_BACK, part_base=start)
+            await self._stream(job.id, text, "back", JobState.PRINTING_BACK, part_base=start, whole=whole)
         else:
             self.records.transition(job.id, JobState.PRINTING_BACK, stage="printing back", **fields)
-            await self._stream(job.id, text, "back", None, part_base=start)
+            await self._stream(job.id, text, "back", None, part_base=start, whole=whole)
         await self._side_done(job.id, run, link, "back_done")
         self._done(job.id)
+
+    async def _resumed_side(self, text: str, start: int) -> tuple[float, float] | None:
+        """For a side resumed at part ``start`` (> 0): the estimated seconds of the whole side's
+        program before that part and in all (the resumed program's progress adds to the first);
+        None when the side prints from its beginning."""
+        if not start:
+            return None
+        lines = text.splitlines()
+        timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
+        # (both count commands: a part begins at its command's place)
+        return timeline.done_s(program_parts(lines)[start].begin), timeline.total
 
     def _corrected_back(self, job_id: str, correction: Correction) -> Program:
         """The back program rendered with ``correction``, kept as the job's ``back-corrected.gcode``
@@ -289,7 +317,7 @@ class PrintTask:
         self.records.transition(job_id, JobState.DONE, stage=None, progress=None, start_when_ready=False)
 
     async def _stream(self, job_id: str, text: str, side: str, after_heating: JobState | None,
-                      plain: bool = False, part_base: int = 0) -> None:
+                      plain: bool = False, part_base: int = 0, whole: tuple[float, float] | None = None) -> None:
         """Stream one program; switch from ``heating`` to ``after_heating`` where it starts printing.
 
         A design's program records its parts (numbered from ``part_base``: a resumed program starts
@@ -305,13 +333,16 @@ class PrintTask:
         timeline = await asyncio.to_thread(program_timeline, lines, self.profile)
         # asked while the time line was computed: the link had no stream to cancel, so none begins
         run.check()
-        stream = run.stream = Stream(side=side, timeline=timeline)
+        name = "program" if plain else side + (f" (resumed at part {part_base + 1})" if whole is not None else "")
+        stream = run.stream = Stream(side=side, timeline=timeline, program=name)
+        if whole is not None:
+            stream.base_s, stream.side_s = whole
         state.commands = commands
         state.acked = -1
         self.head.forget()
-        records.publish(records.store.update(job_id, lines_total=len(commands), last_acked_line=-1))
+        records.publish(records.store.update(job_id, lines_total=len(commands), last_acked_line=-1, program=name))
         track = _PartTracker(records.store, job_id, side, [] if plain else program_parts(lines), part_base)
-        acks = _Acknowledgements(records, state, self.progress, job_id, stream, track, after_heating)
+        acks = _Acknowledgements(records, state, self.progress, job_id, stream, track, after_heating, self.frame.used)
         try:
             await link.stream(commands, acks, track.barriers)
         finally:
@@ -320,7 +351,8 @@ class PrintTask:
                 state.rate = rate                             # what this printer does with an estimate
             run.stream = None
         if not acks.switched and after_heating is not None:
-            records.transition(job_id, after_heating, stage=f"printing {side}")
+            records.transition(job_id, after_heating, stage="printing the program" if plain else f"printing {side}")
+            self.frame.used(job_id)
 
     # ------------------------------------------------------------------ stops
 

@@ -28,8 +28,24 @@ class MarkCheck:
     refused: AlignmentRefused | None = None     # or why it was refused
     fit: dict[str, Any] | None = None           # the fit shown for review (state fitted)
     reseat: bool = False                        # the operator refused the fit under review
+    # the marks measured again after a refused fit or a re-seat (the others are kept), numbered from 1
+    remeasure: tuple[int, ...] = ()
 
     current: int = 0                            # the mark the head is above (from 1; 0: on its way)
+
+    def reopen(self, marks: list[int]) -> None:
+        """Measure ``marks`` (from 1) again: their measurements, the fit and its verdict dropped."""
+        for mark in marks:
+            self.measured.pop(mark, None)
+        self.remeasure = tuple(sorted(marks))
+        self.correction = self.refused = self.fit = None
+        self.reseat = False
+        self.current = 0
+
+    @property
+    def kept(self) -> list[int]:
+        """The marks measured and kept (numbered from 1)."""
+        return sorted(self.measured)
 
     @property
     def next_mark(self) -> int | None:
@@ -53,11 +69,17 @@ class ResumePlan:
 
 @dataclass
 class Stream:
-    """The program being streamed: its time line and the measured rate."""
+    """The program being streamed: its time line and the measured rate; for a resumed side, where
+    it stands in the whole side."""
 
     side: str
     timeline: Timeline
     acked: int = -1
+    program: str = ""                           # what its lines are named by: front, 'back (resumed at part 3)'
+    # a resumed side (issue 22): the estimated seconds of the side before this program (its parts
+    # proven printed or skipped) and of the whole side; None: this program is the whole side
+    base_s: float = 0.0
+    side_s: float | None = None
     printing_since: float | None = None         # monotonic, when the first line after heating was acked
     paused_s: float = 0.0
     paused_at: float | None = None

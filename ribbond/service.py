@@ -36,12 +36,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .aligner import Aligner
+from .aligner import Aligner, aligning_guidance
 from .calibrations import Calibrations
 from .compiler import COMPILE_STAGES, Compiler
 from .config import DaemonConfig
 from .design.params import check_printable, settings_from_dict
 from .events import EventBus
+from .frame import INSTRUCTION as FRESH_FRAME_INSTRUCTION, FrameGate, waits_at_gate
 from .gcode.profiles import PrinterProfile
 from .head import Head
 from .heaters import Heaters
@@ -53,7 +54,7 @@ from .checker import Checked
 from .programs import Timeline, check_plain_program, program_timeline
 from .records import JobRecords, NotFound, ServiceError, has_program
 from .resume import Resumer, modal_state
-from .run import MarkCheck, PrintState, Stream, stream_rate
+from .run import PrintState, Stream, stream_rate
 from .store import JobRecord, JobStore, new_id
 from .tables import TableLibrary
 from .temperatures import TemperatureHistory
@@ -98,22 +99,12 @@ def _check_and_estimate(text: str, profile: PrinterProfile, source: str) -> tupl
     return checked, program_timeline(checked.lines, profile)
 
 
-def _aligning_guidance(j: str, al: MarkCheck | None) -> str:
-    if al is None or al.current == 0:
-        nxt = al.next_mark if al is not None else 1
-        return f"aligning: the head is on its way above registration mark {nxt}; wait for the prompt"
-    k, n = al.current, len(al.expected)
-    return (f"mark {k} of {n}: the head is above where mark {k} should be. Jog the nozzle "
-            f"onto the mark (ribbonctl jog DX DY), then run: ribbonctl align {j} --here "
-            f"(or report a jog you made another way: ribbonctl align {j} --mark {k} --jog DX DY)")
-
-
 def _fitted_guidance(j: str, fit: dict[str, Any] | None) -> str:
     seen = (f"the fit turns the back by {fit['rotation_deg']:.2f}° and moves it by "
             f"({fit['offset'][0]:.2f}, {fit['offset'][1]:.2f}) mm, {fit['max_residual_mm']:.2f} mm "
             "off at the worst mark. ") if fit else ""
     return (f"{seen}Accept it to print the back with that correction (ribbonctl accept {j}), or "
-            f"re-seat the frame and align again (ribbonctl re-seat {j})")
+            f"re-seat the frame, back side up, and measure every mark again (ribbonctl re-seat {j})")
 
 
 def _ended_guidance(job: JobRecord) -> tuple[str, list[str] | None]:
@@ -153,8 +144,9 @@ class RibbonService:
         self.aligner = Aligner(self.head, profile, self.records, self.state, self.heaters,
                                lambda job: self.guidance(job)["instruction"])
         self.resumer = Resumer(self.head, profile, self.records, self.state, self.heaters)
+        self.frame = FrameGate(self.records, self.state, self.heaters)
         self.printing = PrintTask(self.head, profile, self.records, self.state, self.heaters, self.aligner,
-                                  self.resumer, self.progress)
+                                  self.resumer, self.progress, self.frame)
         self.manual = ManualControl(self.head, profile, self.records, self.state, config.manual)
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
@@ -188,7 +180,7 @@ class RibbonService:
         while True:
             await asyncio.sleep(PRINTER_EVENT_S)
             try:
-                status = await self.manual.printer_status()
+                status = {**await self.manual.printer_status(), "frame": self.frame.status()}
             except Exception:  # noqa: BLE001 - a status that cannot be read is not worth a stop
                 log.debug("printer status for the events", exc_info=True)
                 continue
@@ -273,9 +265,10 @@ class RibbonService:
                 log.warning("removing %s: a job folder without a job", entry)
                 shutil.rmtree(entry, ignore_errors=True)
 
-    async def submit_gcode(self, upload: Path, name: str, start: bool) -> JobRecord:
+    async def submit_gcode(self, upload: Path, name: str, start: bool, same_frame: bool = False) -> JobRecord:
         """Take an uploaded G-code program, check it line by line against the profile (refused with
-        the line named: nothing is kept), and make it a ``ready`` job (queued if ``start``)."""
+        the line named: nothing is kept), and make it a ``ready`` job (queued if ``start``).
+        ``same_frame``: it prints on the frame as it is (no fresh frame is asked for before it)."""
         safe = re.sub(r"[^A-Za-z0-9._-]", "_", Path(name).name) or "program.gcode"
         if Path(safe).suffix.lower() not in GCODE_SUFFIXES:
             raise ValueError(f"{name!r}: not a G-code file ({', '.join(GCODE_SUFFIXES)})")
@@ -289,7 +282,7 @@ class RibbonService:
         if start:
             self.records.check_queue()
         job = self.store.create(mesh_name=safe, mesh_path=str(upload), parameters={}, start_when_ready=start,
-                                kind="gcode")
+                                kind="gcode", same_frame=same_frame)
         folder = self.job_dir(job.id)
         folder.mkdir(parents=True, exist_ok=True)
         program = folder / "program.gcode"
@@ -351,7 +344,8 @@ class RibbonService:
         job = self.records.transition(job_id, JobState.READY, reason=f"started again (run {len(runs) + 1})",
                                       runs=runs, start_when_ready=True, error=None, stage=None, progress=None,
                                       lines_total=None, last_acked_line=-1, checkpoint=None, checkpoint_line=None,
-                                      side=None, correction=None, paused_from=None)
+                                      side=None, correction=None, paused_from=None, program=None,
+                                      print_progress=None)
         self.state.queue_print(job_id)
         return job
 
@@ -418,6 +412,9 @@ class RibbonService:
                 out["eta_s"] = max(0.0, total - done) * rate
         if run is not None:
             out["elapsed_s"] = time.time() - run.started
+        if job.print_progress is not None and s not in (JobState.READY, JobState.SUBMITTED):
+            # never less than was shown before (a pause, an interruption, a restart, the resume's reheat)
+            out["progress"] = max(out["progress"], job.print_progress)
         return out
 
     def _side_progress(self, job: JobRecord, totals: dict[str, float], stream: Stream | None,
@@ -428,13 +425,18 @@ class RibbonService:
         rate = self.state.rate or 1.0
         side: str = job.side or "front"
         if stream is not None:
-            side = stream.side
-            totals[side] = stream.timeline.total or totals.get(side, 0.0)
+            side, tl = stream.side, stream.timeline
             # the lines as stored (every 0.5 s while streaming): what is reported is what a restart finds
             acked = min(stream.acked, job.last_acked_line) if job.last_acked_line >= 0 else 0
-            out["ribbon"] = stream.timeline.ribbon_at(acked) or None
-            out["ribbons"] = stream.timeline.ribbons or None
-            return side, stream.timeline.done_s(acked), stream_rate(stream) or rate
+            out["ribbon"] = tl.ribbon_at(acked) or None
+            out["ribbons"] = tl.ribbons or None
+            if stream.side_s is None:
+                totals[side] = tl.total or totals.get(side, 0.0)
+                return side, tl.done_s(acked), stream_rate(stream) or rate
+            # a resumed side: the parts before it count, the resumed program's printing adds to them
+            totals[side] = stream.side_s
+            done = stream.base_s + max(0.0, tl.done_s(acked) - tl.done_s(tl.first))
+            return side, min(done, stream.side_s), stream_rate(stream) or rate
         if s is JobState.PRINTING_BACK:
             return side, 0.0, rate  # the back's stream is not set up yet: the lines stored are the front's
         if job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,
@@ -463,7 +465,7 @@ class RibbonService:
         elif s is JobState.AWAITING_FLIP:
             text, cmds = self._flip_guidance(job), [f"ribbonctl flip-done {j}", f"ribbonctl cancel {j}"]
         elif s is JobState.ALIGNING:
-            text = _aligning_guidance(j, run.alignment if run is not None else None)
+            text = aligning_guidance(j, run.alignment if run is not None else None, job.error)
             cmds = ["ribbonctl jog DX DY", f"ribbonctl align {j} --here", f"ribbonctl cancel {j}"]
         elif s is JobState.FITTED:
             text = _fitted_guidance(j, run.alignment.fit if run is not None and run.alignment is not None else None)
@@ -480,6 +482,9 @@ class RibbonService:
         j = job.id
         if not job.start_when_ready:
             return f"ready to print: ribbonctl start {j}", None
+        if waits_at_gate(job):
+            return f"waiting for a fresh frame: {FRESH_FRAME_INSTRUCTION}", ["ribbonctl frame-ready",
+                                                                            f"ribbonctl cancel {j}"]
         link = self.head.link
         connected = link is not None and link.state in (LinkState.READY, LinkState.STREAMING, LinkState.PAUSED)
         text = "queued: it prints when the printer is free" + (
@@ -490,8 +495,7 @@ class RibbonService:
         frame = self.profile.frame
         axis = frame.flip_axis
         other, c = ("x", frame.center[0]) if axis == "y" else ("y", frame.center[1])
-        refused = f"the alignment was refused ({job.error}); " if job.error else ""
-        return (f"{refused}the front is printed. Turn the frame over about its {axis} axis (the line "
+        return (f"the front is printed. Turn the frame over about its {axis} axis (the line "
                 f"{other} = {c:g}), seat it again, then run: ribbonctl flip-done {job.id}")
 
     def _check_guidance(self, job: JobRecord) -> str:
@@ -513,6 +517,9 @@ class RibbonService:
         run = self.state.current(job.id)
         if job.state is JobState.FITTED and run is not None and run.alignment is not None:
             data["fit"] = run.alignment.fit
+        if job.state is JobState.ALIGNING and run is not None and run.alignment is not None:
+            data["alignment"] = {"marks": len(run.alignment.expected), "kept": run.alignment.kept,
+                                 "remeasure": list(run.alignment.remeasure)}
         data["verdict"] = self.verdicts.lines(job)
         return data
 
@@ -520,7 +527,7 @@ class RibbonService:
         """Nothing happens until the operator acts (a ready job nobody started, the flip, a mark
         the head is above, a pause)."""
         if job.state is JobState.READY:
-            return not job.start_when_ready
+            return not job.start_when_ready or waits_at_gate(job)
         if job.state is JobState.ALIGNING:
             run = self.state.current(job.id)
             return run is not None and run.alignment is not None and run.alignment.current > 0

@@ -28,7 +28,10 @@ from .jobs import JobState, check_transition
 
 #: The layout this code reads and writes (PRAGMA user_version). Bump it with a migration in
 #: ``_MIGRATIONS`` whenever the tables change.
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
+
+#: The frame on the printer (schema 5): fresh (confirmed by the operator, nothing printed on it since) or used.
+FRAME_FRESH, FRAME_USED = "fresh", "used"
 
 
 class JobRecord(BaseModel):
@@ -64,6 +67,12 @@ class JobRecord(BaseModel):
                                                 "(front, back), s: for progress and time left")
     notes: list[str] = Field(default_factory=list, description="what the daemon changed in the job's program "
                              "and why (e.g. feed rates clamped to the profile's limits)")
+    same_frame: bool = Field(False, description="a plain G-code program that prints on the frame as it is "
+                             "(no fresh frame needed before it)")
+    program: str | None = Field(None, description="the program lines_total and last_acked_line count: front, "
+                                "back, 'front (resumed at part N)', ...")
+    print_progress: float | None = Field(None, ge=0.0, le=1.0, description="the most of this run's print "
+                                         "(both sides, 0..1) reported so far: progress never goes back")
 
     @field_validator("mesh_name")
     @classmethod
@@ -115,6 +124,14 @@ _PART_EVENTS = """CREATE TABLE part_events (
 );
 CREATE INDEX part_events_job ON part_events (job_id, run, side, part, seq)"""
 
+#: The frame on the printer (schema 5): one row, absent until the first change (then: used).
+_FRAME = """CREATE TABLE frame (
+    id     INTEGER PRIMARY KEY CHECK (id = 1),
+    state  TEXT NOT NULL CHECK (state IN ('fresh', 'used')),
+    job_id TEXT,                                            -- the job that used it
+    at     REAL NOT NULL
+)"""
+
 _SCHEMA = """
 CREATE TABLE jobs (
     seq              INTEGER PRIMARY KEY AUTOINCREMENT,  -- creation order
@@ -140,7 +157,10 @@ CREATE TABLE jobs (
     kind             TEXT NOT NULL DEFAULT 'design',
     runs             TEXT,                               -- JSON list, NULL: none
     estimate_s       TEXT,                               -- JSON
-    notes            TEXT                                -- JSON list, NULL: none
+    notes            TEXT,                               -- JSON list, NULL: none
+    same_frame       INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)),
+    program          TEXT,
+    print_progress   REAL
 );
 CREATE INDEX jobs_state ON jobs (state);
 CREATE TABLE transitions (
@@ -152,7 +172,7 @@ CREATE TABLE transitions (
     reason     TEXT
 );
 CREATE INDEX transitions_job ON transitions (job_id, seq);
-""" + _PART_EVENTS + ";\n"
+""" + _PART_EVENTS + ";\n" + _FRAME + ";\n"
 
 #: ``_MIGRATIONS[v]`` brings a database from version v to v + 1.
 _MIGRATIONS: dict[int, str] = {
@@ -163,6 +183,10 @@ _MIGRATIONS: dict[int, str] = {
     2: _PART_EVENTS,
     # 4: what the daemon changed in a job's program, e.g. feed rates clamped (issue 22)
     3: "ALTER TABLE jobs ADD COLUMN notes TEXT",
+    # 5: the frame on the printer and plain G-code jobs that need no fresh one (issue 22)
+    # and the program the lines count, the most of the print reported (progress never goes back)
+    4: "ALTER TABLE jobs ADD COLUMN same_frame INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)); "
+       "ALTER TABLE jobs ADD COLUMN program TEXT; ALTER TABLE jobs ADD COLUMN print_progress REAL; " + _FRAME,
 }
 
 #: What a part's events make of it (its last event decides).
@@ -279,6 +303,7 @@ class JobStore:
             if data[name] is not None:
                 data[name] = json.loads(data[name])
         data["start_when_ready"] = bool(data["start_when_ready"])
+        data["same_frame"] = bool(data["same_frame"])
         if data["runs"] is None:
             data["runs"] = []
         if data["notes"] is None:
@@ -383,7 +408,7 @@ class JobStore:
 
     def create(self, *, mesh_name: str, mesh_path: str, parameters: dict[str, Any],
                start_when_ready: bool, kind: Literal["design", "gcode"] = "design",
-               job_id: str | None = None) -> JobRecord:
+               job_id: str | None = None, same_frame: bool = False) -> JobRecord:
         """A new job in state ``submitted`` (with its first ``transitions`` row), committed.
 
         ``job_id`` (from ``new_id``): the caller chose the id so that the job's files are in place
@@ -392,15 +417,15 @@ class JobStore:
         try:
             record = JobRecord(id=job_id or new_id(), state=JobState.SUBMITTED, created=now, updated=now,
                                mesh_name=mesh_name, mesh_path=mesh_path, parameters=parameters,
-                               start_when_ready=start_when_ready, kind=kind)
+                               start_when_ready=start_when_ready, kind=kind, same_frame=same_frame)
         except ValidationError as exc:
             raise ValueError(f"new job: {_format_errors(exc)}") from None
         parameters_json = _json(record.parameters, "new job: parameters")
         with self._transaction() as db:
             db.execute("INSERT INTO jobs (id, state, created, updated, mesh_name, mesh_path, parameters, "
-                       "start_when_ready, kind) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                       "start_when_ready, kind, same_frame) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                        (record.id, record.state.value, now, now, mesh_name, mesh_path, parameters_json,
-                        int(start_when_ready), kind))
+                        int(start_when_ready), kind, int(record.same_frame)))
             self._log(record.id, None, record.state, now, None)
         return record
 
@@ -450,8 +475,9 @@ class JobStore:
             self._write(record)
         return record
 
-    def record_ack(self, job_id: str, line: int) -> None:
-        """Raise ``last_acked_line`` to ``line`` (never lowers it), committed.
+    def record_ack(self, job_id: str, line: int, progress: float | None = None) -> None:
+        """Raise ``last_acked_line`` to ``line`` (never lowers it), and ``print_progress`` to
+        ``progress`` (0..1; never lowers it either), committed.
 
         Committed without waiting for the disk (``synchronous=NORMAL`` for this one write): it
         survives the daemon being killed, and it is written every half second while streaming, when
@@ -461,6 +487,8 @@ class JobStore:
         """
         if isinstance(line, bool) or not isinstance(line, int) or line < -1:
             raise ValueError(f"job {job_id}: acknowledged line {line!r}: must be an integer >= -1")
+        if progress is not None and not 0.0 <= progress <= 1.0:
+            raise ValueError(f"job {job_id}: progress {progress!r}: must be within 0..1")
         self._db.execute("PRAGMA synchronous = NORMAL")
         try:
             with self._transaction() as db:
@@ -468,6 +496,8 @@ class JobStore:
                 if line > current["last_acked_line"]:
                     db.execute("UPDATE jobs SET last_acked_line = ?, updated = ? WHERE id = ?",
                                (line, self._now(current["updated"]), job_id))
+                if progress is not None and progress > (current["print_progress"] or 0.0):
+                    db.execute("UPDATE jobs SET print_progress = ? WHERE id = ?", (float(progress), job_id))
         finally:
             self._db.execute("PRAGMA synchronous = FULL")
 
@@ -531,6 +561,23 @@ class JobStore:
         rows = self._db.execute("SELECT run, side, part, event, line, at FROM part_events WHERE job_id = ? "
                                 "ORDER BY seq", (job_id,))
         return [dict(r) for r in rows]
+
+    def frame(self) -> dict[str, Any]:
+        """The frame on the printer: ``state`` (``fresh``, ``used``), ``since`` (unix time, None: never
+        confirmed) and ``job_id`` (the job that used it). Nothing confirmed yet: used."""
+        row = self._db.execute("SELECT state, job_id, at FROM frame WHERE id = 1").fetchone()
+        if row is None:
+            return {"state": FRAME_USED, "since": None, "job_id": None}
+        return {"state": str(row["state"]), "since": float(row["at"]), "job_id": row["job_id"]}
+
+    def set_frame(self, state: str, job_id: str | None) -> None:
+        """Record the frame as ``fresh`` (the operator confirmed it) or ``used`` (by ``job_id``), committed."""
+        if state not in (FRAME_FRESH, FRAME_USED):
+            raise ValueError(f"frame state {state!r}: {FRAME_FRESH!r} or {FRAME_USED!r}")
+        with self._transaction() as db:
+            db.execute("INSERT INTO frame (id, state, job_id, at) VALUES (1, ?, ?, ?) ON CONFLICT (id) DO UPDATE "
+                       "SET state = excluded.state, job_id = excluded.job_id, at = excluded.at",
+                       (state, job_id, self._clock()))
 
     def integrity(self) -> str:
         """``PRAGMA integrity_check``'s answer (``ok`` for a sound database)."""

@@ -88,6 +88,10 @@ function heater(h) {
   return `${h.current.toFixed(0)}${tgt} °C`;
 }
 
+/** The frame on the printer: fresh (confirmed, nothing printed on it since) or used. */
+const frameText = (f) => (!f ? "" : f.state === "fresh" ? "Frame: fresh (nothing printed on it since it was loaded)"
+  : `Frame: used${f.waiting_job ? ": a job waits for a fresh one" : ""}`);
+
 function renderPrinter() {
   const p = state.printer;
   const s = p ? p.state : "unknown";
@@ -100,7 +104,7 @@ function renderPrinter() {
   $("p-position").textContent = pos ? `x ${mm(pos[0], 2)}  y ${mm(pos[1], 2)}  z ${mm(pos[2], 2)} mm` : "–";
   $("t-nozzle").textContent = heater(p?.heaters?.T);
   $("t-bed").textContent = heater(p?.heaters?.B);
-  $("p-note").textContent = p?.note || "";
+  $("p-note").textContent = [p?.note, frameText(p?.frame)].filter(Boolean).join(" · ");
   $("p-link").textContent = p?.window_advice || "";   // the link found the board's buffer smaller
   const prof = p?.profile;
   if (prof) {
@@ -263,13 +267,13 @@ function renderJobs() {
         <td><span class="state ${esc(j.state)}">${esc(st)}</span></td><td>${esc(sizeOf(j))}</td>
         <td>${when(j.created)}</td><td>${ended ? when(j.updated) : "–"}</td><td>${duration(dur)}</td></tr>`;
     }).join("")}</tbody></table>`;
-  const waiting = [...state.jobs.values()].find((j) => ["awaiting_flip", "aligning", "fitted"].includes(j.state) && j.waits_for_operator);
+  const waiting = [...state.jobs.values()].find((j) => (["awaiting_flip", "aligning", "fitted"].includes(j.state) || atGate(j)) && j.waits_for_operator);
   const banner = $("needs-you");
   const here = state.route.page === "job" && waiting && state.route.id === waiting.id;
   banner.hidden = !waiting || here;
   if (waiting && !here) {
     banner.href = `#/job/${waiting.id}`;
-    const what = { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
+    const what = atGate(waiting) ? "load a fresh frame" : { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
     banner.textContent = `${waiting.mesh_name}: ${what} →`;
   }
 }
@@ -382,7 +386,9 @@ function progressText(j) {
     const it = state.compileInfo.get(j.id);
     if (it && it.iteration !== undefined) parts.push(`iteration ${it.iteration}`);
   } else {
-    if (j.print_side && j.kind === "design") parts.push(`${j.print_side} side`);
+    // a resumed side names its program (its lines are not the whole side's)
+    if (j.program && j.program.includes("resumed") && j.print_side === j.side && STREAMS.has(j.state)) parts.push(j.program);
+    else if (j.print_side && j.kind === "design") parts.push(`${j.print_side} side`);
     parts.push(percent(j));
     if (j.ribbon && j.ribbons) parts.push(`ribbon ${j.ribbon} of ${j.ribbons}`);
     if (j.eta_s !== null && j.eta_s !== undefined && !ENDED.has(j.state)) parts.push(`${duration(j.eta_s)} left`);
@@ -394,8 +400,11 @@ function progressText(j) {
 const ACTIONS = {
   start: (j) => (ENDED.has(j.state) ? "Print again" : ["submitted", "compiling"].includes(j.state) ? "Print when compiled" : "Print"),
   pause: () => "Pause", resume: (j) => (j.state === "interrupted" ? "Resume where it stopped" : "Resume"),
-  "frame-ok": () => "Frame is checked", cancel: () => "Cancel", delete: () => "Delete",
+  "frame-ok": () => "Frame is checked", "frame-ready": () => "Fresh frame loaded", cancel: () => "Cancel", delete: () => "Delete",
 };
+
+/** The job is queued and waits for the operator to load a fresh stretched frame (the daemon's gate). */
+const atGate = (j) => j.state === "ready" && j.start_when_ready && j.stage === "waiting for a fresh frame";
 
 function renderActions(j) {
   const box = $("j-actions");
@@ -408,7 +417,7 @@ function renderActions(j) {
   if (box.dataset.key === key) return;
   box.dataset.key = key;
   box.innerHTML = cmds.map((c) => `<button data-action="${c}" ${busy || (parking && c === "resume") ? "disabled" : ""}
-    class="${c === "cancel" || c === "delete" ? "warn" : c === "start" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("")
+    class="${c === "cancel" || c === "delete" ? "warn" : c === "start" || c === "frame-ready" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("")
     + optionButtons(j, cmds, busy);
 }
 $("j-actions").addEventListener("click", async (e) => {
@@ -424,9 +433,17 @@ $("j-actions").addEventListener("click", async (e) => {
       await api.call("DELETE", `/jobs/${id}`);
       state.jobs.delete(id);
       location.hash = "#/";
+    } else if (c === "frame-ready") {
+      // the frame is the printer's, not the job's: the waiting job goes on once it is confirmed
+      await api.post("/printer/frame-ready");
+      const j = await api.get(`/jobs/${id}`);
+      state.jobs.set(j.id, j);
+      renderJobPage();
     } else {
       const j = await api.post(`/jobs/${id}/${c}`, b.dataset.body ? JSON.parse(b.dataset.body) : undefined);
-      state.jobs.set(j.id, { ...state.jobs.get(j.id), ...j });
+      // an event may have brought a newer state already (a started job reaching the frame gate)
+      const cur = state.jobs.get(j.id);
+      if (!cur || (j.updated ?? 0) >= (cur.updated ?? 0)) state.jobs.set(j.id, { ...cur, ...j });
       renderJobPage();
     }
   } catch (err) { toast(`${b.textContent}: ${err.message}`, "error"); }
@@ -439,9 +456,10 @@ $("j-actions").addEventListener("click", async (e) => {
 function alignResultHTML(res) {
   if (!res) return "";
   if (res.refused) {
+    const unit = res.refused === "rotation" ? "°" : " mm";
+    const numbers = res.value !== undefined ? `The ${esc(res.refused)} is ${mm(res.value, 3)}${unit}; the limit is ${mm(res.limit, 3)}${unit}.` : "";
     return `<div class="result refused"><h3>Alignment refused</h3><p>${esc(res.detail)}</p>
-      <p>The ${esc(res.refused)} is ${mm(res.value, 3)}${res.refused === "rotation" ? "°" : " mm"}; the limit is ${mm(res.limit, 3)}${res.refused === "rotation" ? "°" : " mm"}.
-      Re-seat the frame on its pins, then press “Frame is flipped” to measure the marks again.</p></div>`;
+      <p>${numbers} The marks are measured again below; the frame stays back side up.</p></div>`;
   }
   if (res.fit) {
     const f = res.fit;
@@ -459,6 +477,18 @@ function alignResultHTML(res) {
   return "";
 }
 
+const marksText = (ms) => (ms.length === 1 ? `mark ${ms[0]}` : `marks ${ms.slice(0, -1).join(", ")} and ${ms[ms.length - 1]}`);
+
+/** After a refused fit or a re-seat: what it means for the frame and the marks (the frame is back
+ * side up already: it is never turned over again). */
+function reseatText(j) {
+  const a = j.alignment;
+  if (!a || !a.remeasure?.length) return "";
+  if (a.remeasure.length === a.marks) return "Re-seat the frame, back side up (do not turn it over again): every mark is measured again. ";
+  const kept = marksText(a.kept);
+  return `The frame stays back side up (do not turn it over again). ${kept[0].toUpperCase()}${kept.slice(1)} fitted and ${a.kept.length > 1 ? "are" : "is"} kept: measure ${marksText(a.remeasure)} again. `;
+}
+
 /** What to do next, in the page's words (the daemon's instruction names ribbonctl commands). */
 function nextText(j) {
   const text = j.next?.instruction || "";
@@ -466,6 +496,7 @@ function nextText(j) {
     case "submitted": case "compiling":
       return j.start_when_ready ? "Compiling; it prints when compiled." : "Compiling; then press Print.";
     case "ready":
+      if (atGate(j)) return "Waiting for a fresh frame: load a fresh stretched frame, then press “Fresh frame loaded”. Nothing heats until then.";
       return j.start_when_ready ? text.replace(/^queued/, "Queued") : "Ready to print: press Print.";
     case "paused":
       if (j.stage === "paused") return "Pausing: the head is parking…";
@@ -506,7 +537,7 @@ function renderJobPage() {
   $("j-stage").textContent = stage.replace(/_/g, " ") === labelOf(j) ? "" : stage;
   $("j-next").textContent = nextText(j);
   $("j-next").hidden = !$("j-next").textContent;
-  $("j-error").hidden = !j.error || j.state === "awaiting_flip";     // the flip step says it
+  $("j-error").hidden = !j.error || ["awaiting_flip", "aligning"].includes(j.state);     // the step says it
   $("j-error").textContent = j.error || "";
   const showProgress = !["submitted", "ready"].includes(j.state) || j.progress > 0;
   $("j-progress").hidden = !showProgress;
@@ -548,19 +579,20 @@ function renderJobPage() {
   // the alignment step
   $("align").hidden = !["aligning", "fitted"].includes(j.state) && !(state.align.get(j.id)?.fit && j.state === "printing_back");
   if (!$("align").hidden) {
-    const m = /^mark (\d+) of (\d+)/.exec(j.next?.instruction || "");
+    const m = /(?:^|\. )mark (\d+) of (\d+):/.exec(j.next?.instruction || "");
     const k = m ? Number(m[1]) : state.alignMark.get(j.id)?.mark;
     const n = m ? Number(m[2]) : state.alignMark.get(j.id)?.marks;
     const ready = j.state === "aligning" && j.waits_for_operator && k;
-    $("align-text").textContent = j.state !== "aligning" ? "" : ready
+    $("align-text").textContent = j.state !== "aligning" ? "" : reseatText(j) + (ready
       ? `The head is above mark ${k} of ${n}. Jog the nozzle onto the mark, then press “Nozzle is on the mark”.`
-      : `The head is on its way above mark ${k || 1}…`;
+      : `The head is on its way above mark ${k || 1}…`);
     $("align-text").dataset.mark = ready ? String(k) : "";
     $("align-here").disabled = !ready;
     $("align-here").hidden = j.state !== "aligning";
     $("align-jog").hidden = j.state !== "aligning";
-    // (after a reload the fit under review comes with the job)
-    const res = state.align.get(j.id) ?? (j.state === "fitted" && j.fit ? { fit: j.fit, review: true } : undefined);
+    // (after a reload the fit under review, or the refusal, comes with the job)
+    const res = state.align.get(j.id) ?? (j.state === "fitted" && j.fit ? { fit: j.fit, review: true }
+      : j.state === "aligning" && j.error ? { refused: "fit", detail: j.error.replace(/^alignment refused: /, "") } : undefined);
     const rkey = JSON.stringify([res, j.state]);
     if ($("align-result").dataset.key !== rkey) {
       $("align-result").dataset.key = rkey;
@@ -575,7 +607,7 @@ function renderJobPage() {
   // pictures and the summary
   const files = state.files.get(j.id);
   $("j-pictures").hidden = j.kind !== "design" || !design;
-  const highlight = j.state === "aligning" ? (/^mark (\d+)/.exec(j.next?.instruction || "") || [])[1] : undefined;
+  const highlight = j.state === "aligning" ? (/(?:^|\. )mark (\d+) of/.exec(j.next?.instruction || "") || [])[1] : undefined;
   const lkey = `${j.id}:${design ? 1 : 0}:${highlight}:${j.state === "aligning"}`;
   if ($("j-layout").dataset.key !== lkey) {
     $("j-layout").dataset.key = lkey;
@@ -620,7 +652,10 @@ $("align-here").addEventListener("click", async () => {
     // review: the last mark's fit waits for Accept or Re-seat (state fitted)
     const res = await api.post(`/jobs/${id}/align`, { here: true, review: true });
     if (res.fit) state.align.set(id, res);
-    else toast(`Mark ${res.mark} measured (off by ${mm(res.offset[0], 2)}, ${mm(res.offset[1], 2)} mm).`);
+    else {
+      if (state.align.get(id)?.refused) state.align.delete(id);     // acted on: the refusal is old news
+      toast(`Mark ${res.mark} measured (off by ${mm(res.offset[0], 2)}, ${mm(res.offset[1], 2)} mm).`);
+    }
   } catch (e) {
     if (e.data && e.data.refused) state.align.set(id, { ...e.data });
     else toast(`Nozzle is on the mark: ${e.message}`, "error");
@@ -749,6 +784,9 @@ function onEvent(type, ev) {
     state.alignMark.set(ev.job_id, ev);
   } else if (type === "notice") {
     toast(ev.message);
+  } else if (type === "frame" && ev.frame) {
+    if (state.printer) state.printer = { ...state.printer, frame: ev.frame };
+    renderPrinter();
   } else if (type === "printer" && ev.printer) {
     takePrinter(ev.printer);
     if (state.route.page === "job" && state.jobs.has(state.route.id)) renderTemps(state.jobs.get(state.route.id));

@@ -179,10 +179,27 @@ def submit(client: httpx.Client, mesh: Path, *, start: bool, parameters: dict[st
     return str(r.json()["id"])
 
 
+#: The stage of a queued job waiting for the operator to confirm a fresh frame (``ribbond.frame``).
+FRESH_FRAME_STAGE = "waiting for a fresh frame"
+
+
+def frame_ready(client: httpx.Client) -> dict[str, Any]:
+    """The operator loads a fresh stretched frame and confirms it (``ribbonctl frame-ready``)."""
+    r = client.post("/printer/frame-ready")
+    assert r.status_code == 200, r.text
+    return dict(r.json())
+
+
+def at_gate(job: dict[str, Any]) -> bool:
+    """The job waits for a fresh frame (ready, queued, its stage says so)."""
+    return job["state"] == "ready" and job["start_when_ready"] and job.get("stage") == FRESH_FRAME_STAGE
+
+
 def wait_for(client: httpx.Client, job: str, states: set[str] | str, *, timeout: float = 60.0,
-             poll: float = 0.05, until: Any = None) -> dict[str, Any]:
+             poll: float = 0.05, until: Any = None, fresh_frame: bool = True) -> dict[str, Any]:
     """Poll the job until its state is in ``states`` (and ``until(job)`` holds); fail on a
-    terminal state that was not asked for."""
+    terminal state that was not asked for. ``fresh_frame``: when the job waits for a fresh frame
+    on the way, load one and confirm it, as the operator at the printer does (``frame_ready``)."""
     wanted = {states} if isinstance(states, str) else set(states)
     deadline = time.monotonic() + timeout
     seen: list[str] = []
@@ -192,6 +209,9 @@ def wait_for(client: httpx.Client, job: str, states: set[str] | str, *, timeout:
             seen.append(j["state"])
         if j["state"] in wanted and (until is None or until(j)):
             return dict(j)
+        if fresh_frame and at_gate(j):
+            frame_ready(client)
+            continue
         if j["state"] in (TERMINAL | {"interrupted"}) - wanted:
             raise AssertionError(f"job {job} ended {j['state']} ({j.get('error')}) waiting for {wanted}; "
                                  f"states seen {seen}")
@@ -270,9 +290,11 @@ def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory) -> 
 
 @pytest.fixture
 def api(shared_daemon: Daemon, shared_sim: Sim) -> Iterator[httpx.Client]:
-    """The shared daemon's client; the frame front up before, no job left running after."""
+    """The shared daemon's client; a fresh frame (front up) loaded and confirmed before, no job left
+    running after."""
     shared_sim.ensure_front()
     assert shared_daemon.client is not None
+    frame_ready(shared_daemon.client)
     try:
         yield shared_daemon.client
     finally:

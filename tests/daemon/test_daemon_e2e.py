@@ -242,8 +242,10 @@ def test_back_side_lands_where_the_design_puts_it(api: httpx.Client, shared_sim:
 def test_alignment_beyond_tolerance_is_refused(api: httpx.Client, shared_sim: Sim,
                                                meshes: dict[str, Path]) -> None:
     """An alignment beyond tolerance is refused: a 5° rotation (the profile allows 2°) answers 409
-    naming the rotation and the limit, and the job awaits the flip again; seated again properly,
-    it is aligned and printed."""
+    naming the rotation and the limit. The job stays aligning (the frame is back side up already:
+    re-seat it, do not turn it over again), every mark to measure again (the frame sits wrong, so
+    none is kept); the refusal is the job's error until the operator measures again; seated again
+    properly, it is aligned and printed."""
     job = submit(api, meshes["two_sided"], start=True)
     wait_for(api, job, "awaiting_flip", timeout=60)
     marks = api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"]
@@ -258,26 +260,35 @@ def test_alignment_beyond_tolerance_is_refused(api: httpx.Client, shared_sim: Si
     assert body["limit"] == pytest.approx(2.0)
     assert "turned by 5.00°" in body["detail"] and "limit 2.00°" in body["detail"], body["detail"]
 
-    record = wait_for(api, job, "awaiting_flip", timeout=30)
-    assert record["error"] == body["detail"]
+    record = wait_for(api, job, "aligning", timeout=30, until=lambda j: j["waits_for_operator"])
+    assert body["detail"] in record["error"]
+    assert record["alignment"] == {"marks": len(marks), "kept": [], "remeasure": list(range(1, len(marks) + 1))}
+    words = record["next"]["instruction"]
+    assert "Re-seat the frame, back side up (do not turn it over again); every mark is measured again" in words
+    assert "turn the frame over about" not in words.lower() and "flip-done" not in words, words
+    assert "mark 1 of" in words, words
     transitions = api.get(f"/jobs/{job}/transitions").json()
-    assert states(transitions)[-2:] == ["aligning", "awaiting_flip"]
-    assert "alignment refused" in transitions[-1]["reason"]
-    # Another alignment report now is out of place.
-    r = api.post(f"/jobs/{job}/align", json={"mark": 1, "jog": [0.0, 0.0]})
-    assert r.status_code == 409 and r.json()["state"] == "awaiting_flip"
-    assert r.json()["allowed"] == ["flip-done", "cancel"]
+    assert states(transitions)[-2:] == ["awaiting_flip", "aligning"]
+    # The frame is not to be turned over again.
+    r = api.post(f"/jobs/{job}/flip-done")
+    assert r.status_code == 409 and r.json()["state"] == "aligning"
 
-    # The operator takes the frame off (front up again) and seats it better.
+    # The operator takes the frame out and seats it better, back side up.
     shared_sim.flip()
     assert shared_sim.side == "front"
-    answers = flip_and_align(api, shared_sim, job, marks, (-0.5, 0.3, -0.6))
+    dx, dy, rot = (-0.5, 0.3, -0.6)
+    assert shared_sim.flip(dx, dy, rot)["side"] == "back"
+    jogs = operator_jogs(marks, dx, dy, rot)
+    answers = [api.post(f"/jobs/{job}/align", json={"mark": 1, "jog": list(jogs[0])})]
+    assert api.get(f"/jobs/{job}").json()["error"] is None, "the refusal is cleared once they measure again"
+    answers += [api.post(f"/jobs/{job}/align", json={"mark": i + 1, "jog": list(jog)})
+                for i, jog in enumerate(jogs) if i > 0]
     assert [r.status_code for r in answers] == [200] * len(marks), [r.text for r in answers]
     assert answers[-1].json()["fit"]["rotation_deg"] == pytest.approx(-0.6, abs=1e-6)
     record = wait_for(api, job, "done", timeout=60)
     assert record["error"] is None
     transitions = api.get(f"/jobs/{job}/transitions").json()
-    assert states(transitions) == FULL_FLOW[:7] + ["awaiting_flip", "aligning", "printing_back", "done"]
+    assert states(transitions) == FULL_FLOW
     assert_chained(transitions)
 
 

@@ -57,8 +57,8 @@ def test_every_command_names_a_possible_move() -> None:
     target = {"start": {J.READY, J.HEATING, J.SUBMITTED}, "cancel": {J.CANCELLED}, "pause": {J.PAUSED},
               "resume": {J.PRINTING_FRONT, J.PRINTING_BACK, J.AWAITING_CHECK, J.DONE}, "flip-done": {J.ALIGNING},
               "frame-ok": {J.HEATING, J.ALIGNING},
-              "align": {J.PRINTING_BACK, J.AWAITING_FLIP, J.FITTED}, "accept": {J.PRINTING_BACK},
-              "re-seat": {J.AWAITING_FLIP}}
+              "align": {J.PRINTING_BACK, J.FITTED}, "accept": {J.PRINTING_BACK},
+              "re-seat": {J.ALIGNING}}
     assert set(COMMANDS) == set(JobState)
     for state, commands in COMMANDS.items():
         for command in commands:
@@ -68,6 +68,47 @@ def test_every_command_names_a_possible_move() -> None:
                 continue                                       # marks the job to print when ready
             else:
                 assert target[command] & TRANSITIONS[state], (state, command)
+
+
+#: The job life cycle of ``ribbond/jobs.py``'s docstring, written out by hand (not read from
+#: ``TRANSITIONS``): for every state, every state it may go to next. Every other target is refused.
+_STOPS = {J.CANCELLED, J.FAILED}                 # the operator cancels; the print task fails it
+_ON_PRINTER = _STOPS | {J.INTERRUPTED}           # ... or the daemon stops while it holds the printer
+LIFE_CYCLE: dict[JobState, set[JobState]] = {
+    J.SUBMITTED: {J.COMPILING, J.READY} | _STOPS,                 # a plain G-code program needs no compile
+    J.COMPILING: {J.READY} | _ON_PRINTER,                         # (a compile the stop cut is interrupted)
+    J.READY: {J.HEATING} | _STOPS,                                # never straight to printing: it heats first
+    J.HEATING: {J.PRINTING_FRONT, J.PRINTING_BACK} | _ON_PRINTER,  # the back: a resumed one, alignment kept
+    J.PRINTING_FRONT: {J.AWAITING_FLIP, J.DONE, J.PAUSED} | _ON_PRINTER,   # done: a one-sided design
+    J.AWAITING_FLIP: {J.ALIGNING} | _ON_PRINTER,                  # never to the back without the marks
+    J.ALIGNING: {J.PRINTING_BACK, J.FITTED} | _ON_PRINTER,        # a refused fit stays aligning
+    J.FITTED: {J.PRINTING_BACK, J.ALIGNING} | _ON_PRINTER,        # accept, or re-seat and measure again
+    J.PRINTING_BACK: {J.DONE, J.PAUSED} | _ON_PRINTER,
+    J.PAUSED: {J.PRINTING_FRONT, J.PRINTING_BACK} | _ON_PRINTER,  # resumed; never done from a pause
+    J.DONE: {J.READY},                                            # a new run of the same design
+    J.CANCELLED: {J.READY},
+    J.FAILED: {J.READY},
+    # a new run, a compile made again, cancelled, resumed (the frame checked first), or nothing left
+    J.INTERRUPTED: {J.READY, J.SUBMITTED, J.CANCELLED, J.AWAITING_CHECK, J.DONE},
+    J.AWAITING_CHECK: {J.HEATING, J.ALIGNING} | _ON_PRINTER,      # the front heats; the back is aligned
+}
+
+
+def test_the_life_cycle_covers_every_state() -> None:
+    assert set(LIFE_CYCLE) == set(JobState)
+
+
+@pytest.mark.parametrize("state", list(JobState), ids=lambda s: s.value)
+def test_every_state_allows_its_life_cycle_and_refuses_every_other_target(state: JobState) -> None:
+    """Each allowed move passes ``check_transition``; each other target state (itself included)
+    raises ``IllegalTransition`` (e.g. ready → printing_front without heating, awaiting_flip →
+    printing_back without the alignment, awaiting_check → printing_front, paused → done)."""
+    for target in JobState:
+        if target in LIFE_CYCLE[state]:
+            check_transition(state, target)
+        else:
+            with pytest.raises(IllegalTransition):
+                check_transition(state, target)
 
 
 def test_only_jobs_on_the_printer_can_be_interrupted() -> None:

@@ -478,8 +478,9 @@ def align_all(api: httpx.Client, job: str, marks: list[list[float]], pose: tuple
 def test_a_reviewed_fit_waits_then_re_seat_aligns_again_and_accept_prints(
         api: httpx.Client, shared_sim: Sim, meshes: dict[str, Path]) -> None:
     """With review, the fit waits in 'fitted' (rotation, offset, residual shown; nothing printed);
-    re-seat goes back to the flip step; the frame seated again is aligned again, and accept prints
-    the back with the second fit."""
+    re-seat goes back to aligning, every mark to measure again (the frame stays back side up: it is
+    not turned over again); the frame seated again is aligned again, and accept prints the back
+    with the second fit."""
     shared_sim.ensure_front()
     job = submit(api, meshes["two_sided"], start=True)
     wait_for(api, job, "awaiting_flip", timeout=90)
@@ -501,12 +502,16 @@ def test_a_reviewed_fit_waits_then_re_seat_aligns_again_and_accept_prints(
     assert refused.status_code == 409 and "accept, re-seat, cancel" in refused.json()["detail"]
 
     r = api.post(f"/jobs/{job}/re-seat")
-    assert r.status_code == 200 and r.json()["state"] == "awaiting_flip", r.text
+    assert r.status_code == 200 and r.json()["state"] == "aligning", r.text
     assert r.json()["error"] is None, "re-seating is a choice, not a failure"
+    reseat = wait_for(api, job, "aligning", timeout=30, until=lambda j: j["waits_for_operator"])
+    words = reseat["next"]["instruction"]
+    assert words.startswith("Re-seat the frame, back side up (do not turn it over again); every mark is "
+                            f"measured again. mark 1 of {len(marks)}:"), words
+    assert "flip-done" not in words and reseat["alignment"]["kept"] == []
     second = (-0.4, 0.6, 0.5)
-    shared_sim.flip()            # the frame out of its seat, front up again
-    shared_sim.flip(*second)     # and turned over once more, seated a little differently
-    assert api.post(f"/jobs/{job}/flip-done").status_code == 200
+    shared_sim.flip()            # the frame out of its seat (the simulator turns it front up)
+    shared_sim.flip(*second)     # and back in, back side up, seated a little differently
     status = align_all(api, job, marks, second, review=True)
     assert status["fit"]["rotation_deg"] == pytest.approx(second[2], abs=2e-3)
     wait_for(api, job, "fitted", timeout=10)
@@ -515,3 +520,54 @@ def test_a_reviewed_fit_waits_then_re_seat_aligns_again_and_accept_prints(
     done = wait_for(api, job, "done", timeout=120)
     assert done["correction"]["rotation_deg"] == pytest.approx(second[2], abs=2e-3)
     assert api.post(f"/jobs/{job}/accept").status_code == 409
+    assert "awaiting_flip" not in [t["to_state"] for t in api.get(f"/jobs/{job}/transitions").json()][6:]
+
+
+@pytest.mark.timeout(300)
+def test_a_refused_mark_is_measured_again_and_the_others_kept(
+        api: httpx.Client, shared_sim: Sim, meshes: dict[str, Path]) -> None:
+    """A mark jogged wrong (10 mm off: the marks fit no rigid motion) is refused naming it. The job
+    stays aligning, back side up: the marks that fitted are kept, the head goes back above the bad
+    one only, the status says so (not to turn the frame over); the refusal is cleared once the
+    operator measures it again; the fit is then accepted and the back printed with it."""
+    job = submit(api, meshes["two_sided"], start=True)
+    wait_for(api, job, "awaiting_flip", timeout=90)
+    marks = api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"]
+    n = len(marks)
+    assert n >= 3, "one mark named as the bad one needs three or more"
+    pose = (0.4, -0.3, 0.6)
+    shared_sim.flip(*pose)
+    assert api.post(f"/jobs/{job}/flip-done").status_code == 200
+    bad = 2
+    for k, (x, y) in enumerate(marks, start=1):
+        wait_for(api, job, "aligning", timeout=60, until=lambda j: j["waits_for_operator"])
+        head = api.get("/printer").json()["head"]
+        tx, ty = true_mark(x, y, *pose)
+        miss = 10.0 if k == bad else 0.0             # the nozzle put 10 mm beside the mark
+        assert api.post("/printer/jog", json={"dx": tx + miss - head[0], "dy": ty - head[1]}).status_code == 200
+        r = api.post(f"/jobs/{job}/align", json={"here": True})
+    assert r.status_code == 409 and r.json()["refused"] == "residual", r.text
+    assert f"mark {bad} is" in r.json()["detail"], r.json()["detail"]
+
+    waiting = wait_for(api, job, "aligning", timeout=30, until=lambda j: j["waits_for_operator"])
+    kept = [k for k in range(1, n + 1) if k != bad]
+    assert waiting["alignment"] == {"marks": n, "kept": kept, "remeasure": [bad]}
+    assert r.json()["detail"] in waiting["error"]
+    words = waiting["next"]["instruction"]
+    assert "The frame stays back side up (do not turn it over again)" in words, words
+    assert f"measure mark {bad} again. mark {bad} of {n}:" in words, words
+    assert "turn the frame over about" not in words.lower() and "flip-done" not in words, words
+    # the head is above the bad mark, where it should be (the kept ones are not visited again)
+    expected = (2 * CENTER[0] - marks[bad - 1][0], marks[bad - 1][1])
+    assert api.get("/printer").json()["head"][:2] == pytest.approx(list(expected), abs=1e-3)
+    assert [t["to_state"] for t in api.get(f"/jobs/{job}/transitions").json()][-1] == "aligning"
+
+    tx, ty = true_mark(*marks[bad - 1], *pose)
+    assert api.post("/printer/jog", json={"dx": tx - expected[0], "dy": ty - expected[1]}).status_code == 200
+    r = api.post(f"/jobs/{job}/align", json={"here": True})
+    assert r.status_code == 200 and r.json()["accepted"], r.text
+    assert r.json()["mark"] == bad and r.json()["fit"]["rotation_deg"] == pytest.approx(pose[2], abs=2e-3)
+    back = wait_for(api, job, {"printing_back", "done"}, timeout=60)
+    assert back["error"] is None, "the refusal is cleared once the mark is measured again"
+    done = wait_for(api, job, "done", timeout=120)
+    assert done["correction"]["rotation_deg"] == pytest.approx(pose[2], abs=2e-3) and done["error"] is None

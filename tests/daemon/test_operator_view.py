@@ -31,7 +31,7 @@ from ribbond.gcode.profiles import load_profile
 from ribbond.temperatures import TemperatureHistory
 from sim.process import SimProcess
 
-from .conftest import BAUD, ROOT, Daemon, Sim, running, wait_for
+from .conftest import BAUD, ROOT, Daemon, Sim, frame_ready, running, wait_for
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -146,6 +146,7 @@ def test_temperatures_while_heating_in_status_watch_and_the_history(
     _, daemon = slow_printer
     assert daemon.client is not None
     api = daemon.client
+    frame_ready(api)                    # a fresh frame loaded (this daemon's first start knows none)
     job = json.loads(ctl(daemon, "submit", str(meshes["one_sided"]), "--size", "70", "--start", "--no-wait",
                          "--json").stdout)["id"]
     watch = subprocess.Popen([sys.executable, "-m", "ribbond.cli", "watch", job, "--url", daemon.url], cwd=ROOT,

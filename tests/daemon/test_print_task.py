@@ -49,6 +49,7 @@ async def test_a_cancel_before_the_stream_begins_sends_no_program_line(tmp_path:
     upload = tmp_path / "upload"
     upload.write_text("\n".join(["G28", "G90", "G1 Z5 F600", *moves]) + "\n")
     try:
+        service.frame.ready()                  # the operator loaded a fresh frame (ribbonctl frame-ready)
         job = await service.submit_gcode(upload, "moves.gcode", start=True)
         await asyncio.wait_for(entered.wait(), 30)
         assert service.job(job.id).state is JobState.HEATING

@@ -78,8 +78,12 @@ def resume(api: httpx.Client, job: str, partial: str | None, keep: bool = False,
         assert r.status_code == 200, r.text
         answer = r.json()
     assert answer["state"] == "awaiting_check"
-    checked = wait_for(api, job, "awaiting_check", timeout=60, until=lambda j: j["waits_for_operator"])
+    checked = wait_for(api, job, "awaiting_check", timeout=60, until=lambda j: j["waits_for_operator"],
+                       fresh_frame=False)
     assert f"ribbonctl frame-ok {job}" in checked["next"]["instruction"]
+    # it prints on its own frame, used by its own first run: the frame check, not frame-ready
+    assert "frame-ready" not in checked["next"]["instruction"] and "frame-ready" not in checked["next"]["commands"]
+    assert api.get("/printer").json()["frame"]["state"] == "used"
     assert ("--keep-alignment" in checked["next"]["instruction"]) == keep
     # nothing prints before the operator says the frame is in place
     assert api.post(f"/jobs/{job}/resume").status_code == 409
@@ -88,6 +92,79 @@ def resume(api: httpx.Client, job: str, partial: str | None, keep: bool = False,
     r = api.post(f"/jobs/{job}/frame-ok", json={"keep_alignment": keep})
     assert r.status_code == 200, r.text
     return dict(r.json())
+
+
+class Samples:
+    """The job's progress as the operator sees it (``GET /jobs/{id}``), sampled while waiting."""
+
+    def __init__(self, job: str) -> None:
+        self.job, self.seen = job, []
+
+    def wait(self, api: httpx.Client, states: set[str] | str, until: Any = None, timeout: float = 120) -> dict[str, Any]:
+        wanted = {states} if isinstance(states, str) else states
+        deadline = time.monotonic() + timeout
+        while True:
+            j = api.get(f"/jobs/{self.job}").json()
+            self.seen.append((j["state"], j["progress"], j.get("program"), j["last_acked_line"], j["lines_total"]))
+            if j["state"] in wanted and (until is None or until(j)):
+                return dict(j)
+            assert time.monotonic() < deadline, f"not {wanted} in {timeout} s: {self.seen[-3:]}"
+            time.sleep(0.02)
+
+
+@pytest.mark.timeout(300)
+def test_progress_never_goes_back_through_pause_interruption_and_resume(tmp_path: Path,
+                                                                       meshes: dict[str, Path]) -> None:
+    """A one-sided print paused, resumed, killed past halfway and resumed where it was proven to
+    stand: the job's progress, sampled all along (the restart included), never decreases; the
+    resumed program adds to the parts printed before it (it ends at 100 %, not at its own share);
+    its lines are named as the resumed program's, by the API and by ``ribbonctl status``."""
+    with own_printer(tmp_path / "state") as (sim, daemon):
+        api = daemon.client
+        assert api is not None
+        job = submit(api, meshes["one_sided"], start=True)
+        seen = Samples(job)
+        record = wait_for(api, job, "printing_front", timeout=120)
+        total = record["lines_total"]
+        assert record["program"] == "front"
+        seen.wait(api, "printing_front", until=lambda j: j["last_acked_line"] >= total // 4)
+        assert api.post(f"/jobs/{job}/pause").status_code == 200
+        seen.wait(api, "paused", until=lambda j: j["stage"] == "paused (head parked)")
+        assert api.post(f"/jobs/{job}/resume").status_code == 200
+        before = seen.wait(api, "printing_front", until=lambda j: j["last_acked_line"] >= total * 3 // 5)
+        daemon.kill()
+
+        api = restart(daemon, sim)
+        stopped = seen.wait(api, "interrupted")
+        assert stopped["progress"] >= before["progress"] > 0.5
+        r = api.post(f"/jobs/{job}/resume")
+        assert r.status_code == 200, r.text
+        seen.wait(api, "awaiting_check", until=lambda j: j["waits_for_operator"])
+        assert api.post(f"/jobs/{job}/frame-ok").status_code == 200
+        resumed = seen.wait(api, "printing_front", until=lambda j: j["last_acked_line"] > 20)
+        program = resumed["program"]
+        assert program.startswith("front (resumed at part ") and resumed["lines_total"] < total, resumed
+        text = ribbonctl_text(daemon, "status", job)
+        assert f"{program}: line " in text and f" of {resumed['lines_total']}" in text, text
+        seen.wait(api, "done", timeout=150)
+
+    progress = [p for _, p, *_ in seen.seen]
+    drops = [(a, b) for a, b in zip(seen.seen, seen.seen[1:]) if b[1] < a[1] - 1e-9]
+    assert not drops, f"progress went back: {drops[:3]}"
+    states = [s for s, *_ in seen.seen]
+    assert {"paused", "interrupted", "awaiting_check", "heating", "printing_front", "done"} <= set(states), set(states)
+    # the resumed program adds to what was printed before: above what was shown at the interruption,
+    # before its end (not stuck at the floor, not its own share of the side)
+    last_resumed = max(p for (s, p, name, *_) in seen.seen if s == "printing_front" and name == program)
+    assert last_resumed > stopped["progress"] + 0.05, (last_resumed, stopped["progress"])
+    assert progress[-1] == 1.0
+
+
+def ribbonctl_text(daemon: Daemon, *args: str) -> str:
+    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url], cwd=ROOT,
+                          text=True, capture_output=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
 
 
 def test_interrupted_front_and_back_resume_after_the_last_proven_part(tmp_path: Path,
@@ -192,12 +269,15 @@ def test_part_events_per_run_and_a_version_2_database_gains_the_table(tmp_path: 
     with JobStore(db) as store:
         job = store.create(mesh_name="m.obj", mesh_path="/m.obj", parameters={}, start_when_ready=False)
     conn = sqlite3.connect(db)                      # as ribbond before issue 16 left it
-    # (and before issue 22's notes column)
-    conn.executescript("DROP TABLE part_events; ALTER TABLE jobs DROP COLUMN notes; PRAGMA user_version = 2;")
+    # (and before issue 22's notes column, the frame, same_frame, program and print_progress)
+    conn.executescript("DROP TABLE part_events; DROP TABLE frame; ALTER TABLE jobs DROP COLUMN notes; "
+                       "ALTER TABLE jobs DROP COLUMN same_frame; ALTER TABLE jobs DROP COLUMN program; "
+                       "ALTER TABLE jobs DROP COLUMN print_progress; PRAGMA user_version = 2;")
     conn.close()
     with JobStore(db) as store:
-        assert SCHEMA_VERSION == 4
+        assert SCHEMA_VERSION == 5
         assert store.get(job.id).notes == []
+        assert store.frame()["state"] == "used"          # (schema 5: nothing confirmed yet)
         for part, event in ((0, "started"), (0, "done"), (1, "started"), (1, "reprint"), (1, "started"),
                             (2, "started"), (2, "skipped")):
             store.record_part(job.id, "front", part, event, line=part * 10, durable=part != 1)

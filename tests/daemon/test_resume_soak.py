@@ -21,7 +21,7 @@ from typing import Any
 import httpx
 import pytest
 
-from .conftest import Sim, own_printer, submit
+from .conftest import Sim, frame_ready, own_printer, submit
 from .deposits import executed, integrity, outcome, part_events, program_parts
 from .test_daemon_e2e import operator_jogs
 from .test_resume import restart
@@ -74,6 +74,7 @@ def test_killed_at_random_and_resumed_every_part_printed_once(tmp_path: Path, me
     with own_printer(tmp_path / "state") as (sim, daemon):
         api = daemon.client
         assert api is not None
+        frame_ready(api)                         # a fresh frame loaded: the job prints at once
         job = submit(api, meshes["two_sided"], start=True)
         operator = Operator(sim, job)
         target: int | None = None

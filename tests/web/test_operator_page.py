@@ -21,7 +21,7 @@ from ribbond.design.mesh_io import write_obj
 from ribbond.design.preview import SIDE_COLORS
 from ribbond.design.surfaces import sphere_cap
 from ribbond.gcode.profiles import load_profile
-from tests.daemon.conftest import Daemon, Sim, own_printer, running, submit, wait_for
+from tests.daemon.conftest import Daemon, Sim, frame_ready, own_printer, running, submit, wait_for
 from tests.daemon.test_daemon_e2e import flip_and_align
 from tests.daemon.test_operator_view import SlowSim
 from tests.daemon.test_resume import kill_at, restart
@@ -126,7 +126,8 @@ def test_heating_shows_the_temperatures_the_title_and_a_full_chart(
     assert api.post(f"/jobs/{job}/cancel").status_code == 200
     wait_for(api, job, "cancelled", timeout=60)
 
-    # a plain program prints a program, not a front
+    # a plain program prints a program, not a front (on a fresh frame: the design printed on this one)
+    frame_ready(api)
     lines = ["G28", "G90", "M83", f"G0 Z{PROFILE.layers.fabric_z + 1:.2f} F600"]
     lines += [f"G1 X{60 + (i % 2) * 20} Y{60 + i * 0.5:.1f} E0.5 F1200" for i in range(40)]
     r = api.post("/jobs", files={"gcode": ("zigzag.gcode", ("\n".join(lines) + "\n").encode())},
