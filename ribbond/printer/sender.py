@@ -459,11 +459,8 @@ class Sender:
         if refused is not None and number > refused:
             # The request that answers an error asks past the line the error refused: the printer
             # marked that line received without running it.
-            line = self._history.get(refused)
-            where = (f" (program line {line.program_index + 1}: {line.command})"
-                     if line is not None and line.program_index is not None else "")
             self._fail(ProtocolError(
-                f"printer asked for line {number} after refusing line {refused}{where}, which "
+                f"printer asked for line {number} after refusing line {refused}{self._where(refused)}, which "
                 f"was not sent again: that line would never run. Stopped with every line before it "
                 f"acknowledged (last line acknowledged: {self._acked_through}); resume from it"))
             return
@@ -501,6 +498,13 @@ class Sender:
             self._hold.cancel()
             self._end_hold()
 
+    def _where(self, number: int) -> str:
+        """`` (program line K: COMMAND)`` for line ``number`` of the history, "" when unknown."""
+        line = self._history.get(number)
+        if line is None or line.program_index is None:
+            return ""
+        return f" (program line {line.program_index + 1}: {line.command})"
+
     def _note_asked_past(self, number: int) -> None:
         """The printer asks for ``number`` while the line it last asked for again, and was sent
         again, is still unacknowledged: it says it holds that line. Marlin does (the line waits in
@@ -522,11 +526,8 @@ class Sender:
         if ok.line == unproven:
             self._unproven = None  # its own ok: it ran
             return False
-        line = self._history.get(unproven)
-        where = (f" (program line {line.program_index + 1}: {line.command})"
-                 if line is not None and line.program_index is not None else "")
         self._fail(ProtocolError(
-            f"printer acknowledged line {number} but never line {unproven}{where}, which it had asked "
+            f"printer acknowledged line {number} but never line {unproven}{self._where(unproven)}, which it had asked "
             f"for again, was sent again and then asked past: that line may never have run. Stopped "
             f"with every line before it acknowledged (last line acknowledged: {self._acked_through}); "
             f"resume from it"))

@@ -20,6 +20,7 @@ from ribbond.gcode.profiles import load_profile
 from ribbond.guard import Guard, HostRule, Policy
 from ribbond.printer.link import prepare_program
 from tests.daemon.conftest import ROOT, Daemon, Sim, wait_for
+from tests.daemon.test_console import at_centre  # noqa: F401 - the fixture, shared
 from tests.daemon.test_programs import SLICER
 from tests.gcode.reader import read_gcode
 
@@ -71,15 +72,6 @@ ROUTES = {"jog": (_jog, "XYZ"), "goto": (_goto, "XY"), "gcode": (_gcode, ["X", "
           "heat": (_heat, ["nozzle", "bed"]), "job": (_job, ["X", "Y", "Z", "nozzle", "bed"])}
 TABLE = [(route, axis, side) for route, (_, axes) in ROUTES.items() for axis in axes
          for side in ("below", "above") if (axis, side) in PAST]
-
-
-@pytest.fixture
-def at_centre(api: httpx.Client) -> httpx.Client:
-    """The head homed, then above the frame's centre at the safe height: its position known."""
-    assert api.post("/printer/home").status_code == 200
-    r = api.post("/printer/goto", json={"x": CX, "y": CY})
-    assert r.status_code == 200 and r.json()["position"] == pytest.approx([CX, CY, SAFE_Z]), r.text
-    return api
 
 
 @pytest.mark.parametrize("route, axis, side", TABLE, ids=[f"{r}-{a}-{s}" for r, a, s in TABLE])
