@@ -120,7 +120,8 @@ def test_killed_at_random_and_resumed_every_part_printed_once(tmp_path: Path, me
         # A kill in the back's last part leaves nothing to print once that begun part is skipped: the
         # job is done on its resume (interrupted -> done) before the soak can kill it again.
         nothing_left = states[-2:] == ["interrupted", "done"]
-        assert len(kills) == KILLS or nothing_left, f"seed {seed}: the job ended after {len(kills)} kills: {states[-8:]}"
+        assert len(kills) == KILLS or nothing_left, \
+            f"seed {seed}: the job ended after {len(kills)} kills: {states[-8:]}"
         assert len(operator.back_programs) == 1, "the back's corrected program changed between runs"
         events = part_events(db, job)
         assert {e["run"] for e in events} == {1}
