@@ -16,20 +16,14 @@ from typing import Any
 import httpx
 import pytest
 
-from ribbond.gcode.profiles import load_profile
 from ribbond.guard import Guard, HostRule, Policy
 from ribbond.printer.link import prepare_program
 from tests.daemon.conftest import ROOT, Daemon, Sim, wait_for
-from tests.daemon.test_console import at_centre  # noqa: F401 - the fixture, shared
+from tests.daemon.test_console import (BED_MAX, CX, CY, FABRIC, NOZZLE_MAX, PROFILE, SAFE_Z, X0, X1, Y0, Y1,  # noqa: F401
+                                       at_centre)  # the profile's limits and the fixture, shared
 from tests.daemon.test_programs import SLICER
 from tests.gcode.reader import read_gcode
 
-PROFILE = load_profile("ultimaker2-tpu")
-X0, Y0, X1, Y1 = PROFILE.frame.bounds
-CX, CY = PROFILE.frame.center
-FABRIC = PROFILE.layers.fabric_z
-SAFE_Z = FABRIC + PROFILE.layers.safe_height
-NOZZLE_MAX, BED_MAX = PROFILE.temperatures.nozzle_max, PROFILE.temperatures.bed_max
 MO = PROFILE.motion
 LIMITS = {"X": MO.max_xy_speed, "Y": MO.max_xy_speed, "Z": MO.max_z_speed, "E": MO.max_e_speed}
 FRAME = f"outside the frame (x {X0:g} to {X1:g}, y {Y0:g} to {Y1:g} mm)"
