@@ -1,28 +1,24 @@
-"""Predict the deployed shape of a printed layout (issue 12): the top level of ``ribbond.deploy``.
+"""Predict the deployed shape of a printed layout (issues 12 and 23): the top level of ``ribbond.deploy``.
 
-``predict_deployed`` takes the flat surface, the target and the ribbons, and returns the
-equilibrium of the homogenized shell (``rest_forms`` → ``shell`` → ``solver``), registered onto the
-target, with its deviation (``compare``). ``render_deployed_png`` (``picture``) draws it. Pure
-functions on arrays: no I/O.
+``predict_deployed`` takes the flat surface, the target and the ribbons, builds the printed sheet
+(``rest_forms``: the homogenized model, or ``fine``: every ribbon resolved), releases it along the
+physical path from the flat sheet as printed (``release``), and only then registers the result onto
+the target and measures it (``compare``, ``agreement``). Nothing in the simulation reads the target:
+no start, weight, bound or stopping rule; every tolerance is a fraction of the flat sheet's size.
+
+The nominal release is followed by a few other plausible ones (``RELEASES``: the symmetry-breaking
+lift against the curl, the curvature leading or lagging the contraction); the deviation over all of
+them is the spread. Each release follows the path on a coarse uniform copy of the flat domain
+(``coarse_faces``) and is finished at full release on the reference mesh, from the coarse result.
 
 The reference mesh is the flat surface itself when it has at most ``1.25 × target_faces`` faces,
 else a uniform triangulation of the flat domain with about ``target_faces`` faces
 (``ribbond.design.remesh.remesh_flat``); the target positions reach its vertices through barycentric
-coordinates of the flat mesh (the flat map is piecewise linear), so a 160k-face design costs what a
-3k-face one does.
-
-Two starts are solved on a coarse uniform copy of the flat domain (``coarse_faces``, 600), and the
-lower-energy equilibrium is kept: the target itself (through the shared vertices) and the flat sheet,
-shrunk by the mean rest contraction, with a small bump toward +z (1 % of its diagonal) that breaks the
-flat sheet's symmetry. The winner (on a tie, ``TIE_RTOL``, the flat start), interpolated onto the
-reference mesh, starts the final solve there (coarse to fine: the flat start needs many iterations,
-which cost little on 600 faces).
+coordinates of the flat mesh, for the registration only.
 
 Material (``Material``): fabric and plastic moduli and thicknesses give, per face, the membrane
 stiffness D_s = Y_f h_f + φ Y_p τ and the bending stiffness D_b = (Y_f h_f³ + φ Y_p τ³)/12, φ the
-share of the face under plastic (f_d f_p). The curvature the ribbons aim at comes from the table;
-what these constants set is how strongly the rest curvature competes with the rest metric
-(D_b / D_s, ~τ² φ / 12 where there is plastic).
+share of the face under plastic (f_d f_p).
 """
 
 from __future__ import annotations
@@ -38,20 +34,26 @@ from ribbond.design.format import Ribbon
 from ribbond.design.remesh import remesh_flat
 from ribbond.design.thickness import CurvatureTable
 
+from . import agreement
 from .compare import surface_deviation
-from .rest_forms import Coverage, LayoutRaster, face_coverage, rest_forms
-from .shell import ShellEnergy, edge_basis_forms
-from .solver import NewtonResult, newton
+from .release import DEFAULT_STEPS, FORCE_TOLERANCE, NOMINAL, STEP_TOLERANCE, Path, Sheet, release
+from .rest_forms import Coverage, face_coverage, rest_forms
+from .solver import newton
 
-__all__ = ["Material", "Prediction", "ReferenceMesh", "reference_mesh", "shell_for_layout", "flat_start",
+__all__ = ["Material", "Prediction", "ReferenceMesh", "reference_mesh", "sheet_for_layout", "RELEASES",
            "predict_deployed"]
 
 #: Default face count of the reference mesh.
 DEFAULT_FACES = 3000
-#: Face count of the coarse copy both starts are solved on first.
+#: Face count of the coarse copy each release follows its path on.
 COARSE_FACES = 600
-#: Equilibria whose energies agree to this (relative) are one: the choice between them is a tie.
-TIE_RTOL = 1e-8
+#: The releases tried: the nominal one first, then the plausible variants behind the spread.
+RELEASES = (NOMINAL,
+            Path("lifted against the curl", 1.0, -1.0),
+            Path("curvature leading the contraction", 0.5, 1.0),
+            Path("curvature lagging the contraction", 2.0, 1.0))
+#: The models: the homogenized shell (``rest_forms``) or every ribbon resolved (``fine``).
+MODELS = ("homogenized", "ribbon-resolved")
 
 
 @dataclass(frozen=True)
@@ -142,12 +144,12 @@ class Prediction:
     uv : (k, 2) the same vertices on the flat surface; target : (k, 3) on the target.
     distance : (k,) distance of each predicted vertex to the target surface, mm.
     deviation_pct : {"mean", "p99", "max"} in % of the target's bounding-box diagonal.
-    start : "target" or "flat", the start whose equilibrium had the lower energy.
-    energies : equilibrium energies (N·mm): ``coarse_target`` and ``coarse_flat`` on the coarse copy,
-        and the kept start's on the reference mesh under its name.
-    iterations : Newton iterations, both starts together; converged : the kept start converged.
-    time_s : wall time of the whole prediction, s; faces : len(F).
-    coverage : what the layout puts on each face of the reference mesh.
+    agreement : the intrinsic measures and the spread (``agreement.Agreement``).
+    releases : per release tried, its name and deviation_pct (the nominal one first).
+    model : "homogenized" or "ribbon-resolved".
+    iterations : Newton iterations of all releases; converged : every release reached equilibrium.
+    steps : release steps of each path; time_s : wall time of the whole prediction, s; faces : len(F).
+    coverage : what the layout puts on each face of the reference mesh (None for the fine model).
     """
 
     V: np.ndarray
@@ -156,13 +158,24 @@ class Prediction:
     target: np.ndarray
     distance: np.ndarray
     deviation_pct: dict[str, float]
-    start: str
-    energies: dict[str, float]
+    agreement: agreement.Agreement
+    releases: list[dict]
+    model: str
     iterations: int
     converged: bool
+    steps: int
     time_s: float
     faces: int
-    coverage: Coverage = field(repr=False)
+    coverage: Coverage | None = field(repr=False, default=None)
+
+    @property
+    def reached(self) -> bool:
+        """The layout takes the target's shape (``agreement.reached``)."""
+        return agreement.reached(self.agreement)
+
+    @property
+    def verdict(self) -> str:
+        return agreement.verdict(self.agreement)
 
     def render_png(self, target_V: np.ndarray, target_F: np.ndarray, title: str = "") -> bytes:
         """``deployed.png``: the target (target_V (n, 3), target_F (m, 3)) beside this prediction."""
@@ -170,26 +183,25 @@ class Prediction:
         return render_deployed_png(target_V, target_F, self.V, self.F, self.distance, title=title)
 
     def report(self) -> dict:
-        """``report.deployed`` of design.json (format 2)."""
+        """``report.deployed`` of design.json (format 3)."""
+        a = self.agreement
         return {"deviation_pct": dict(self.deviation_pct), "faces": self.faces, "iterations": self.iterations,
-                "time_s": self.time_s, "start": self.start}
+                "time_s": self.time_s, "start": "flat",
+                "total_gaussian_curvature": {"predicted": a.curvature_predicted, "target": a.curvature_target},
+                "area_ratio": a.area_ratio,
+                "spread": {"mean": list(a.spread_mean), "max": list(a.spread_max), "releases": len(self.releases)},
+                "reached": self.reached, "verdict": self.verdict, "model": self.model}
 
 
-def shell_for_layout(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], *, prestretch: float,
-                     ribbon_width: float, table: CurvatureTable, material: Material | None = None,
-                     raster: LayoutRaster | None = None) -> tuple[ShellEnergy, Coverage]:
-    """The shell energy of the layout on the reference mesh (uv (k, 2), F (t, 3)), and its coverage
-    (``raster``: the layout's ``layout_raster``, made once for the flat domain; default: made here)."""
+def sheet_for_layout(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], *, prestretch: float,
+                     ribbon_width: float, table: CurvatureTable, material: Material | None = None
+                     ) -> tuple[Sheet, Coverage]:
+    """The printed sheet of the layout on the mesh (uv (k, 2), F (t, 3)), homogenized, and its coverage."""
     material = material or Material()
-    cov = face_coverage(uv, F, ribbons, ribbon_width, table, raster=raster)
+    cov = face_coverage(uv, F, ribbons, ribbon_width, table)
     rest = rest_forms(cov, prestretch)
-    abar = edge_basis_forms(uv, F, rest.abar)
-    bbar = edge_basis_forms(uv, F, rest.bbar)
-    area = 0.5 * np.sqrt(np.maximum(abar[:, 0] * abar[:, 2] - abar[:, 1] ** 2, 0.0))
     Ds, Db = material.stiffness(cov.area_fraction, cov.thickness)
-    nu = material.poisson
-    energy = ShellEnergy(F, abar, bbar, area * Ds / (8 * (1 - nu ** 2)), area * Db / (2 * (1 - nu ** 2)), nu)
-    return energy, cov
+    return Sheet(uv=uv, F=F, abar=rest.abar, bbar=rest.bbar, stretch=Ds, bend=Db, nu=material.poisson), cov
 
 
 def _check(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -216,54 +228,51 @@ def _check(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray) -> tuple[np
     return uv, V, F
 
 
-def flat_start(uv: np.ndarray, energy: ShellEnergy, bump: float = 0.01) -> np.ndarray:
-    """The flat sheet shrunk by its mean rest contraction, with a bump of ``bump`` × diagonal toward +z."""
-    F = energy.F
-    e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
-    flat_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
-    a = energy.abar
-    rest_area = 0.5 * np.sqrt(np.maximum(a[:, 0] * a[:, 2] - a[:, 1] ** 2, 0)).sum()
-    c = uv.mean(axis=0)
-    P = (uv - c) * np.sqrt(rest_area / flat_area)
-    r2 = (P ** 2).sum(axis=1)
-    R2 = r2.max()
-    diag = float(np.linalg.norm(P.max(axis=0) - P.min(axis=0)))
-    return np.column_stack([P, bump * diag * (1.0 - r2 / R2)])
+def _finish(sheet: Sheet, X0: np.ndarray, max_iterations: int):
+    """The equilibrium at full release on ``sheet``, from X0 (a coarse release, interpolated)."""
+    return newton(sheet.energy_at(1.0), X0, max_iterations=max_iterations, step_tolerance=STEP_TOLERANCE,
+                  scale=sheet.diagonal, gradient_tolerance=FORCE_TOLERANCE * sheet.force_scale)
 
 
-def _lowest(results: dict[str, NewtonResult]) -> str:
-    """The start with the lowest equilibrium energy; on a tie (``TIE_RTOL``) the flat start, whose
-    equilibrium owes nothing to the target. Where both starts reach the same equilibrium (the
-    bench torus patch: energies equal to 5e-13), a plain ``min`` is decided by rounding, so any
-    change of the arithmetic would flip it (and move the creeping fine solve by 2 % of the deviation)."""
-    low = min(v.energy for v in results.values())
-    tied = [k for k, v in results.items() if v.energy - low <= TIE_RTOL * max(abs(low), 1e-300)]
-    return "flat" if "flat" in tied else min(tied, key=lambda k: results[k].energy)
+def _release_on(sheet: Sheet, coarse: Sheet | None, path: Path, steps: int, max_iterations: int,
+                report: Callable[[int, int], None]) -> tuple[np.ndarray, int, bool]:
+    """Release along ``path`` (on ``coarse`` when given, then finished on ``sheet``): X, iterations, converged."""
+    if coarse is None:
+        r = release(sheet, steps=steps, path=path, max_iterations=max_iterations,
+                    progress=lambda k, n, it: report(k, n + 1))
+        return r.X, r.iterations, r.converged
+    r = release(coarse, steps=steps, path=path, max_iterations=max_iterations,
+                progress=lambda k, n, it: report(k, n + 1))
+    fin = _finish(sheet, interpolate(sheet.uv, coarse.uv, coarse.F, r.X), max_iterations)
+    report(steps + 1, steps + 1)
+    return fin.X, r.iterations + fin.iterations, r.converged and fin.converged
 
 
 def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], *,
                      prestretch: float, ribbon_width: float, table: CurvatureTable,
                      target_faces: int = DEFAULT_FACES, coarse_faces: int = COARSE_FACES,
-                     material: Material | None = None,
-                     max_iterations: int = 200,
-                     progress: Callable[[int, float, float], None] | None = None) -> Prediction:
-    """Predict the deployed shape of the printed layout and its deviation from the target.
+                     material: Material | None = None, model: str = "homogenized",
+                     steps: int = DEFAULT_STEPS, releases: Sequence[Path] = RELEASES,
+                     max_iterations: int = 60,
+                     progress: Callable[[float, str], None] | None = None) -> Prediction:
+    """Predict the deployed shape of the printed layout and how well it agrees with the target.
 
     Parameters
     ----------
     flat_uv : (n, 2) the flat surface (flat.obj's x, y), front-side print coordinates, mm.
     target_V : (n, 3) the target (target.obj), same vertices; F : (m, 3) their faces (flat CCW).
+        The target registers and measures the prediction; the simulation never reads it.
     ribbons : the ribbons as placed (design.json's ``ribbons``).
     prestretch : s; ribbon_width : w_r, mm; table : the curvature table of the design.
     target_faces : the reference mesh's size when the flat mesh is larger (``reference_mesh``).
-    coarse_faces : both starts are solved first on a uniform remesh of about this many faces; the
-        lower equilibrium, interpolated, starts the solve on the reference mesh (0: both starts on
-        the reference mesh itself). ``start`` says which start won; ``energies`` has the coarse
-        energies of both starts and, under the winner's name, the reference mesh's.
+    coarse_faces : each release follows its path on a uniform remesh of about this many faces and is
+        finished on the reference mesh (0: the whole path on the reference mesh).
     material : the material constants (``Material()``).
-    max_iterations : Newton's cap, per start.
-    progress : called after each Newton iteration with (iteration, energy, ‖∇E‖∞); the iterations
-        of the second start continue the count of the first.
+    model : "homogenized" (the shell of ``rest_forms``) or "ribbon-resolved" (``fine``: every ribbon
+        a strip of its own on a mesh fine enough to resolve it; no coarse copy).
+    steps : release steps per path; releases : the paths (the first is the nominal prediction).
+    max_iterations : Newton's cap per step.
+    progress : called with (fraction done in [0, 1], what is being done).
 
     Returns
     -------
@@ -283,46 +292,46 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
         raise ValueError(f"ribbon_width must be > 0, got {ribbon_width!r}")
     if target_faces < 50:
         raise ValueError(f"target_faces must be at least 50, got {target_faces}")
-    count = [0]
-
-    def relay(i: int, e: float, g: float) -> None:
-        if progress is not None:
-            progress(count[0] + i, e, g)
-
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    ref = reference_mesh(uv, V, F, target_faces)
-    # each mesh rasterizes the layout over its own outline: one raster of the flat domain shared by
-    # both would save ~0.3 s but moves the coverage near the boundary (the grid and the inside mask
-    # follow the outline: up to 0.018 in f on the coarse copy) and with it the creeping solve
-    energy, cov = shell_for_layout(ref.uv, ref.F, ribbons, prestretch=prestretch, ribbon_width=ribbon_width,
-                                   table=table, material=material)
-    # both starts on a coarse copy; the lower equilibrium, prolonged, starts the reference mesh
-    coarse = reference_mesh(uv, V, F, min(coarse_faces, len(ref.F)), force=True) if coarse_faces else None
-    results: dict[str, NewtonResult] = {}
-    if coarse is not None and len(coarse.F) < 0.5 * len(ref.F):
-        e_c, _ = shell_for_layout(coarse.uv, coarse.F, ribbons, prestretch=prestretch,
-                                  ribbon_width=ribbon_width, table=table, material=material)
-        for name, X0 in (("target", coarse.target), ("flat", flat_start(coarse.uv, e_c))):
-            r = newton(e_c, X0, max_iterations=max_iterations, progress=relay, scale=diag)
-            count[0] += r.iterations
-            results[name] = r
-        best = _lowest(results)
-        energies = {f"coarse_{k}": v.energy for k, v in results.items()}
-        X0 = interpolate(ref.uv, coarse.uv, coarse.F, results[best].X)
-        r = newton(energy, X0, max_iterations=max_iterations, progress=relay, scale=diag)
-        count[0] += r.iterations
-        results = {best: r}
-        energies[best] = r.energy
+    if model not in MODELS:
+        raise ValueError(f"model must be one of {', '.join(MODELS)}, not {model!r}")
+    if not releases:
+        raise ValueError("releases must name at least one path (the nominal one first)")
+    kw = dict(prestretch=prestretch, ribbon_width=ribbon_width, table=table, material=material)
+    if model == "ribbon-resolved":
+        from .fine import ribbon_resolved_sheet
+        sheet = ribbon_resolved_sheet(uv, F, ribbons, **kw)
+        ref = ReferenceMesh(uv=sheet.uv, F=sheet.F, target=interpolate(sheet.uv, uv, F, V), coarsened=True)
+        cov, coarse = None, None
     else:
-        for name, X0 in (("target", ref.target), ("flat", flat_start(ref.uv, energy))):
-            r = newton(energy, X0, max_iterations=max_iterations, progress=relay, scale=diag)
-            count[0] += r.iterations
-            results[name] = r
-        energies = {k: v.energy for k, v in results.items()}
-    best = _lowest(results)
-    dev = surface_deviation(results[best].X, ref.target, V, F)
-    return Prediction(V=dev.V, F=ref.F, uv=ref.uv, target=ref.target, distance=dev.distance,
-                      deviation_pct=dev.as_dict(), start=best,
-                      energies=energies, iterations=count[0],
-                      converged=results[best].converged, time_s=time.perf_counter() - t0, faces=len(ref.F),
-                      coverage=cov)
+        ref = reference_mesh(uv, V, F, target_faces)
+        sheet, cov = sheet_for_layout(ref.uv, ref.F, ribbons, **kw)
+        coarse = None
+        if coarse_faces and coarse_faces < 0.5 * len(ref.F):
+            cm = reference_mesh(uv, V, F, coarse_faces, force=True)
+            coarse, _ = sheet_for_layout(cm.uv, cm.F, ribbons, **kw)
+    results, iterations, converged = [], 0, True
+    for i, path in enumerate(releases):
+        def report(k: int, n: int, i: int = i, path: Path = path) -> None:
+            if progress is not None:
+                progress((i + k / n) / len(releases), f"release {i + 1} of {len(releases)} ({path.name}): "
+                                                      f"step {min(k, steps)} of {steps}")
+        X, it, ok = _release_on(sheet, coarse, path, steps, max_iterations, report)
+        iterations += it
+        converged &= ok
+        results.append((path, X))
+    devs = [surface_deviation(X, ref.target, V, F) for _, X in results]
+    nominal = devs[0]
+    means = [d.mean_pct for d in devs]
+    maxes = [d.max_pct for d in devs]
+    target_area = agreement.surface_area(V, F)
+    a = agreement.Agreement(
+        mean_pct=nominal.mean_pct, max_pct=nominal.max_pct,
+        curvature_predicted=agreement.total_gaussian_curvature(nominal.V, ref.F),
+        curvature_target=agreement.total_gaussian_curvature(V, F),
+        area_ratio=agreement.surface_area(nominal.V, ref.F) / target_area if target_area > 0 else float("nan"),
+        spread_mean=(min(means), max(means)), spread_max=(min(maxes), max(maxes)))
+    return Prediction(V=nominal.V, F=ref.F, uv=ref.uv, target=ref.target, distance=nominal.distance,
+                      deviation_pct=nominal.as_dict(), agreement=a,
+                      releases=[{"name": p.name, "deviation_pct": d.as_dict()} for (p, _), d in zip(results, devs)],
+                      model=model, iterations=iterations, converged=bool(converged), steps=steps,
+                      time_s=time.perf_counter() - t0, faces=len(ref.F), coverage=cov)
