@@ -61,9 +61,10 @@ class TerminalProgress:
     def iteration(self, stage: str, iteration: int, change: float, energy: float) -> None:
         if self._bar is not None:
             self._bar.update(1)
-            if iteration % 10 == 0 or stage == "deploy":
-                what = "|∇E|" if stage == "deploy" else "mean Δσ"
-                self._bar.set_postfix_str(f"{what} {change:.1e}, energy {energy:.3g}", refresh=False)
+            if stage == "deploy":                  # change: the fraction of the releases done
+                self._bar.set_postfix_str(f"{100 * change:.0f} % released", refresh=False)
+            elif iteration % 10 == 0:
+                self._bar.set_postfix_str(f"mean Δσ {change:.1e}, energy {energy:.3g}", refresh=False)
 
     def close(self) -> None:
         """Take the live counter off the screen (also when a stage fails)."""
@@ -124,10 +125,9 @@ def summary(result: DesignResult, out_dir: Path) -> str:
                          f"{rr.spacing_error_along_pct.p95:.1f} %")
     if r.deployed is not None:
         dv = r.deployed
-        lines.append(f"deployed    predicted deviation from the target: mean {dv.deviation_pct.mean:.2f} %, p99 "
-                     f"{dv.deviation_pct.p99:.2f} %, max {dv.deviation_pct.max:.2f} % of the bounding-box "
-                     f"diagonal ({dv.faces} faces, {dv.iterations} Newton iterations, {dv.start} start won, "
-                     f"{dv.time_s:.1f} s); {out_dir}/deployed.png")
+        from .design.verdict import deployed_figures
+        lines.append(f"deployed    {deployed_figures(dv.model_dump(exclude_none=True))} ({dv.faces} faces, "
+                     f"{dv.iterations} Newton iterations, {dv.time_s:.1f} s); {out_dir}/deployed.png")
     pr = r.print_
     if pr is not None:
         for side, sp in (("front", pr.front), ("back", pr.back)):

@@ -418,9 +418,8 @@ def _deployed_lines(report: dict[str, Any], url: str, job: dict[str, Any]) -> li
     d = report.get("deployed")
     if not d:
         return []
-    dev = d["deviation_pct"]
-    return [f"deployed    predicted deviation mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max "
-            f"{dev['max']:.2f} % of the diagonal ({d['start']} start); {url}/jobs/{job['id']}/files/deployed.png"]
+    from .design.verdict import deployed_figures          # plain Python: no numpy on the client's path
+    return [f"deployed    {deployed_figures(d)}; {url}/jobs/{job['id']}/files/deployed.png"]
 
 
 def cmd_print(args: argparse.Namespace) -> int:

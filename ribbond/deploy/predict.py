@@ -50,7 +50,6 @@ COARSE_FACES = 600
 #: The releases tried: the nominal one first, then the plausible variants behind the spread.
 RELEASES = (NOMINAL,
             Path("lifted against the curl", 1.0, -1.0),
-            Path("curvature leading the contraction", 0.5, 1.0),
             Path("curvature lagging the contraction", 2.0, 1.0))
 #: The models: the homogenized shell (``rest_forms``) or every ribbon resolved (``fine``).
 MODELS = ("homogenized", "ribbon-resolved")
@@ -244,7 +243,7 @@ def _release_on(sheet: Sheet, coarse: Sheet | None, path: Path, steps: int, max_
     r = release(coarse, steps=steps, path=path, max_iterations=max_iterations,
                 progress=lambda k, n, it: report(k, n + 1))
     fin = _finish(sheet, interpolate(sheet.uv, coarse.uv, coarse.F, r.X), max_iterations)
-    report(steps + 1, steps + 1)
+    report(1, 1)
     return fin.X, r.iterations + fin.iterations, r.converged and fin.converged
 
 
@@ -253,7 +252,7 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
                      target_faces: int = DEFAULT_FACES, coarse_faces: int = COARSE_FACES,
                      material: Material | None = None, model: str = "homogenized",
                      steps: int = DEFAULT_STEPS, releases: Sequence[Path] = RELEASES,
-                     max_iterations: int = 60,
+                     max_iterations: int = 30,
                      progress: Callable[[float, str], None] | None = None) -> Prediction:
     """Predict the deployed shape of the printed layout and how well it agrees with the target.
 
@@ -314,7 +313,7 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
         def report(k: int, n: int, i: int = i, path: Path = path) -> None:
             if progress is not None:
                 progress((i + k / n) / len(releases), f"release {i + 1} of {len(releases)} ({path.name}): "
-                                                      f"step {min(k, steps)} of {steps}")
+                                                      f"step {k} of {n}")
         X, it, ok = _release_on(sheet, coarse, path, steps, max_iterations, report)
         iterations += it
         converged &= ok

@@ -243,7 +243,7 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
                 psd_streak = psd_streak + 1 if kind == "psd" else 0
                 streak = streak + 1 if new == level else 0
                 level = new
-                if streak >= 3 and 0 < level < len(_SHIFTS):
+                if streak >= 1 and 0 < level < len(_SHIFTS):
                     level, streak = level - 1, 0
                 break
         if converged:

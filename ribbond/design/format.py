@@ -23,10 +23,10 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from ribbond.design.params import DesignParameters, SizeSpec
 
 #: The format this module writes; it reads it and the formats of ``READABLE_FORMATS``.
-FORMAT = "ribbond-design/2"
+FORMAT = "ribbond-design/3"
 
-#: Every format this module reads (format 2 only adds report fields to format 1).
-READABLE_FORMATS = ("ribbond-design/1", "ribbond-design/2")
+#: Every format this module reads (formats 2 and 3 only add report fields to format 1).
+READABLE_FORMATS = ("ribbond-design/1", "ribbond-design/2", "ribbond-design/3")
 
 #: Largest tolerated deviation of a ribbon direction from unit length.
 UNIT_TOLERANCE = 1e-6
@@ -179,15 +179,40 @@ class DeviationPct(BaseModel):
     max: float = Field(ge=0)
 
 
+class GaussianCurvature(BaseModel):
+    """∫K dA of the prediction and of the target (format 3)."""
+
+    model_config = _CONFIG
+    predicted: float
+    target: float
+
+
+class Spread(BaseModel):
+    """The deviation over the releases tried (format 3): [lo, hi] of the mean and of the max, % of the diagonal."""
+
+    model_config = _CONFIG
+    mean: list[float] = Field(min_length=2, max_length=2)
+    max: list[float] = Field(min_length=2, max_length=2)
+    releases: int = Field(ge=1)
+
+
 class DeployedReport(BaseModel):
-    """``report.deployed`` (format 2): the predicted deployed shape against the target."""
+    """``report.deployed``: the predicted deployed shape against the target (format 2; format 3 adds
+    the intrinsic measures, the spread, the verdict and the model, and releases from the flat sheet:
+    ``start`` is then always "flat")."""
 
     model_config = _CONFIG
     deviation_pct: DeviationPct
     faces: int = Field(ge=1, description="faces of the mesh the prediction was computed on")
-    iterations: int = Field(ge=0, description="Newton iterations of the winning start")
+    iterations: int = Field(ge=0, description="Newton iterations")
     time_s: float = Field(ge=0)
-    start: Literal["target", "flat"] = Field(description="the start whose equilibrium had the lower energy")
+    start: Literal["target", "flat"] = Field(description="where the solve started (format 3: the flat sheet)")
+    total_gaussian_curvature: GaussianCurvature | None = None
+    area_ratio: float | None = Field(default=None, ge=0, description="predicted area / target area")
+    spread: Spread | None = None
+    reached: bool | None = Field(default=None, description="the layout takes the target's shape (README's rule)")
+    verdict: str | None = None
+    model: Literal["homogenized", "ribbon-resolved"] | None = None
 
 
 class RibbonsReport(BaseModel):

@@ -18,7 +18,7 @@ from typing import Protocol
 import numpy as np
 import shapely
 
-from ..deploy.predict import Prediction, predict_deployed
+from ..deploy.predict import RELEASES, Prediction, predict_deployed
 from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
 from ..gcode.program import GcodeError, Programs, make_programs
 from . import linalg
@@ -299,15 +299,12 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     # -- deploy: the predicted deployed shape --------------------------------------------------------
     prediction = None
     if predict:
-        progress.stage_started("deploy", "predicting the deployed shape (shell equilibrium, Newton)")
+        progress.stage_started("deploy", "predicting the deployed shape (the flat sheet released, "
+                                         f"{len(RELEASES)} ways)")
         t = time.perf_counter()
         prediction = _predict(uv, V, F, ribbons, params, table, progress)
         timings["deploy"] = time.perf_counter() - t
-        dev = prediction.deviation_pct
-        progress.stage_finished("deploy", timings["deploy"],
-                                f"deviation from the target mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, "
-                                f"max {dev['max']:.2f} % of the diagonal; {prediction.faces} faces, "
-                                f"{prediction.iterations} Newton iterations, from the {prediction.start}")
+        progress.stage_finished("deploy", timings["deploy"], _deploy_summary(prediction))
         report["deployed"] = DeployedReport(**prediction.report())
 
     # -- preview ----------------------------------------------------------------------------------
@@ -346,12 +343,24 @@ def _check_some_ribbons(layout: RibbonLayout, params: DesignParameters, size: fl
                       "design larger (size) or the ribbons smaller (ribbon_length, ribbon_width)")
 
 
+def _deploy_summary(p: Prediction) -> str:
+    dev, a = p.deviation_pct, p.agreement
+    return (f"{p.verdict}. Deviation mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max {dev['max']:.2f} % of "
+            f"the diagonal (over {len(p.releases)} releases: mean {a.spread_mean[0]:.2f}–{a.spread_mean[1]:.2f} %); "
+            f"{p.faces} faces, {p.iterations} Newton iterations")
+
+
 def _predict(uv: np.ndarray, V: np.ndarray, F: np.ndarray, ribbons: list[Ribbon], params: DesignParameters,
              table: CurvatureTable, progress: DesignProgress) -> Prediction:
+    calls = [0]
+
+    def relay(fraction: float, message: str) -> None:
+        calls[0] += 1
+        progress.iteration("deploy", calls[0], fraction, 0.0)
+
     try:
         return predict_deployed(uv, V, F, ribbons, prestretch=params.prestretch,
-                                ribbon_width=params.ribbon_width, table=table,
-                                progress=lambda i, energy, grad: progress.iteration("deploy", i, grad, energy))
+                                ribbon_width=params.ribbon_width, table=table, progress=relay)
     except ValueError as exc:
         raise DesignError(f"the deployed shape cannot be predicted: {exc}") from None
 

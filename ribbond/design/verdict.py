@@ -82,13 +82,36 @@ def _prediction_line(report: dict[str, Any]) -> list[str]:
     if not deployed:
         return []
     dev = deployed["deviation_pct"]
-    text = (f"prediction: the released layout deviates from the target by {dev['mean']:.1f} % of the "
-            f"diagonal on average, {dev['max']:.1f} % at most")
+    if deployed.get("verdict"):                       # format 3: released from the flat sheet, measured
+        text = f"prediction ({deployed.get('model') or 'homogenized'} model): the layout {deployed['verdict']}"
+    else:
+        text = (f"prediction: the released layout deviates from the target by {dev['mean']:.1f} % of the "
+                f"diagonal on average, {dev['max']:.1f} % at most")
     if badly_broken(report):
         text += ("; NOT a sign of success here: it releases the flattening as computed, stretches outside "
                  "what the fabric can take included, so with the bounds broken this badly the print will "
                  "not take the predicted shape")
     return [text]
+
+
+def deployed_figures(deployed: dict[str, Any]) -> str:
+    """One line of the prediction's figures (``report.deployed`` as a dict, format 2 or 3): reached
+    first, then the intrinsic measures, the spread, and the deviation last."""
+    dev = deployed["deviation_pct"]
+    parts = []
+    if deployed.get("reached") is not None:
+        parts.append("reaches the target" if deployed["reached"] else "does NOT reach the target")
+    k = deployed.get("total_gaussian_curvature")
+    if k:
+        parts.append(f"∫K {k['predicted']:+.2f} (target {k['target']:+.2f})")
+    if deployed.get("area_ratio") is not None:
+        parts.append(f"area {100 * deployed['area_ratio']:.0f} % of the target's")
+    sp = deployed.get("spread")
+    if sp:
+        parts.append(f"mean deviation {sp['mean'][0]:.2f}–{sp['mean'][1]:.2f} % over {sp['releases']} releases")
+    parts.append(f"nominal deviation mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max {dev['max']:.2f} % "
+                 "of the diagonal")
+    return "; ".join(parts)
 
 
 def verdict_lines(design: dict[str, Any]) -> list[str]:
