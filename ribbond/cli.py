@@ -9,7 +9,8 @@ predicts again the deployed shape of a design folder, locally (``ribbond.design.
 Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still
 written, and the summary says so); 1 the design cannot be made as asked; 2 bad input (mesh,
 parameters); 130 interrupted. ``predict``: 0 the prediction was replaced; 2 bad input (not a design
-folder, a ``design.json`` that does not parse, an unknown table): nothing rewritten. The daemon commands: see ``client.py``.
+folder, a ``design.json`` that does not parse, an unknown table): nothing rewritten. ``predict --job ID``
+asks the daemon (``POST /jobs/{id}/predict``) and follows it: 1 refused or failed, 4 no such job. The daemon commands: see ``client.py``.
 """
 
 from __future__ import annotations
@@ -244,9 +245,39 @@ def prediction_text(deployed: dict[str, Any], verdict: list[str], folder: Path, 
     return "\n".join(lines)
 
 
+def _predict_job(args: argparse.Namespace) -> int:
+    """``ribbonctl predict --job ID``: POST /jobs/ID/predict, its progress followed until it ends."""
+    import time
+
+    from .client import _client
+
+    c = _client(args)
+    body: dict[str, Any] = {"fine": bool(args.fine)} | ({"table": args.table} if args.table else {})
+    job = c.request("POST", f"/jobs/{args.job}/predict", json=body)
+    progress = PredictProgress(quiet=args.quiet)
+    try:
+        while (job.get("prediction") or {}).get("state") == "running":
+            p = job["prediction"]
+            progress(float(p.get("fraction") or 0.0), str(p.get("message") or ""))
+            time.sleep(0.5)
+            job = c.request("GET", f"/jobs/{args.job}")
+    finally:
+        progress.close()
+    p = job.get("prediction") or {}
+    if p.get("state") != "done":
+        raise ClientError(f"the prediction of job {args.job} failed: {p.get('error') or 'no result'}", 1)
+    print(prediction_text(p["deployed"], p.get("verdict") or [], Path(job["design_dir"]),
+                          [Path(job["design_dir"]) / n for n in ("design.json", "deployed.obj", "deployed.png")]))
+    return 0
+
+
 def _cmd_predict(args: argparse.Namespace) -> int:
     from .design.repredict import repredict_folder
 
+    if (args.design_dir is None) == (args.job is None):
+        raise ValueError("give either a design folder or --job ID (a job of the daemon)")
+    if args.job is not None:
+        return _predict_job(args)
     progress = PredictProgress(quiet=args.quiet)
     try:
         done = repredict_folder(args.design_dir, table=args.table, fine=args.fine, progress=progress)
@@ -393,12 +424,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.set_defaults(func=_cmd_design)
-    pr = sub.add_parser("predict", help="predict again the deployed shape of a design folder (locally)",
+    predict_common = argparse.ArgumentParser(add_help=False)
+    add_global_options(predict_common, in_subcommand=True)
+    pr = sub.add_parser("predict", parents=[predict_common],
+                        help="predict again the deployed shape of a design folder (locally, or a job's with --job)",
                         description="Predict again the deployed shape of a design folder as its files are "
                                     "(ribbons and thicknesses as in design.json), and replace deployed.obj, "
                                     "deployed.png and report.deployed atomically. The ribbons, the G-code and "
                                     "parameters.curvature_table are left as they are.")
-    pr.add_argument("design_dir", type=Path, help="a design folder written by ribbonctl design")
+    pr.add_argument("design_dir", type=Path, nargs="?", help="a design folder written by ribbonctl design")
+    pr.add_argument("--job", metavar="ID", help="predict a daemon job's design instead (POST /jobs/ID/predict)")
     pr.add_argument("--table", metavar="NAME",
                     help="curvature table name or .toml path for the prediction (default: the design's); "
                          "recorded as report.deployed.table")

@@ -110,3 +110,20 @@ def test_unknown_job_and_a_plain_program(api: httpx.Client, tmp_path: Path) -> N
     refused = api.post(f"/jobs/{r.json()['id']}/predict")
     assert refused.status_code == 409 and "no design folder" in refused.json()["detail"]
     api.delete(f"/jobs/{r.json()['id']}")
+
+
+def test_ribbonctl_predict_job(shared_daemon: Daemon, api: httpx.Client, meshes: dict[str, Path]) -> None:
+    """``ribbonctl predict --job ID`` asks the daemon and prints what the job's prediction says."""
+    from .test_operator_view import ctl, verdicts
+
+    job = submit(api, meshes["two_sided"], start=False)
+    wait_for(api, job, "ready", timeout=120)
+    r = ctl(shared_daemon, "predict", "--job", job)
+    assert r.returncode == 0, (r.stdout, r.stderr)
+    record = api.get(f"/jobs/{job}").json()
+    deployed = api.get(f"/jobs/{job}/files/design.json").json()["report"]["deployed"]
+    assert verdicts(r.stdout) == record["verdict"]
+    assert f"mean {deployed['deviation_pct']['mean']:.2f} %" in r.stdout
+    assert ctl(shared_daemon, "predict", "--job", "0123456789ab").returncode == 4
+    both = ctl(shared_daemon, "predict", "/tmp", "--job", job)
+    assert both.returncode == 2 and "either a design folder or --job" in both.stderr
