@@ -220,7 +220,7 @@ def _pair(values: Any, fmt: str = ".2f") -> str:
     return f"{format(values[0], fmt)}–{format(values[1], fmt)}"
 
 
-def prediction_text(deployed: dict[str, Any], verdict: list[str], folder: Path, files: list[Path]) -> str:
+def prediction_text(deployed: dict[str, Any], verdict: list[str], files: list[Path]) -> str:
     """What ``ribbonctl predict`` prints: whether the target is reached, the verdict, the intrinsic
     figures (total Gaussian curvature, area ratio), the spread, then the mean deviation and the files.
     Fields of format 3 absent from an older report are left out."""
@@ -266,9 +266,19 @@ def _predict_job(args: argparse.Namespace) -> int:
     p = job.get("prediction") or {}
     if p.get("state") != "done":
         raise ClientError(f"the prediction of job {args.job} failed: {p.get('error') or 'no result'}", 1)
-    print(prediction_text(p["deployed"], p.get("verdict") or [], Path(job["design_dir"]),
-                          [Path(job["design_dir"]) / n for n in ("design.json", "deployed.obj", "deployed.png")]))
+    _print_prediction(args, p["deployed"], p.get("verdict") or [],
+                      [Path(job["design_dir"]) / n for n in ("design.json", "deployed.obj", "deployed.png")])
     return 0
+
+
+def _print_prediction(args: argparse.Namespace, deployed: dict[str, Any], verdict: list[str],
+                      files: list[Path]) -> None:
+    if getattr(args, "json", False):
+        import json
+
+        print(json.dumps({"deployed": deployed, "verdict": verdict, "files": [str(f) for f in files]}))
+    else:
+        print(prediction_text(deployed, verdict, files))
 
 
 def _cmd_predict(args: argparse.Namespace) -> int:
@@ -283,7 +293,7 @@ def _cmd_predict(args: argparse.Namespace) -> int:
         done = repredict_folder(args.design_dir, table=args.table, fine=args.fine, progress=progress)
     finally:
         progress.close()
-    print(prediction_text(done.deployed, done.verdict, done.folder, list(done.files)))
+    _print_prediction(args, done.deployed, done.verdict, list(done.files))
     return 0
 
 
