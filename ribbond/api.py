@@ -87,7 +87,19 @@ class JobStatus(JobRecord):
     verdict: list[str] | None = Field(None, description="a design's verdict, one sentence per line: the "
                                                         "stretch bounds, clamped thicknesses, ribbons dropped "
                                                         "or trimmed, the prediction (ribbond.design.verdict)")
+    prediction: dict[str, Any] | None = Field(
+        None, description="the design's last prediction asked for (POST /jobs/{id}/predict) in this daemon's "
+        "life: state (running, done, failed), fraction 0–1, message, table, fine; when done the new "
+        "report.deployed (deployed) and verdict; when failed the error")
     next: NextStep
+
+
+class PredictRequest(BaseModel):
+    """``POST /jobs/{id}/predict``: the prediction's curvature table and model."""
+
+    table: str | None = Field(None, min_length=1, max_length=64,
+                              description="a curvature table's name (GET /tables); default the design's")
+    fine: bool = Field(False, description="the ribbon-resolved model (minutes) instead of the homogenized one")
 
 
 class JogRequest(BaseModel):
@@ -179,7 +191,7 @@ def _links(target: str, operations: dict[str, str]) -> dict[str, Any]:
 _JOB_LINKS = {"GetJob": "job", "GetTransitions": "transitions", "GetJobFile": "job_file", "StartJob": "start",
               "PauseJob": "pause", "ResumeJob": "resume", "CancelJob": "cancel", "FlipDone": "flip_done",
               "AlignJob": "align", "AcceptFit": "accept", "ReSeat": "re_seat", "FrameOk": "frame_ok",
-              "DeleteJob": "delete"}
+              "DeleteJob": "delete", "PredictJob": "predict"}
 
 
 #: One server-sent event: its type (``job``, ``printer``, ...) and its JSON data.
@@ -348,6 +360,16 @@ def create_app(service: RibbonService, token: str | None) -> FastAPI:
               responses=responses(404, 409, 503, mutating=True, body=True))
     async def resume(job_id: Ident, body: ResumeRequest | None = None) -> JobStatus:
         return status(await service.resumer.resume(job_id, body.partial if body is not None else None))
+
+    @app.post("/jobs/{job_id}/predict", status_code=202, response_model=JobStatus,
+              responses=responses(404, 409, 422, mutating=True, body=True))
+    async def predict(job_id: Ident, body: PredictRequest | None = None) -> JobStatus:
+        """Predict the design's deployed shape again as its folder is, with another table or the
+        ribbon-resolved model: replaces deployed.obj, deployed.png and report.deployed; the job's
+        ``prediction`` follows it (events as the compile's)."""
+        body = body or PredictRequest()
+        service.predictor.start(job_id, body.table, body.fine)
+        return status(service.job(job_id))
 
     @app.post("/jobs/{job_id}/frame-ok", response_model=JobStatus,
               responses=responses(404, 409, 503, mutating=True, body=True))

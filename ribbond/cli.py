@@ -3,11 +3,14 @@
 ``ribbonctl design MESH -o DIR [--size MM] [--params FILE] [--profile NAME]`` runs the design
 engine locally (no daemon) and writes the design folder. The daemon commands (``submit``,
 ``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``frame-ok``, ``align``,
-``printer``, ``stop``) are in ``client.py``.
+``printer``, ``stop``) are in ``client.py``. ``ribbonctl predict DESIGN_DIR [--table NAME] [--fine]``
+predicts again the deployed shape of a design folder, locally (``ribbond.design.repredict``).
 
 Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still
 written, and the summary says so); 1 the design cannot be made as asked; 2 bad input (mesh,
-parameters); 130 interrupted. The daemon commands: see ``client.py``.
+parameters); 130 interrupted. ``predict``: 0 the prediction was replaced; 2 bad input (not a design
+folder, a ``design.json`` that does not parse, an unknown table): nothing rewritten. ``predict --job ID``
+asks the daemon (``POST /jobs/{id}/predict``) and follows it: 1 refused or failed, 4 no such job. The daemon commands: see ``client.py``.
 """
 
 from __future__ import annotations
@@ -184,6 +187,116 @@ def _cmd_design(args: argparse.Namespace) -> int:
     return 0
 
 
+class PredictProgress:
+    """The re-prediction's progress on stderr: a bar on a terminal, a line per tenth elsewhere."""
+
+    def __init__(self, stream: TextIO = sys.stderr, quiet: bool = False) -> None:
+        self.stream, self.quiet = stream, quiet
+        self._bar: Any = None
+        self._shown = -1
+
+    def __call__(self, fraction: float, message: str) -> None:
+        if self.quiet:
+            return
+        if self.stream.isatty():
+            if self._bar is None:
+                from tqdm import tqdm
+
+                self._bar = tqdm(total=100, desc="predict", unit="%", file=self.stream, leave=False,
+                                 dynamic_ncols=True, mininterval=0.2)
+            self._bar.n = round(100 * fraction)
+            self._bar.set_postfix_str(message, refresh=True)
+        elif int(10 * fraction) > self._shown:
+            self._shown = int(10 * fraction)
+            print(f"predict  {100 * fraction:3.0f} %  {message}", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
+def _pair(values: Any, fmt: str = ".2f") -> str:
+    return f"{format(values[0], fmt)}–{format(values[1], fmt)}"
+
+
+def prediction_text(deployed: dict[str, Any], verdict: list[str], files: list[Path]) -> str:
+    """What ``ribbonctl predict`` prints: whether the target is reached, the verdict, the intrinsic
+    figures (total Gaussian curvature, area ratio), the spread, then the mean deviation and the files.
+    Fields of format 3 absent from an older report are left out."""
+    lines = []
+    if "reached" in deployed:
+        lines.append(f"reached     {'yes: it will take the target shape' if deployed['reached'] else 'NO: it will NOT take the target shape'}")
+    lines += [f"verdict     {line}" for line in verdict]
+    k = deployed.get("total_gaussian_curvature")
+    if k:
+        lines.append(f"curvature   total Gaussian curvature predicted {k['predicted']:.2f}, target {k['target']:.2f}")
+    if deployed.get("area_ratio") is not None:
+        lines.append(f"area        predicted / target {deployed['area_ratio']:.3f}")
+    sp = deployed.get("spread")
+    if sp:
+        lines.append(f"spread      over {sp['releases']} releases: mean deviation {_pair(sp['mean'])} %, "
+                     f"max {_pair(sp['max'])} %")
+    dev = deployed["deviation_pct"]
+    what = f"{deployed.get('model', 'homogenized')} model" + (f", table {deployed['table']!r}" if deployed.get("table") else "")
+    lines.append(f"deviation   mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max {dev['max']:.2f} % of the "
+                 f"diagonal ({what}; {deployed['faces']} faces, {deployed['time_s']:.1f} s)")
+    lines.append(f"files       {', '.join(str(f) for f in files)}")
+    return "\n".join(lines)
+
+
+def _predict_job(args: argparse.Namespace) -> int:
+    """``ribbonctl predict --job ID``: POST /jobs/ID/predict, its progress followed until it ends."""
+    import time
+
+    from .client import _client
+
+    c = _client(args)
+    body: dict[str, Any] = {"fine": bool(args.fine)} | ({"table": args.table} if args.table else {})
+    job = c.request("POST", f"/jobs/{args.job}/predict", json=body)
+    progress = PredictProgress(quiet=args.quiet)
+    try:
+        while (job.get("prediction") or {}).get("state") == "running":
+            p = job["prediction"]
+            progress(float(p.get("fraction") or 0.0), str(p.get("message") or ""))
+            time.sleep(0.5)
+            job = c.request("GET", f"/jobs/{args.job}")
+    finally:
+        progress.close()
+    p = job.get("prediction") or {}
+    if p.get("state") != "done":
+        raise ClientError(f"the prediction of job {args.job} failed: {p.get('error') or 'no result'}", 1)
+    _print_prediction(args, p["deployed"], p.get("verdict") or [],
+                      [Path(job["design_dir"]) / n for n in ("design.json", "deployed.obj", "deployed.png")])
+    return 0
+
+
+def _print_prediction(args: argparse.Namespace, deployed: dict[str, Any], verdict: list[str],
+                      files: list[Path]) -> None:
+    if getattr(args, "json", False):
+        import json
+
+        print(json.dumps({"deployed": deployed, "verdict": verdict, "files": [str(f) for f in files]}))
+    else:
+        print(prediction_text(deployed, verdict, files))
+
+
+def _cmd_predict(args: argparse.Namespace) -> int:
+    from .design.repredict import repredict_folder
+
+    if (args.design_dir is None) == (args.job is None):
+        raise ValueError("give either a design folder or --job ID (a job of the daemon)")
+    if args.job is not None:
+        return _predict_job(args)
+    progress = PredictProgress(quiet=args.quiet)
+    try:
+        done = repredict_folder(args.design_dir, table=args.table, fine=args.fine, progress=progress)
+    finally:
+        progress.close()
+    _print_prediction(args, done.deployed, done.verdict, list(done.files))
+    return 0
+
+
 def _floats(text: str) -> list[float]:
     try:
         return [float(v) for v in text.replace(",", " ").split()]
@@ -321,6 +434,23 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.set_defaults(func=_cmd_design)
+    predict_common = argparse.ArgumentParser(add_help=False)
+    add_global_options(predict_common, in_subcommand=True)
+    pr = sub.add_parser("predict", parents=[predict_common],
+                        help="predict again the deployed shape of a design folder (locally, or a job's with --job)",
+                        description="Predict again the deployed shape of a design folder as its files are "
+                                    "(ribbons and thicknesses as in design.json), and replace deployed.obj, "
+                                    "deployed.png and report.deployed atomically. The ribbons, the G-code and "
+                                    "parameters.curvature_table are left as they are.")
+    pr.add_argument("design_dir", type=Path, nargs="?", help="a design folder written by ribbonctl design")
+    pr.add_argument("--job", metavar="ID", help="predict a daemon job's design instead (POST /jobs/ID/predict)")
+    pr.add_argument("--table", metavar="NAME",
+                    help="curvature table name or .toml path for the prediction (default: the design's); "
+                         "recorded as report.deployed.table")
+    pr.add_argument("--fine", action="store_true",
+                    help="the ribbon-resolved model (minutes) instead of the homogenized one (seconds)")
+    pr.add_argument("-q", "--quiet", action="store_true", help="print only the result")
+    pr.set_defaults(func=_cmd_predict)
     add_commands(sub)
     common = argparse.ArgumentParser(add_help=False)
     add_global_options(common, in_subcommand=True)
@@ -369,7 +499,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("ribbonctl: interrupted" + ("; nothing was written" if args.command == "design" else ""),
+        print("ribbonctl: interrupted" + ("; nothing was written" if args.command in ("design", "predict") else ""),
               file=sys.stderr)
         return 130
     except ClientError as exc:

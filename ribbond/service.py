@@ -17,7 +17,9 @@ and the next thing to do). The rest is one component per concern, each given onl
 - ``heaters.Heaters``: the heaters the daemon sets on its own (idle policy, off after a crash);
 - ``manual.ManualControl``: home, jog, goto, G-code, heat, cool, never while a program streams;
 - ``head.Head``: the link, the lock of the head's moves and the head's commanded position;
-- ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans.
+- ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans;
+- ``predictor.Predictor``: a design's deployed shape predicted again (a ``ribbond.predict_worker``
+  subprocess), its progress and result in the job's status.
 
 It knows nothing of HTTP (``api.py`` maps the components' methods and exceptions to routes and
 status codes) and parses no printer answers (``PrinterLink`` does).
@@ -49,6 +51,7 @@ from .heaters import Heaters
 from .jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState
 from .manual import MAX_MANUAL_COMMANDS, ManualControl
 from .printer.link import LinkState, PrinterLink
+from .predictor import Predictor
 from .printing import PrintTask
 from .checker import Checked
 from .programs import Timeline, check_plain_program, program_timeline
@@ -151,6 +154,8 @@ class RibbonService:
         self.calibrations = Calibrations(config, self.records, self.state.queue_print, python)
         self.compiler = Compiler(config, self.records, self.library.tables_dir, self.state.queue_print, python)
         self.verdicts = Verdicts(self.jobs_dir)          # the design's verdict in each status (issue 22)
+        self.predictor = Predictor(self.records, self.library.tables_dir, python, self.library.check_table_name,
+                                   lambda job_id: self.verdicts.forget(job_id, self.job(job_id).design_dir))
         self.temperatures = TemperatureHistory()         # the last 30 minutes, for the chart (issue 22)
         self._tasks: list[asyncio.Task[None]] = []
 
@@ -196,6 +201,7 @@ class RibbonService:
 
     async def close(self) -> None:
         self.compiler.stop_all()
+        self.predictor.stop_all()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
@@ -371,6 +377,9 @@ class RibbonService:
         if job.state.holds_printer or job.state in (JobState.SUBMITTED, JobState.COMPILING) \
                 or self.state.current(job_id) is not None:
             raise IllegalTransition(job.state, "delete", hint=f"cancel it first: ribbonctl cancel {job_id}")
+        if self.predictor.running(job_id):
+            raise ServiceError(f"cannot delete job {job_id} while its design is being predicted again; "
+                               "delete it once the prediction ends")
         self.store.delete(job_id)
         shutil.rmtree(self.job_dir(job_id), ignore_errors=True)
         log.info("job %s deleted", job_id)
@@ -521,6 +530,7 @@ class RibbonService:
             data["alignment"] = {"marks": len(run.alignment.expected), "kept": run.alignment.kept,
                                  "remeasure": list(run.alignment.remeasure)}
         data["verdict"] = self.verdicts.lines(job)
+        data["prediction"] = self.predictor.view(job.id)
         return data
 
     def _waits(self, job: JobRecord) -> bool:

@@ -2,10 +2,12 @@
 ``ribbond.design.verdict``, read from the job's ``design.json`` once per design and kept, in memory
 and beside the job (``verdict.json`` in the job's folder): a design folder does not change once
 written, and ``design.json`` can be tens of megabytes (its per-face fields), too much to read for
-every status of a job list."""
+every status of a job list. A design predicted again (``predictor.Predictor``) is forgotten here
+and read once more."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -66,6 +68,13 @@ class Verdicts:
             return False, None
         lines = kept.get("lines")
         return True, [str(line) for line in lines] if isinstance(lines, list) else None
+
+    def forget(self, job_id: str, design_dir: str | None) -> None:
+        """Drop the verdict kept for a design folder whose ``design.json`` changed (predicted again)."""
+        if design_dir is not None:
+            self._kept.pop(design_dir, None)
+        with contextlib.suppress(OSError):
+            (self.jobs_dir / job_id / VERDICT_FILE).unlink()
 
     def _store(self, job: JobRecord, lines: list[str] | None) -> None:
         folder = self.jobs_dir / job.id

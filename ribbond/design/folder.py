@@ -374,3 +374,62 @@ def _swap_in(tmp: Path, out_dir: Path) -> None:
         os.rename(backup, doomed)
         backup = doomed
     shutil.rmtree(backup, ignore_errors=True)
+
+
+def _link_or_copy(src: Path, dst: Path) -> None:
+    """``dst`` as a hard link to ``src`` (nothing written twice); a copy where links are refused."""
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy2(src, dst)
+
+
+def replace_design_files(folder: Path, files: Mapping[str, bytes]) -> Path:
+    """Replace some files of an existing design folder (``design.json``, ``deployed.obj``, …), atomically.
+
+    The new folder is built in a hidden sibling: the files kept are hard-linked into it (never
+    written again), the new ones written and synced; it is read back as a consumer would, then
+    swapped in as ``write_design_folder`` does. On any failure the folder is left as it was.
+
+    Parameters
+    ----------
+    folder : an existing design folder.
+    files : the new content of each replaced file, by name; ``design.json`` and the optional files
+        of the format (``OPTIONAL_FILES``); ``target.obj`` and ``flat.obj`` are never replaced here.
+
+    Raises
+    ------
+    ValueError
+        when ``folder`` is not a readable design folder, a name is not one of the files that may be
+        replaced, or the folder as it would be does not read back (the message names the file).
+    OSError
+        when writing fails; the folder is left as it was.
+    """
+    folder = Path(folder)
+    for name in files:
+        if name != "design.json" and name not in OPTIONAL_FILES:
+            raise ValueError(f"{name!r}: not a file of the design format that may be replaced "
+                             f"(design.json or one of {', '.join(OPTIONAL_FILES)})")
+    with _locked(folder.parent) as locked:
+        if locked:
+            _recover(folder)
+        _check_replaceable(folder)
+        read_design_folder(folder)                      # refuse to rebuild a folder that is not one
+        tmp = folder.parent / f".{folder.name}{_TMP}{secrets.token_hex(6)}"
+        tmp.mkdir()
+        try:
+            for old in folder.iterdir():
+                if old.name not in files:
+                    _link_or_copy(old, tmp / old.name)
+            for name, data in files.items():
+                _write_synced(tmp / name, bytes(data))
+            _fsync_dir(tmp)
+            try:
+                read_design_folder(tmp)
+            except ValueError as exc:
+                raise ValueError(f"the design as it would be written does not read back: {exc}") from None
+            _swap_in(tmp, folder)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+    return folder

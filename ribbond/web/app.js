@@ -18,6 +18,7 @@ const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", 
 const state = {
   printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [], live: false,
   designs: new Map(), files: new Map(), busy: new Set(), align: new Map(), alignMark: new Map(), compileInfo: new Map(),
+  predicted: new Map(),
 };
 
 // ------------------------------------------------------------------ small helpers
@@ -372,8 +373,6 @@ function summary(design) {
     const s = pr[side];
     if (s && s.lines) add(`Print ${side}`, `${duration(s.time_s)}, ${mm(s.filament_mm / 1000, 2)} m filament`);
   }
-  const dev = r.deployed?.deviation_pct;
-  if (dev) add("Deployed shape", `deviation ${mm(dev.mean, 1)} % mean, ${mm(dev.p99, 1)} % p99, ${mm(dev.max, 1)} % max`);
   add("Printer profile", p.printer_profile || "–");
   add("Curvature table", p.curvature_table || "–");
   return rows.join("");
@@ -617,8 +616,7 @@ function renderJobPage() {
   if (files?.preview && $("img-preview").src !== files.preview) $("img-preview").src = files.preview;
   $("fig-deployed").hidden = !files?.deployed;
   if (files?.deployed && $("img-deployed").src !== files.deployed) $("img-deployed").src = files.deployed;
-  const dev = design?.report?.deployed?.deviation_pct;
-  $("cap-deployed").textContent = dev ? `Predicted deployed shape: ${mm(dev.mean, 1)} % mean deviation (max ${mm(dev.max, 1)} %)` : "Predicted deployed shape";
+  $("cap-deployed").textContent = deployedCaption(design?.report?.deployed);
   const gcode = j.kind === "gcode";
   $("j-summary-card").hidden = !design && !gcode;
   $("j-summary-card").querySelector("h2").textContent = gcode ? "Program" : "Design";
@@ -727,6 +725,102 @@ function renderVerdict(j) {
   box.innerHTML = lines.map((l) => `<li class="${/OUTSIDE|NOT a sign|clamped/.test(l) ? "bad" : ""}">${esc(l)}</li>`).join("");
 }
 
+// ------------------------------------------------------------------ the prediction (issue 23)
+
+/** The picture's caption: what it shows, and whether the shape is reached; the figures are in the card. */
+function deployedCaption(d) {
+  if (!d) return "Predicted deployed shape";
+  const model = d.model === "ribbon-resolved" ? " (ribbon-resolved model)" : "";
+  if (d.reached === undefined) return `Predicted deployed shape${model}`;
+  return `Predicted deployed shape${model}: ${d.reached ? "takes" : "does NOT take"} the target's shape`;
+}
+
+const range = (r, d = 1) => (Array.isArray(r) ? `${mm(r[0], d)}–${mm(r[1], d)}` : "–");
+
+/** The figures of report.deployed, intrinsic first, the mean deviation last; format 2 has only the deviations. */
+function predictionFacts(d) {
+  const rows = [];
+  const add = (k, v) => rows.push(`<dt>${esc(k)}</dt><dd>${esc(v)}</dd>`);
+  const k = d.total_gaussian_curvature;
+  if (k) add("Total Gaussian curvature", `${mm(k.predicted, 2)} predicted, ${mm(k.target, 2)} target`);
+  if (d.area_ratio !== undefined && d.area_ratio !== null) add("Area, predicted / target", mm(d.area_ratio, 3));
+  const sp = d.spread;
+  if (sp) add("Spread over releases", `mean ${range(sp.mean)} %, max ${range(sp.max)} % (${sp.releases} releases)`);
+  const dev = d.deviation_pct || {};
+  add("Deviation from the target", `${mm(dev.mean, 1)} % mean, ${mm(dev.p99, 1)} % p99, ${mm(dev.max, 1)} % max of the diagonal`);
+  add("Model", `${d.model || "homogenized"}${d.table ? `, table ${d.table}` : ""}; ${d.faces ?? "–"} faces, ${mm(d.time_s, 1)} s`);
+  return rows.join("");
+}
+
+let tablesAsked = false;
+async function loadTables() {
+  if (tablesAsked) return;
+  tablesAsked = true;
+  try {
+    const tables = await api.get("/tables");
+    $("pr-table").innerHTML = `<option value="">the design's</option>` +
+      tables.map((t) => `<option value="${esc(t.name)}">${esc(t.name)}</option>`).join("");
+  } catch { tablesAsked = false; }
+}
+
+function renderPrediction(j) {
+  const design = state.designs.get(j.id);
+  const d = design?.report?.deployed;
+  const p = j.prediction;
+  const box = $("j-prediction");
+  box.hidden = j.kind !== "design" || !design || (!d && !p);
+  if (box.hidden) return;
+  loadTables();
+  // a prediction that just ended: read the design again (its report and picture changed)
+  const seen = state.predicted.get(j.id);
+  state.predicted.set(j.id, p?.state);
+  if (seen === "running" && p?.state === "done") { reloadDesign(j); return; }
+  const reached = $("pr-reached");
+  reached.hidden = !d || d.reached === undefined;
+  if (d && d.reached !== undefined) {
+    reached.textContent = d.reached ? "Will take the target's shape" : "Will NOT take the target's shape";
+    reached.className = `reached ${d.reached ? "yes" : "no"}`;
+  }
+  $("pr-line").hidden = !d?.verdict;
+  $("pr-line").textContent = d?.verdict || "";
+  $("pr-facts").innerHTML = d ? predictionFacts(d) : "";
+  $("pr-old").hidden = !d || d.reached !== undefined;
+  const running = p?.state === "running";
+  const blocked = ["submitted", "compiling"].includes(j.state) || STREAMS.has(j.state) || ["paused", "awaiting_flip",
+    "aligning", "fitted", "awaiting_check"].includes(j.state);
+  $("pr-run").disabled = running || blocked || state.busy.has(`predict:${j.id}`);
+  $("pr-run").title = blocked ? "not while the job compiles or holds the printer" : "";
+  $("pr-progress").hidden = !running;
+  if (running) {
+    $("pr-bar").value = p.fraction || 0;
+    $("pr-text").textContent = `${Math.round((p.fraction || 0) * 100)} % · ${p.message || ""}`;
+  }
+  $("pr-error").hidden = p?.state !== "failed";
+  $("pr-error").textContent = p?.state === "failed" ? `The prediction failed: ${p.error}` : "";
+}
+
+function reloadDesign(j) {
+  for (const url of Object.values(state.files.get(j.id) || {})) if (url) URL.revokeObjectURL(url);
+  state.designs.delete(j.id);
+  state.files.delete(j.id);
+  quiet(loadDesign(j));
+}
+
+$("pr-run").addEventListener("click", async () => {
+  const id = state.route.id;
+  const key = `predict:${id}`;
+  const body = { fine: $("pr-fine").checked };
+  if ($("pr-table").value) body.table = $("pr-table").value;
+  state.busy.add(key);
+  $("pr-run").disabled = true;
+  try {
+    const j = await api.post(`/jobs/${encodeURIComponent(id)}/predict`, body);
+    state.jobs.set(j.id, j);
+    state.predicted.set(j.id, "running");
+  } catch (e) { toast(`Predict again: ${e.message}`, "error"); }
+  finally { state.busy.delete(key); renderJobPage(); }
+});
+
 function renderFiles(j) {
   const names = j.kind === "gcode" ? DOWNLOADS.gcode : j.design_dir ? DOWNLOADS.design : [];
   const pr = state.designs.get(j.id)?.report?.print || {};
@@ -763,6 +857,7 @@ function optionButtons(j, cmds, busy) {
 }
 
 function renderOperatorView(j) {
+  renderPrediction(j);
   renderVerdict(j);
   renderTemps(j);
   renderFiles(j);
