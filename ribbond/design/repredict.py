@@ -16,7 +16,6 @@ material it describes. Used by ``ribbonctl predict`` and by the daemon's ``POST 
 
 from __future__ import annotations
 
-import inspect
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -72,34 +71,18 @@ def _table(folder: DesignFolder, name: str | None, tables_dir: Path | None) -> C
 
 
 def _predict(folder: DesignFolder, table: CurvatureTable, fine: bool, progress: Progress) -> Prediction:
-    """The prediction of the folder's ribbons: the one place that knows ``predict_deployed``'s signature.
-
-    Two signatures are taken: the issue-23 one (``model``, ``progress(fraction, message)``) and the
-    earlier one (``progress(iteration, energy, gradient)``, no ribbon-resolved model).
-    """
+    """The prediction of the folder's ribbons, as they are in its design.json."""
     d = folder.design
-    kwargs: dict[str, Any] = dict(prestretch=d.parameters.prestretch, ribbon_width=d.parameters.ribbon_width,
-                                  table=table)
-    if "model" in inspect.signature(predict_deployed).parameters:
-        kwargs.update(model="ribbon-resolved" if fine else "homogenized", progress=progress)
-    elif fine:
-        raise ValueError("the ribbon-resolved model (--fine) is not in this version of the engine")
-    else:
-        # earlier engine: Newton iterations only; ~3 solves of at most 200 each make the fraction
-        kwargs["progress"] = lambda i, energy, grad: progress(
-            min(0.99, i / 600.0), f"Newton iteration {i}, |∇E| {grad:.1e}")
-    return predict_deployed(folder.flat_V, folder.target_V, folder.target_F, list(d.ribbons or []), **kwargs)
+    return predict_deployed(folder.flat_V, folder.target_V, folder.target_F, list(d.ribbons or []),
+                            prestretch=d.parameters.prestretch, ribbon_width=d.parameters.ribbon_width,
+                            table=table, model="ribbon-resolved" if fine else "homogenized", progress=progress)
 
 
 def _deployed_report(prediction: Prediction, table: CurvatureTable, design: Design) -> DeployedReport:
-    """``report.deployed`` of the new prediction, recording the table it was made with."""
+    """``report.deployed`` of the new prediction, recording the table when it is not the design's."""
     data = dict(prediction.report())
-    if "table" in DeployedReport.model_fields:
+    if table.name != design.parameters.curvature_table:
         data["table"] = table.name
-    elif table.name != design.parameters.curvature_table:
-        raise ValueError(f"this design format cannot record a prediction made with table {table.name!r} "
-                         f"instead of the design's {design.parameters.curvature_table!r} "
-                         "(report.deployed.table)")
     return DeployedReport(**data)
 
 

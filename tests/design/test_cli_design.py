@@ -139,7 +139,7 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert len(folder.target_F) == len(F)
     assert np.array_equal(folder.target_F, F)          # a clean mesh keeps its faces and order
     d = design_json(out)
-    assert d["format"] == "ribbond-design/2" and d["units"] == "mm"
+    assert d["format"] == "ribbond-design/3" and d["units"] == "mm"
     assert d["source"]["file"] == "cylinder.obj" and d["source"]["faces"] == len(F)
     p = d["parameters"]
     assert p["prestretch"] == 1.6 and p["ribbon_length"] == 15.0 and p["ribbon_width"] == 1.5
@@ -156,9 +156,15 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert set(d["report"]["field_k1_deviation_deg"]) == {"median", "mean", "p95"}
     assert d["report"]["umbilic_pct"] == 0.0                    # a cylinder: anisotropy 1 everywhere
     deployed = d["report"]["deployed"]
-    assert set(deployed) == {"deviation_pct", "faces", "iterations", "time_s", "start"}
+    # format 3's fields (design-format.md)
+    assert set(deployed) == {"deviation_pct", "faces", "iterations", "time_s", "start", "total_gaussian_curvature",
+                             "area_ratio", "spread", "reached", "verdict", "model"}
     assert set(deployed["deviation_pct"]) == {"mean", "p99", "max"}
-    assert "deployed    predicted deviation from the target" in proc.stdout
+    assert deployed["start"] == "flat" and deployed["model"] == "homogenized"
+    assert set(deployed["total_gaussian_curvature"]) == {"predicted", "target"}
+    assert set(deployed["spread"]) == {"mean", "max", "releases"}
+    assert ("deployed    reaches the target" if deployed["reached"] else "deployed    does NOT reach") in proc.stdout
+    assert deployed["verdict"] in proc.stdout
     Vd, Fd = read_mesh(out / "deployed.obj")
     assert len(Fd) == deployed["faces"] and Vd.shape[1] == 3
 
