@@ -322,11 +322,13 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
     nominal = devs[0]
     means = [d.mean_pct for d in devs]
     maxes = [d.max_pct for d in devs]
-    target_area = agreement.surface_area(V, F)
+    target_area = agreement.surface_area(ref.target, ref.F)            # the same mesh, as for ∫K
     a = agreement.Agreement(
         mean_pct=nominal.mean_pct, max_pct=nominal.max_pct,
         curvature_predicted=agreement.total_gaussian_curvature(nominal.V, ref.F),
-        curvature_target=agreement.total_gaussian_curvature(V, F),
+        # on the same mesh: the interior vertices' angle defects leave out a boundary strip whose
+        # width is the mesh's, so two meshes of one surface differ by it
+        curvature_target=agreement.total_gaussian_curvature(ref.target, ref.F),
         area_ratio=agreement.surface_area(nominal.V, ref.F) / target_area if target_area > 0 else float("nan"),
         spread_mean=(min(means), max(means)), spread_max=(min(maxes), max(maxes)))
     return Prediction(V=nominal.V, F=ref.F, uv=ref.uv, target=ref.target, distance=nominal.distance,
