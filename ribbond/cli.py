@@ -216,31 +216,17 @@ class PredictProgress:
             self._bar = None
 
 
-def _pair(values: Any, fmt: str = ".2f") -> str:
-    return f"{format(values[0], fmt)}–{format(values[1], fmt)}"
-
-
 def prediction_text(deployed: dict[str, Any], verdict: list[str], files: list[Path]) -> str:
-    """What ``ribbonctl predict`` prints: whether the target is reached, the verdict, the intrinsic
-    figures (total Gaussian curvature, area ratio), the spread, then the mean deviation and the files.
-    Fields of format 3 absent from an older report are left out."""
-    lines = []
-    if "reached" in deployed:
-        lines.append(f"reached     {'yes: it will take the target shape' if deployed['reached'] else 'NO: it will NOT take the target shape'}")
+    """What ``ribbonctl predict`` prints: the figures of ``verdict.deployed_parts`` (reached first), the
+    verdict lines after the first, and the files."""
+    from .design.verdict import deployed_parts
+
+    parts = deployed_parts(deployed)
+    lines = [f"{label:<11} {text}" for label, text in parts[:1] if label == "reached"]
     lines += [f"verdict     {line}" for line in verdict]
-    k = deployed.get("total_gaussian_curvature")
-    if k:
-        lines.append(f"curvature   total Gaussian curvature predicted {k['predicted']:.2f}, target {k['target']:.2f}")
-    if deployed.get("area_ratio") is not None:
-        lines.append(f"area        predicted / target {deployed['area_ratio']:.3f}")
-    sp = deployed.get("spread")
-    if sp:
-        lines.append(f"spread      over {sp['releases']} releases: mean deviation {_pair(sp['mean'])} %, "
-                     f"max {_pair(sp['max'])} %")
-    dev = deployed["deviation_pct"]
     what = f"{deployed.get('model', 'homogenized')} model" + (f", table {deployed['table']!r}" if deployed.get("table") else "")
-    lines.append(f"deviation   mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max {dev['max']:.2f} % of the "
-                 f"diagonal ({what}; {deployed['faces']} faces, {deployed['time_s']:.1f} s)")
+    lines += [f"{label:<11} {text}" for label, text in parts if label != "reached"]
+    lines[-1] += f" ({what}; {deployed['faces']} faces, {deployed['time_s']:.1f} s)"
     lines.append(f"files       {', '.join(str(f) for f in files)}")
     return "\n".join(lines)
 

@@ -35,6 +35,30 @@ def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any]
         + (["--max-faces", str(max_faces)] if max_faces is not None else [])
 
 
+async def run_worker(command: list[str], log_path: Path, on_event: Callable[[dict[str, Any]], None],
+                     running: dict[str, asyncio.subprocess.Process], key: str) -> tuple[int, dict[str, Any]]:
+    """Run a worker process (``command``) that speaks JSON lines on stdout, its stderr kept in
+    ``log_path``, each event handed to ``on_event``; the process sits in ``running[key]`` while it
+    runs (so that it can be stopped). Returns its exit status and its last event."""
+    with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
+        proc = await asyncio.create_subprocess_exec(*command, stdout=asyncio.subprocess.PIPE, stderr=errors,
+                                                    env=worker_environment())
+    running[key] = proc
+    last: dict[str, Any] = {}
+    try:
+        assert proc.stdout is not None
+        async for raw in proc.stdout:
+            try:
+                event = json.loads(raw)
+            except ValueError:
+                continue
+            last = event
+            on_event(event)
+        return await proc.wait(), last
+    finally:
+        running.pop(key, None)
+
+
 def worker_environment() -> dict[str, str]:
     """The compile's environment: its numeric libraries use all cores but one, which is left to
     the event loop that feeds the printer (the worker also runs at nice +10)."""
@@ -108,29 +132,16 @@ class Compiler:
         """Run the job's worker to its end, its events published as they come; its exit status and
         its last event."""
         params = {**job.parameters, "printer_profile": self.config.printer_profile}
-        with log_path.open("wb") as errors:                  # the worker's stderr: kept for the operator
-            proc = await asyncio.create_subprocess_exec(
-                *worker_command(self.python, job.mesh_path, folder / "design", params, folder / "plans",
-                                self.tables_dir, self.config.limits.max_faces),
-                stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
-        self._compiling[job.id] = proc
-        last: dict[str, Any] = {}
-        try:
-            assert proc.stdout is not None
-            async for raw in proc.stdout:
-                try:
-                    event = json.loads(raw)
-                except ValueError:
-                    continue
-                last = event
-                if event.get("event") == "stage":
-                    self.records.publish(self.records.store.update(job.id, stage=event["stage"], progress=None))
-                elif event.get("event") == "iteration":
-                    self.records.publish(self.records.get(job.id), progress_event=event)
-            code = await proc.wait()
-        finally:
-            self._compiling.pop(job.id, None)
-        return code, last
+
+        def on_event(event: dict[str, Any]) -> None:
+            if event.get("event") == "stage":
+                self.records.publish(self.records.store.update(job.id, stage=event["stage"], progress=None))
+            elif event.get("event") == "iteration":
+                self.records.publish(self.records.get(job.id), progress_event=event)
+
+        return await run_worker(worker_command(self.python, job.mesh_path, folder / "design", params,
+                                               folder / "plans", self.tables_dir, self.config.limits.max_faces),
+                                log_path, on_event, self._compiling, job.id)
 
     def _finish(self, job_id: str, code: int, last: dict[str, Any], log_path: Path) -> None:
         """The job after its worker ended: ``ready`` (queued to print if asked), failed or cancelled."""

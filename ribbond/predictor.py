@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .compiler import worker_environment
+from .compiler import run_worker
 from .jobs import IllegalTransition, JobState
 from .records import JobRecords, NotFound, ServiceError
 
@@ -95,27 +94,15 @@ class Predictor:
     async def _worker(self, job_id: str, design_dir: str, table: str | None,
                       fine: bool) -> tuple[int, dict[str, Any]]:
         """Run the prediction worker to its end, its progress published; its exit status and last event."""
-        with (self.records.dir(job_id) / "predict.log").open("wb") as errors:
-            proc = await asyncio.create_subprocess_exec(
-                *predict_command(self.python, design_dir, table=table, fine=fine, tables=self.tables_dir),
-                stdout=asyncio.subprocess.PIPE, stderr=errors, env=worker_environment())
-        self._procs[job_id] = proc
-        last: dict[str, Any] = {}
-        try:
-            assert proc.stdout is not None
-            async for raw in proc.stdout:
-                try:
-                    event = json.loads(raw)
-                except ValueError:
-                    continue
-                last = event
-                if event.get("event") == "progress":
-                    self._views[job_id].update(fraction=float(event["fraction"]), message=str(event["message"]))
-                    with contextlib.suppress(NotFound):
-                        self.records.publish(self.records.get(job_id))
-            return await proc.wait(), last
-        finally:
-            self._procs.pop(job_id, None)
+        def on_event(event: dict[str, Any]) -> None:
+            if event.get("event") == "progress":
+                self._views[job_id].update(fraction=float(event["fraction"]), message=str(event["message"]))
+                with contextlib.suppress(NotFound):
+                    self.records.publish(self.records.get(job_id))
+
+        return await run_worker(predict_command(self.python, design_dir, table=table, fine=fine,
+                                                tables=self.tables_dir),
+                                self.records.dir(job_id) / "predict.log", on_event, self._procs, job_id)
 
     def _finish(self, job_id: str, code: int, last: dict[str, Any]) -> None:
         view = self._views[job_id]

@@ -94,24 +94,32 @@ def _prediction_line(report: dict[str, Any]) -> list[str]:
     return [text]
 
 
-def deployed_figures(deployed: dict[str, Any]) -> str:
-    """One line of the prediction's figures (``report.deployed`` as a dict, format 2 or 3): reached
-    first, then the intrinsic measures, the spread, and the deviation last."""
-    dev = deployed["deviation_pct"]
+def deployed_parts(deployed: dict[str, Any]) -> list[tuple[str, str]]:
+    """The prediction's figures (``report.deployed`` as a dict, format 2 or 3) as (label, text): reached
+    first, then the intrinsic measures, the spread, and the deviation last; fields an older report
+    lacks are left out."""
     parts = []
     if deployed.get("reached") is not None:
-        parts.append("reaches the target" if deployed["reached"] else "does NOT reach the target")
+        parts.append(("reached", "yes: it will take the target's shape" if deployed["reached"]
+                      else "NO: it will NOT take the target's shape"))
     k = deployed.get("total_gaussian_curvature")
     if k:
-        parts.append(f"∫K {k['predicted']:+.2f} (target {k['target']:+.2f})")
+        parts.append(("curvature", f"total Gaussian curvature {k['predicted']:+.2f}, target {k['target']:+.2f}"))
     if deployed.get("area_ratio") is not None:
-        parts.append(f"area {100 * deployed['area_ratio']:.0f} % of the target's")
+        parts.append(("area", f"{100 * deployed['area_ratio']:.0f} % of the target's"))
     sp = deployed.get("spread")
     if sp:
-        parts.append(f"mean deviation {sp['mean'][0]:.2f}–{sp['mean'][1]:.2f} % over {sp['releases']} releases")
-    parts.append(f"nominal deviation mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max {dev['max']:.2f} % "
-                 "of the diagonal")
-    return "; ".join(parts)
+        parts.append(("spread", f"over {sp['releases']} releases: mean deviation {sp['mean'][0]:.2f}–"
+                                f"{sp['mean'][1]:.2f} %, max {sp['max'][0]:.2f}–{sp['max'][1]:.2f} %"))
+    dev = deployed["deviation_pct"]
+    parts.append(("deviation", f"mean {dev['mean']:.2f} %, p99 {dev['p99']:.2f} %, max {dev['max']:.2f} % of the "
+                               "diagonal"))
+    return parts
+
+
+def deployed_figures(deployed: dict[str, Any]) -> str:
+    """``deployed_parts`` on one line."""
+    return "; ".join(f"{label} {text}" for label, text in deployed_parts(deployed))
 
 
 def verdict_lines(design: dict[str, Any]) -> list[str]:

@@ -163,7 +163,7 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert deployed["start"] == "flat" and deployed["model"] == "homogenized"
     assert set(deployed["total_gaussian_curvature"]) == {"predicted", "target"}
     assert set(deployed["spread"]) == {"mean", "max", "releases"}
-    assert ("deployed    reaches the target" if deployed["reached"] else "deployed    does NOT reach") in proc.stdout
+    assert ("deployed    reached yes" if deployed["reached"] else "deployed    reached NO") in proc.stdout
     assert deployed["verdict"] in proc.stdout
     Vd, Fd = read_mesh(out / "deployed.obj")
     assert len(Fd) == deployed["faces"] and Vd.shape[1] == 3
