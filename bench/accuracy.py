@@ -104,6 +104,17 @@ def design_cases() -> list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]:
     ]
 
 
+def ribbons_vs_exact(folder, V: np.ndarray, exact: Exact) -> tuple[np.ndarray, np.ndarray]:
+    """The design folder's ribbon segments carried back onto the target (scaled back to the
+    generator's V) against the exact k1 on anisotropic faces: angles (k,) in degrees, lengths (k,)."""
+    Vt = folder.target_V
+    c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
+    P, D, L = ribbon_segments_on_target(folder)
+    E = exact((P - Vt.mean(axis=0)) / c + V.mean(axis=0))
+    m = E.anisotropy > 0.3
+    return line_deviation_deg(D, E)[m], L[m]
+
+
 def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]) -> None:
     from ribbond.design.folder import read_design_folder
     from ribbond.design.mesh_io import write_obj
@@ -130,12 +141,7 @@ def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.nd
             # Table 1's column: the stretch direction off k1 (0 where Eq. 3's energy is zero)
             residual = float(np.degrees(np.median(fl.deviation)))
             folder = read_design_folder(write_design(result, d / "design"))
-            Vt = folder.target_V
-            c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
-            P, D, L = ribbon_segments_on_target(folder)
-            E = exact((P - Vt.mean(axis=0)) / c + V.mean(axis=0))
-            m = E.anisotropy > 0.3
-            dev, w = line_deviation_deg(D, E)[m], L[m]
+            dev, w = ribbons_vs_exact(folder, V, exact)
             rep = folder.design.report
             rr = rep.ribbons
             front = sum(r.side == "front" for r in folder.design.ribbons)
@@ -149,6 +155,65 @@ def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.nd
                   f"{residual:>7.3f}", flush=True)
 
 
+def coarse_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray]], tuple[int, int], Exact]]:
+    """Analytic surfaces at ~900 faces and at ~40k: (name, builder of a resolution, the two
+    resolutions, exact curvature)."""
+    return [
+        ("torus patch 60°×60°", lambda k: S.torus_patch(50, 20, (0, 60), (-30, 30), k, k // 2), (30, 200),
+         lambda P: S.torus_curvature(P, 50, 20)),
+        ("saddle κ 1/30, 1/60", lambda k: S.saddle(100.0, 1 / 30, 1 / 60, rings=k), (12, 82),
+         lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
+        # a shoulder: a sleeve (cylinder) running into a cap, the garment-like generator surface
+        ("shoulder: cylinder into cap", lambda k: S.cap_cylinder_blend(n_x=k, n_y=(18 * k) // 25), (25, 167),
+         lambda P: S.blend_curvature(P[:, :2])),
+    ]
+
+
+#: Issue 23, item 7: ~900 faces against ~40k, ribbons vs exact k1 (median, °) and across spacing
+#: error (median, points of %).
+COARSE_GOALS = (0.5, 1.0)
+
+
+def coarse_table() -> None:
+    """The same surfaces designed at ~900 faces (without and with refinement at intake) and at
+    ~40k; each coarse figure against the fine one, goal and met / NOT met."""
+    from ribbond.design.folder import read_design_folder
+    from ribbond.design.mesh_io import write_obj
+    from ribbond.design.params import DesignParameters, SolverSettings
+    from ribbond.design.pipeline import design_mesh, write_design
+
+    def figures(V: np.ndarray, F: np.ndarray, exact: Exact, solver: SolverSettings, d: Path) -> tuple[float, ...]:
+        d.mkdir()
+        write_obj(d / "m.obj", V, F)
+        result = design_mesh(d / "m.obj", DesignParameters(), solver, predict=False)
+        folder = read_design_folder(write_design(result, d / "design"))
+        dev, w = ribbons_vs_exact(folder, V, exact)
+        rep = folder.design.report
+        return (len(result.F), weighted_quantile(dev, w, .5), weighted_quantile(dev, w, .95),
+                rep.ribbons.spacing_error_across_pct.median, result.design.report.time_s)
+
+    goal_deg, goal_pts = COARSE_GOALS
+    print(f"\n{'coarse against fine':<28} {'mesh':<22} {'faces':>6} | {'vs exact k1 median':>18} {'p95':>6} | "
+          f"{'across median':>13} | {'time s':>6} | Δ median (goal ≤ {goal_deg:g}°)  Δ across (goal ≤ {goal_pts:g} pt)")
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, (name, build, (coarse, fine), exact) in enumerate(coarse_cases()):
+            Vf, Ff = build(fine)
+            Vc, Fc = build(coarse)
+            rows = [(f"{len(Ff)} faces", figures(Vf, Ff, exact, SolverSettings(), Path(tmp) / f"{i}-fine")),
+                    (f"{len(Fc)} faces, as given", figures(Vc, Fc, exact, SolverSettings(refine_below_faces=0),
+                                                              Path(tmp) / f"{i}-raw")),
+                    (f"{len(Fc)} faces, refined", figures(Vc, Fc, exact, SolverSettings(), Path(tmp) / f"{i}-ref"))]
+            ref = rows[0][1]
+            for label, (faces, med, p95, across, secs) in rows:
+                tail = ""
+                if label != rows[0][0]:
+                    dd, dp = abs(med - ref[1]), abs(across - ref[3])
+                    tail = (f"{dd:>5.2f}° {'met' if dd <= goal_deg else 'NOT met':<8} "
+                            f"{dp:>5.1f} pt {'met' if dp <= goal_pts else 'NOT met'}")
+                print(f"{name:<28} {label:<22} {faces:>6} | {med:>18.2f} {p95:>6.2f} | {across:>12.1f}% | "
+                      f"{secs:>6.1f} | {tail}", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="two resolutions instead of three")
@@ -157,7 +222,12 @@ def main() -> int:
                     help="[solver] spacing_integrability_weight values to run the designs with")
     ap.add_argument("--sweep", action="store_true", help="also the torus patch at seven resolutions, "
                     "without the row-count phase (weight 0) and with the settings' own")
+    ap.add_argument("--coarse", action="store_true", help="only the coarse-mesh table: ~900 faces (as given "
+                    "and refined at intake) against ~40k (issue 23)")
     args = ap.parse_args()
+    if args.coarse:
+        coarse_table()
+        return 0
     if not args.ribbons_only:
         field_table(args.quick)
     ribbon_table(args.integrability or [None], design_cases())
