@@ -224,9 +224,9 @@ def scan_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray
     fine reference is the regular ~40k mesh."""
     (_, torus, (_, tf), te), (_, saddle, (_, sf), se), (_, shoulder, (_, hf), he) = coarse_cases()
     return [
-        ("torus patch, scan-like", lambda k: _scan_torus(k) if k < 100 else torus(k), (30, tf), te),
-        ("saddle, scan-like", lambda k: _scan_saddle(k) if k < 50 else saddle(k), (12, sf), se),
-        ("shoulder, scan-like", lambda k: _scan_shoulder(k) if k < 100 else shoulder(k), (25, hf), he),
+        ("torus patch, scan-like", lambda k: _scan_torus(k) if k == 30 else torus(k), (30, tf), te),
+        ("saddle, scan-like", lambda k: _scan_saddle(k) if k == 12 else saddle(k), (12, sf), se),
+        ("shoulder, scan-like", lambda k: _scan_shoulder(k) if k == 25 else shoulder(k), (25, hf), he),
     ]
 
 
@@ -257,15 +257,18 @@ def coarse_table(cases, refine_below: list[int | None]) -> None:
     goal_deg, goal_pts = COARSE_GOALS
     print(f"\n{'coarse against fine':<28} {'mesh':<30} {'faces':>6} | {'vs exact k1 median':>18} {'p95':>6} | "
           f"{'across median':>13} | {'time s':>6} | Δ median (goal ≤ {goal_deg:g}°)  Δ across (goal ≤ {goal_pts:g} pt)")
-    fine_done: dict[tuple[int, float], tuple[float, ...]] = {}
+    done: dict[tuple[int, float], tuple[float, ...]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for i, (name, build, (coarse, fine), exact) in enumerate(cases):
             Vf, Ff = build(fine)
             Vc, Fc = build(coarse)
-            key = (len(Ff), float(Vf.sum()))                   # the scan-like cases share the fine mesh
-            if key not in fine_done:
-                fine_done[key] = figures(Vf, Ff, exact, SolverSettings(), Path(tmp) / f"{i}-fine")
-            rows = [(f"{len(Ff)} faces", fine_done[key]),
+            Vs, Fs = build(4 * coarse)                        # the exact surface at 16× the coarse faces
+            for j, (Vx, Fx) in enumerate(((Vf, Ff), (Vs, Fs))):
+                key = (len(Fx), float(Vx.sum()))               # the scan-like cases share these meshes
+                if key not in done:
+                    done[key] = figures(Vx, Fx, exact, SolverSettings(), Path(tmp) / f"{i}-exact{j}")
+            rows = [(f"{len(Ff)} faces", done[(len(Ff), float(Vf.sum()))]),
+                    (f"{len(Fs)} faces, sampled exactly", done[(len(Fs), float(Vs.sum()))]),
                     (f"{len(Fc)} faces, as given", figures(Vc, Fc, exact, SolverSettings(refine_below_faces=0),
                                                               Path(tmp) / f"{i}-raw")),
                     *((f"{len(Fc)} faces, refined" + (f" < {n}" if n is not None else ""),
