@@ -235,9 +235,9 @@ def scan_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray
 COARSE_GOALS = (0.5, 1.0)
 
 
-def coarse_table(cases, refine_below: list[int | None]) -> None:
+def coarse_table(cases, refine_to: list[int | None]) -> None:
     """The same surfaces designed at ~900 faces (without and with refinement at intake, once per
-    ``refine_below`` value, None: the settings' default) and at ~40k; each coarse figure against the
+    ``refine_to`` value, None: the settings' default) and at ~40k; each coarse figure against the
     fine one, goal and met / NOT met."""
     from ribbond.design.folder import read_design_folder
     from ribbond.design.mesh_io import write_obj
@@ -271,10 +271,10 @@ def coarse_table(cases, refine_below: list[int | None]) -> None:
                     (f"{len(Fs)} faces, sampled exactly", done[(len(Fs), float(Vs.sum()))]),
                     (f"{len(Fc)} faces, as given", figures(Vc, Fc, exact, SolverSettings(refine_below_faces=0),
                                                               Path(tmp) / f"{i}-raw")),
-                    *((f"{len(Fc)} faces, refined" + (f" < {n}" if n is not None else ""),
-                       figures(Vc, Fc, exact, SolverSettings() if n is None else SolverSettings(refine_below_faces=n),
+                    *((f"{len(Fc)} faces, refined" + (f" to ≥ {n}" if n is not None else ""),
+                       figures(Vc, Fc, exact, SolverSettings() if n is None else SolverSettings(refine_to_faces=n),
                                Path(tmp) / f"{i}-ref{n}"))
-                      for n in refine_below)]
+                      for n in refine_to)]
             ref = rows[0][1]
             for label, (faces, med, p95, across, secs) in rows:
                 tail = ""
@@ -296,11 +296,11 @@ def main() -> int:
                     "without the row-count phase (weight 0) and with the settings' own")
     ap.add_argument("--coarse", action="store_true", help="only the coarse-mesh table: ~900 faces (as given "
                     "and refined at intake) against ~40k (issue 23)")
-    ap.add_argument("--refine-below", type=int, nargs="+", default=None, metavar="N",
-                    help="with --coarse: [solver] refine_below_faces values to refine with (default: the settings' own)")
+    ap.add_argument("--refine-to", type=int, nargs="+", default=None, metavar="N",
+                    help="with --coarse: [solver] refine_to_faces values to refine with (default: the settings' own)")
     args = ap.parse_args()
     if args.coarse:
-        coarse_table(coarse_cases() + scan_cases(), args.refine_below or [None])
+        coarse_table(coarse_cases() + scan_cases(), args.refine_to or [None])
         return 0
     if not args.ribbons_only:
         field_table(args.quick)

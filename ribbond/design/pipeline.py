@@ -160,7 +160,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     t = time.perf_counter()
     target = load_target(mesh_path, max_faces=solver.max_faces, merge_tolerance=solver.merge_tolerance)
     coarse_faces = len(target.F)
-    target, refined = refine_target(target, solver.refine_below_faces, solver.max_faces)
+    target, refined = refine_target(target, solver.refine_below_faces, solver.refine_to_faces,
+                                     solver.max_faces)
     diag0 = _bbox_diagonal(target.V)
     size = params.size.bbox_diagonal if params.size is not None else NOMINAL_DIAGONAL
     V = (target.V - target.V.mean(axis=0)) * (size / diag0)

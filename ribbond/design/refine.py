@@ -75,15 +75,17 @@ class Refined:
     method: str = METHOD
 
 
-def levels_for(faces: int, refine_below: int, max_faces: int) -> int:
-    """The rounds of subdivision (each × 4 faces) that bring a mesh of ``faces`` faces to at least
-    ``refine_below`` faces, without exceeding ``max_faces``; 0 when it has that many already (or
-    ``refine_below`` is 0, which turns refinement off)."""
-    if faces < 1 or refine_below < 0 or max_faces < 1:
-        raise ValueError(f"levels_for: faces = {faces}, refine_below = {refine_below}, max_faces = "
-                         f"{max_faces}: need faces >= 1, refine_below >= 0, max_faces >= 1")
+def levels_for(faces: int, refine_below: int, refine_to: int, max_faces: int) -> int:
+    """The rounds of subdivision (each × 4 faces) for a mesh of ``faces`` faces: none when it has
+    ``refine_below`` faces or more (``refine_below`` 0 turns refinement off), else the fewest that
+    reach ``refine_to`` faces, without exceeding ``max_faces``."""
+    if faces < 1 or refine_below < 0 or refine_to < 1 or max_faces < 1:
+        raise ValueError(f"levels_for: faces = {faces}, refine_below = {refine_below}, refine_to = {refine_to}, "
+                         f"max_faces = {max_faces}: need faces, refine_to, max_faces >= 1 and refine_below >= 0")
+    if faces >= refine_below:
+        return 0
     levels = 0
-    while faces * 4 ** levels < refine_below and faces * 4 ** (levels + 1) <= max_faces:
+    while faces * 4 ** levels < refine_to and faces * 4 ** (levels + 1) <= max_faces:
         levels += 1
     return levels
 
@@ -209,11 +211,12 @@ def offset_pct(points: np.ndarray, V: np.ndarray, F: np.ndarray) -> float:
     return float(100.0 * np.sqrt(np.max(d2)) / diagonal) if diagonal > 0 else 0.0
 
 
-def refine_target(target: TargetMesh, refine_below: int, max_faces: int) -> tuple[TargetMesh, Refined | None]:
+def refine_target(target: TargetMesh, refine_below: int, refine_to: int,
+                  max_faces: int) -> tuple[TargetMesh, Refined | None]:
     """The cleaned target refined when it has fewer than ``refine_below`` faces (see ``levels_for``),
     with its boundary loop recomputed; unchanged (and None) otherwise. ``source_faces``, the name
     and the digest stay the file's."""
-    levels = levels_for(len(target.F), refine_below, max_faces)
+    levels = levels_for(len(target.F), refine_below, refine_to, max_faces)
     if levels == 0:
         return target, None
     fine = refine(target.V, target.F, levels)

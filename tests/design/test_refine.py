@@ -139,13 +139,13 @@ def test_curvature_on_the_refined_mesh_is_near_the_exact_one(case):
 
 
 def test_levels_for():
-    assert levels_for(900, 10_000, 400_000) == 2                 # 900 → 14,400
-    assert levels_for(900, 3_600, 400_000) == 1                  # 3,600 reached in one round
-    assert levels_for(900, 10_000, 10_000) == 1                  # 14,400 would exceed max_faces
-    assert levels_for(900, 0, 400_000) == 0                      # off
-    assert levels_for(12_000, 10_000, 400_000) == 0              # fine enough already
-    with pytest.raises(ValueError, match="refine_below"):
-        levels_for(900, -1, 400_000)
+    assert levels_for(900, 3_000, 10_000, 400_000) == 2           # 900 → 14,400
+    assert levels_for(900, 3_000, 3_600, 400_000) == 1            # 3,600 reached in one round
+    assert levels_for(900, 3_000, 10_000, 10_000) == 1            # 14,400 would exceed max_faces
+    assert levels_for(900, 0, 10_000, 400_000) == 0               # off
+    assert levels_for(3_000, 3_000, 10_000, 400_000) == 0         # not coarse
+    with pytest.raises(ValueError, match="refine_below = -1"):
+        levels_for(900, -1, 10_000, 400_000)
 
 
 def test_bad_input_is_named():
@@ -159,16 +159,20 @@ def test_bad_input_is_named():
 
 
 def test_solver_setting_is_accepted_or_refused():
-    assert settings_from_dict({"solver": {"refine_below_faces": 0}}).solver.refine_below_faces == 0
+    solver = settings_from_dict({"solver": {"refine_below_faces": 0, "refine_to_faces": 5000}}).solver
+    assert (solver.refine_below_faces, solver.refine_to_faces) == (0, 5000)
     with pytest.raises(ValueError, match="solver.refine_below_faces = -5"):
         settings_from_dict({"solver": {"refine_below_faces": -5}})
+    with pytest.raises(ValueError, match="solver.refine_to_faces = 0"):
+        settings_from_dict({"solver": {"refine_to_faces": 0}})
 
 
 def test_design_of_a_coarse_target_is_made_on_the_refined_mesh(tmp_path):
     V, F = S.torus_patch(50.0, 20.0, (0, 60), (-30, 30), 20, 10)        # 400 faces
     write_obj(tmp_path / "coarse.obj", V, F)
     params = DesignParameters(size={"bbox_diagonal": 120.0})
-    result = design_mesh(tmp_path / "coarse.obj", params, SolverSettings(refine_below_faces=6_000), predict=False)
+    result = design_mesh(tmp_path / "coarse.obj", params, SolverSettings(refine_to_faces=6_000),
+                         predict=False)
     folder = read_design_folder(write_design(result, tmp_path / "refined"))
     rep = folder.design.report
     assert folder.design.source.faces == 400
