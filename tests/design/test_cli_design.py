@@ -149,10 +149,10 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert len(folder.target_F) == len(fine.F) == 16 * len(F)       # 1,600 faces: coarse, refined twice
     assert np.array_equal(folder.target_F, fine.F)     # a clean mesh keeps its faces and order
     d = design_json(out)
-    assert d["report"]["refined"]["from_faces"] == len(F) and d["report"]["refined"]["faces"] == len(fine.F)
-    assert f"refined     {len(F):,} → {len(fine.F):,} faces" in proc.stdout
     assert d["format"] == "ribbond-design/2" and d["units"] == "mm"
     assert d["source"]["file"] == "cylinder.obj" and d["source"]["faces"] == len(F)
+    assert d["report"]["refined"]["from_faces"] == len(F) and d["report"]["refined"]["faces"] == len(fine.F)
+    assert f"refined     {len(F):,} → {len(fine.F):,} faces" in proc.stdout
     p = d["parameters"]
     assert p["prestretch"] == 1.6 and p["ribbon_length"] == 15.0 and p["ribbon_width"] == 1.5
     assert p["sigma1_bounds"] == [1.0, 1.3]
