@@ -104,6 +104,17 @@ def design_cases() -> list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]:
     ]
 
 
+def ribbons_vs_exact(folder, V: np.ndarray, exact: Exact) -> tuple[np.ndarray, np.ndarray]:
+    """The design folder's ribbon segments carried back onto the target (scaled back to the
+    generator's V) against the exact k1 on anisotropic faces: angles (k,) in degrees, lengths (k,)."""
+    Vt = folder.target_V
+    c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
+    P, D, L = ribbon_segments_on_target(folder)
+    E = exact((P - Vt.mean(axis=0)) / c + V.mean(axis=0))
+    m = E.anisotropy > 0.3
+    return line_deviation_deg(D, E)[m], L[m]
+
+
 def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]) -> None:
     from ribbond.design.folder import read_design_folder
     from ribbond.design.mesh_io import write_obj
@@ -130,12 +141,7 @@ def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.nd
             # Table 1's column: the stretch direction off k1 (0 where Eq. 3's energy is zero)
             residual = float(np.degrees(np.median(fl.deviation)))
             folder = read_design_folder(write_design(result, d / "design"))
-            Vt = folder.target_V
-            c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
-            P, D, L = ribbon_segments_on_target(folder)
-            E = exact((P - Vt.mean(axis=0)) / c + V.mean(axis=0))
-            m = E.anisotropy > 0.3
-            dev, w = line_deviation_deg(D, E)[m], L[m]
+            dev, w = ribbons_vs_exact(folder, V, exact)
             rep = folder.design.report
             rr = rep.ribbons
             front = sum(r.side == "front" for r in folder.design.ribbons)
@@ -149,6 +155,137 @@ def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.nd
                   f"{residual:>7.3f}", flush=True)
 
 
+def coarse_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray]], tuple[int, int], Exact]]:
+    """Analytic surfaces at ~900 faces and at ~40k: (name, builder of a resolution, the two
+    resolutions, exact curvature)."""
+    return [
+        ("torus patch 60°×60°", lambda k: S.torus_patch(50, 20, (0, 60), (-30, 30), k, k // 2), (30, 200),
+         lambda P: S.torus_curvature(P, 50, 20)),
+        ("saddle κ 1/30, 1/60", lambda k: S.saddle(100.0, 1 / 30, 1 / 60, rings=k), (12, 82),
+         lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
+        # a shoulder: a sleeve (cylinder) running into a cap, the garment-like generator surface
+        ("shoulder: cylinder into cap", lambda k: S.cap_cylinder_blend(n_x=k, n_y=(18 * k) // 25), (25, 167),
+         lambda P: S.blend_curvature(P[:, :2])),
+    ]
+
+
+def _irregular_grid(nu: int, nv: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A scan-like triangulation of [0, 1]²: the grid's interior vertices moved by up to 0.2 of a
+    cell each way and every cell's diagonal drawn at random (valences 4 to 8), CCW from +z."""
+    rng = np.random.default_rng(seed)
+    UV, F = S.grid(nu, nv)
+    inner = (UV > 0).all(axis=1) & (UV < 1).all(axis=1)
+    UV[inner] += rng.uniform(-0.2, 0.2, (inner.sum(), 2)) / np.array([nu, nv])
+    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    flip = rng.random(nu * nv) < 0.5
+    t1 = np.where(flip[:, None], np.column_stack([a, b, d]), np.column_stack([a, b, c]))
+    t2 = np.where(flip[:, None], np.column_stack([b, c, d]), np.column_stack([a, c, d]))
+    return UV, np.vstack([t1, t2]).astype(np.int64)
+
+
+def _irregular_disk(rings: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``surfaces.disk`` with its interior points moved by up to 0.3 of a ring spacing each way,
+    Delaunay-triangulated again (the boundary circle kept), CCW from +z."""
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(seed)
+    P, _ = S.disk(rings)
+    inner = np.hypot(P[:, 0], P[:, 1]) < 1 - 0.5 / rings
+    P[inner] += rng.uniform(-0.3, 0.3, (inner.sum(), 2)) / rings
+    F = Delaunay(P).simplices.astype(np.int64)
+    e1, e2 = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
+    cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
+    F[cw] = F[cw][:, [0, 2, 1]]
+    return P, F
+
+
+def _scan_torus(k: int) -> tuple[np.ndarray, np.ndarray]:
+    UV, F = _irregular_grid(k, k // 2, seed=23)
+    u, v = np.radians(60 * UV[:, 0]), np.radians(-30 + 60 * UV[:, 1])
+    rho = 50 + 20 * np.cos(v)
+    return np.column_stack([rho * np.cos(u), rho * np.sin(u), 20 * np.sin(v)]), F
+
+
+def _scan_saddle(rings: int) -> tuple[np.ndarray, np.ndarray]:
+    P, F = _irregular_disk(rings, seed=23)
+    xy = 50.0 * P
+    return np.column_stack([xy, 0.5 * (xy[:, 0] ** 2 / 30 - xy[:, 1] ** 2 / 60)]), F
+
+
+def _scan_shoulder(k: int) -> tuple[np.ndarray, np.ndarray]:
+    UV, F = _irregular_grid(k, (18 * k) // 25, seed=23)
+    xy = np.column_stack([-50 + 78 * UV[:, 0], 28 * (2 * UV[:, 1] - 1)])   # cap_cylinder_blend's domain
+    return np.column_stack([xy, S._blend(xy, 40.0)[0]]), F
+
+
+def scan_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray]], tuple[int, int], Exact]]:
+    """The same surfaces triangulated as scans are (irregular, random valences) at ~900 faces; the
+    fine reference is the regular ~40k mesh."""
+    (_, torus, (_, tf), te), (_, saddle, (_, sf), se), (_, shoulder, (_, hf), he) = coarse_cases()
+    return [
+        ("torus patch, scan-like", lambda k: _scan_torus(k) if k == 30 else torus(k), (30, tf), te),
+        ("saddle, scan-like", lambda k: _scan_saddle(k) if k == 12 else saddle(k), (12, sf), se),
+        ("shoulder, scan-like", lambda k: _scan_shoulder(k) if k == 25 else shoulder(k), (25, hf), he),
+    ]
+
+
+#: Issue 23, item 7: ~900 faces against ~40k, ribbons vs exact k1 (median, °) and across spacing
+#: error (median, points of %).
+COARSE_GOALS = (0.5, 1.0)
+
+
+def coarse_table(cases, refine_to: list[int | None]) -> None:
+    """The same surfaces designed at ~900 faces (without and with refinement at intake, once per
+    ``refine_to`` value, None: the settings' default) and at ~40k; each coarse figure against the
+    fine one, goal and met / NOT met."""
+    from ribbond.design.folder import read_design_folder
+    from ribbond.design.mesh_io import write_obj
+    from ribbond.design.params import DesignParameters, SolverSettings
+    from ribbond.design.pipeline import design_mesh, write_design
+
+    def figures(V: np.ndarray, F: np.ndarray, exact: Exact, solver: SolverSettings, d: Path) -> tuple[float, ...]:
+        d.mkdir()
+        write_obj(d / "m.obj", V, F)
+        result = design_mesh(d / "m.obj", DesignParameters(), solver, predict=False)
+        folder = read_design_folder(write_design(result, d / "design"))
+        dev, w = ribbons_vs_exact(folder, V, exact)
+        rep = folder.design.report
+        return (len(result.F), weighted_quantile(dev, w, .5), weighted_quantile(dev, w, .95),
+                rep.ribbons.spacing_error_across_pct.median, result.design.report.time_s)
+
+    goal_deg, goal_pts = COARSE_GOALS
+    print(f"\n{'coarse against fine':<28} {'mesh':<30} {'faces':>6} | {'vs exact k1 median':>18} {'p95':>6} | "
+          f"{'across median':>13} | {'time s':>6} | Δ median (goal ≤ {goal_deg:g}°)  Δ across (goal ≤ {goal_pts:g} pt)")
+    done: dict[tuple[int, float], tuple[float, ...]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, (name, build, (coarse, fine), exact) in enumerate(cases):
+            Vf, Ff = build(fine)
+            Vc, Fc = build(coarse)
+            Vs, Fs = build(4 * coarse)                        # the exact surface at 16× the coarse faces
+            for j, (Vx, Fx) in enumerate(((Vf, Ff), (Vs, Fs))):
+                key = (len(Fx), float(Vx.sum()))               # the scan-like cases share these meshes
+                if key not in done:
+                    done[key] = figures(Vx, Fx, exact, SolverSettings(), Path(tmp) / f"{i}-exact{j}")
+            rows = [(f"{len(Ff)} faces", done[(len(Ff), float(Vf.sum()))]),
+                    (f"{len(Fs)} faces, sampled exactly", done[(len(Fs), float(Vs.sum()))]),
+                    (f"{len(Fc)} faces, as given", figures(Vc, Fc, exact, SolverSettings(refine_below_faces=0),
+                                                              Path(tmp) / f"{i}-raw")),
+                    *((f"{len(Fc)} faces, refined" + (f" to ≥ {n}" if n is not None else ""),
+                       figures(Vc, Fc, exact, SolverSettings() if n is None else SolverSettings(refine_to_faces=n),
+                               Path(tmp) / f"{i}-ref{n}"))
+                      for n in refine_to)]
+            ref = rows[0][1]
+            for label, (faces, med, p95, across, secs) in rows:
+                tail = ""
+                if label != rows[0][0]:
+                    dd, dp = abs(med - ref[1]), abs(across - ref[3])
+                    tail = (f"{dd:>5.2f}° {'met' if dd <= goal_deg else 'NOT met':<8} "
+                            f"{dp:>5.1f} pt {'met' if dp <= goal_pts else 'NOT met'}")
+                print(f"{name:<28} {label:<30} {faces:>6} | {med:>18.2f} {p95:>6.2f} | {across:>12.1f}% | "
+                      f"{secs:>6.1f} | {tail}", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="two resolutions instead of three")
@@ -157,7 +294,14 @@ def main() -> int:
                     help="[solver] spacing_integrability_weight values to run the designs with")
     ap.add_argument("--sweep", action="store_true", help="also the torus patch at seven resolutions, "
                     "without the row-count phase (weight 0) and with the settings' own")
+    ap.add_argument("--coarse", action="store_true", help="only the coarse-mesh table: ~900 faces (as given "
+                    "and refined at intake) against ~40k (issue 23)")
+    ap.add_argument("--refine-to", type=int, nargs="+", default=None, metavar="N",
+                    help="with --coarse: [solver] refine_to_faces values to refine with (default: the settings' own)")
     args = ap.parse_args()
+    if args.coarse:
+        coarse_table(coarse_cases() + scan_cases(), args.refine_to or [None])
+        return 0
     if not args.ribbons_only:
         field_table(args.quick)
     ribbon_table(args.integrability or [None], design_cases())

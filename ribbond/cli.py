@@ -94,6 +94,9 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         "preview.svg/.png)",
         f"surface     {d.source.file}: {r.faces} faces, {p.size.bbox_diagonal:.1f} mm bounding-box "
         f"diagonal; flat layout {w:.1f} × {h:.1f} mm",
+        *([f"refined     {r.refined.from_faces:,} → {r.refined.faces:,} faces ({r.refined.method}; at most "
+           f"{r.refined.offset_pct:.2f} % of the diagonal off the file's surface) for the layout"]
+          if r.refined is not None else []),
         f"k1 field    {result.field.method}, λ = {p.smoothing_lambda:g}; {r.umbilic_pct or 0:.1f} % of faces "
         f"umbilic (anisotropy ≤ 0.3); {len(result.field.singular_vertices)} singular vertices"
         + ("" if result.field.aligned else " (no curvature direction: arbitrary smooth field)"),

@@ -217,6 +217,19 @@ class DeployedReport(BaseModel):
                                                         "not parameters.curvature_table (ribbonctl predict --table)")
 
 
+class RefinedReport(BaseModel):
+    """``report.refined`` (optional; absent in older folders and when the target was not refined):
+    the coarse target was subdivided at intake, and ``target.obj`` is the refined mesh."""
+
+    model_config = _CONFIG
+    from_faces: int = Field(ge=1, description="faces of the cleaned source mesh")
+    faces: int = Field(ge=1, description="faces after refinement (those of target.obj)")
+    levels: int = Field(ge=1, description="rounds of midpoint subdivision (each × 4 faces)")
+    method: str = Field(min_length=1, description="the refinement scheme")
+    offset_pct: float = Field(ge=0, description="largest distance of a refined vertex from the source "
+                              "surface, % of its bounding-box diagonal")
+
+
 class RibbonsReport(BaseModel):
     """``report.ribbons``: what the ribbon stage made.
 
@@ -288,6 +301,7 @@ class Report(_Updatable):
     ribbons: RibbonsReport | None = None
     print_: PrintReport | None = Field(None, alias="print")
     deployed: DeployedReport | None = None
+    refined: RefinedReport | None = Field(None, description="the coarse target refined at intake")
 
 
 class Design(_Updatable):

@@ -26,8 +26,8 @@ from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
-from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, Report, Ribbon,
-                     RibbonsReport, SidePrintReport, Source)
+from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, RefinedReport,
+                     Report, Ribbon, RibbonsReport, SidePrintReport, Source)
 from .frames import face_frames
 from .intake import TargetMesh, load_target
 from .mesh_io import obj_bytes
@@ -35,6 +35,7 @@ from .line_field import ANISOTROPY_THRESHOLD, LineField, curvature_line_field, f
 from .params import DesignParameters, SolverSettings, check_printable, check_smoothing
 from .placement import fit_scale, place_in_frame, registration_marks
 from .preview import render_preview
+from .refine import refine_target
 from .report import flattening_report
 from .ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
 from .thickness import CurvatureTable, load_curvature_table, ribbon_thickness
@@ -158,6 +159,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     progress.stage_started("load", f"reading {Path(mesh_path).name}")
     t = time.perf_counter()
     target = load_target(mesh_path, max_faces=solver.max_faces, merge_tolerance=solver.merge_tolerance)
+    coarse_faces = len(target.F)
+    target, refined = refine_target(target, solver.refine_below_faces, solver.refine_to_faces,
+                                     solver.max_faces)
     diag0 = _bbox_diagonal(target.V)
     size = params.size.bbox_diagonal if params.size is not None else NOMINAL_DIAGONAL
     V = (target.V - target.V.mean(axis=0)) * (size / diag0)
@@ -165,7 +169,10 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     timings["load"] = time.perf_counter() - t
     progress.stage_finished("load", timings["load"],
                             f"{len(F)} faces, {len(V)} vertices"
-                            + (f", {target.merged} duplicate vertices merged" if target.merged else ""))
+                            + (f", {target.merged} duplicate vertices merged" if target.merged else "")
+                            + (f"; refined {coarse_faces:,} → {len(F):,} faces ({refined.method}, at most "
+                               f"{refined.offset_pct:.2f} % of the diagonal off the file's surface) for the layout"
+                               if refined is not None else ""))
 
     # -- curvature and the k1 line field ---------------------------------------------------------
     progress.stage_started("curvature", "principal curvatures and the k1 line field")
@@ -268,6 +275,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     report["field_k1_deviation_deg"] = Deviation(**field_dev) if field_dev else None
     report["ribbon_k1_deviation_deg"] = Deviation(**ribbon_dev) if ribbon_dev else None
     report["umbilic_pct"] = float(100.0 * np.mean(field.anisotropy <= ANISOTROPY_THRESHOLD))
+    if refined is not None:
+        report["refined"] = RefinedReport(from_faces=coarse_faces, faces=len(F), levels=refined.levels,
+                                          method=refined.method, offset_pct=refined.offset_pct)
     report["ribbons"] = RibbonsReport(
         front=front, back=layout.count - front, dropped_short=layout.dropped_short,
         trimmed_angle=layout.trimmed_angle, thickness_clamped=clamped,

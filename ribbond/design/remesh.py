@@ -21,6 +21,11 @@ from scipy.spatial import Delaunay
 #: Boundary vertices where the outline turns by more than this are kept, so corners stay sharp.
 _CORNER_DEG = 20.0
 
+#: Faces with less area than this × their longest edge² are dropped: Delaunay joins three outline
+#: samples that are on one line but for rounding (a flattened straight edge wobbles by ~1e-7 mm)
+#: into a sliver inside the outline; the lattice's own faces have ≈ 0.43, faces at the outline ≥ 0.05.
+_SLIVER = 1e-3
+
 
 @dataclass(frozen=True)
 class FlatRemesh:
@@ -112,7 +117,8 @@ def remesh_flat(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, spacing: fl
     centroid = points[tri].mean(axis=1)
     a, b = points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]]
     signed = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    keep = shapely.contains_xy(outline, centroid[:, 0], centroid[:, 1]) & (np.abs(signed) > 1e-9 * spacing ** 2)
+    longest = np.linalg.norm(points[tri] - points[np.roll(tri, 1, axis=1)], axis=2).max(axis=1)
+    keep = shapely.contains_xy(outline, centroid[:, 0], centroid[:, 1]) & (np.abs(signed) > _SLIVER * longest ** 2)
     tri, signed = tri[keep], signed[keep]
     tri[signed < 0] = tri[signed < 0][:, [0, 2, 1]]
     used = np.unique(tri)

@@ -21,6 +21,8 @@ import pytest
 from ribbond.design import surfaces
 from ribbond.design.folder import read_design_folder
 from ribbond.design.mesh_io import read_mesh, write_obj
+from ribbond.design.params import SolverSettings
+from ribbond.design.refine import Refined, levels_for, refine
 from ribbond.gcode.profiles import load_profile
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,6 +46,13 @@ def run_design(mesh: Path, out: Path, *args: str, predict: bool = False) -> subp
         [sys.executable, "-m", "ribbond.cli", "design", str(mesh), "-o", str(out), *args,
          *(() if predict else ("--no-predict",))],
         cwd=ROOT, capture_output=True, text=True, timeout=180)
+
+
+def engine_mesh(V: np.ndarray, F: np.ndarray) -> Refined:
+    """The mesh the engine designs on by default: the file's, refined at intake when it is coarse
+    (its faces each split in four per round, in ``refine``'s order; its first vertices the file's)."""
+    s = SolverSettings()
+    return refine(V, F, levels_for(len(F), s.refine_below_faces, s.refine_to_faces, s.max_faces))
 
 
 def design_json(out: Path) -> dict[str, Any]:
@@ -131,16 +140,19 @@ def cylinder(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
 def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     proc, out, F = cylinder["proc"], cylinder["out"], cylinder["F"]
+    fine = engine_mesh(cylinder["V"], F)
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == ["back.gcode", "combined.gcode", "deployed.obj", "deployed.png",
                                                      "design.json", "flat.obj", "front.gcode", "preview.png",
                                                      "preview.svg", "target.obj"]
     folder = read_design_folder(out)
-    assert len(folder.target_F) == len(F)
-    assert np.array_equal(folder.target_F, F)          # a clean mesh keeps its faces and order
+    assert len(folder.target_F) == len(fine.F) == 16 * len(F)       # 1,600 faces: coarse, refined twice
+    assert np.array_equal(folder.target_F, fine.F)     # a clean mesh keeps its faces and order
     d = design_json(out)
     assert d["format"] == "ribbond-design/3" and d["units"] == "mm"
     assert d["source"]["file"] == "cylinder.obj" and d["source"]["faces"] == len(F)
+    assert d["report"]["refined"]["from_faces"] == len(F) and d["report"]["refined"]["faces"] == len(fine.F)
+    assert f"refined     {len(F):,} → {len(fine.F):,} faces" in proc.stdout
     p = d["parameters"]
     assert p["prestretch"] == 1.6 and p["ribbon_length"] == 15.0 and p["ribbon_width"] == 1.5
     assert p["sigma1_bounds"] == [1.0, 1.3]
@@ -150,8 +162,8 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert p["printer_profile"] == "ultimaker2-tpu"
     assert p["size"]["bbox_diagonal"] == pytest.approx(bbox_diagonal(folder.target_V), rel=1e-6)
     for name in ("sigma1", "sigma2", "ribbon_direction", "kappa1"):
-        assert len(d["faces"][name]) == len(F), name
-    assert d["report"]["faces"] == len(F)
+        assert len(d["faces"][name]) == len(fine.F), name
+    assert d["report"]["faces"] == len(fine.F)
     # format 2: the field's and the ribbons' deviation from k1, and the prediction
     assert set(d["report"]["field_k1_deviation_deg"]) == {"median", "mean", "p95"}
     assert d["report"]["umbilic_pct"] == 0.0                    # a cylinder: anisotropy 1 everywhere
@@ -273,10 +285,11 @@ def test_other_formats(cylinder: dict[str, Any], tmp_path: Path, fmt: str) -> No
     assert proc.returncode == 0, proc.stderr
     folder = read_design_folder(out)
     d = design_json(out)
-    assert len(folder.target_F) == len(F) and d["source"]["faces"] == len(F)
+    fine = engine_mesh(V, F)
+    assert len(folder.target_F) == len(fine.F) and d["source"]["faces"] == len(F)
     if fmt != "stl":                       # STL repeats vertices: the engine merges them
-        assert np.array_equal(folder.target_F, F)
-    assert len(folder.target_V) == len(V)
+        assert np.array_equal(folder.target_F, fine.F)
+    assert len(folder.target_V) == len(fine.V)
     assert d["report"]["sigma1_bad_pct"] == 0 and d["report"]["sigma2_bad_pct"] == 0
 
 
@@ -339,7 +352,7 @@ def test_sphere_cap_sign_follows_the_winding(tmp_path: Path, flipped: bool) -> N
     proc = run_design(mesh, out, "-q")
     assert proc.returncode == 0, proc.stderr
     folder = read_design_folder(out)                      # every flat face counter-clockwise
-    assert np.array_equal(folder.target_F, F)
+    assert np.array_equal(folder.target_F, engine_mesh(V, F).F)
     kappa1 = np.array(design_json(out)["faces"]["kappa1"])
     radius = 60.0 * bbox_diagonal(folder.target_V) / bbox_diagonal(V)
     sign = -1.0 if flipped else 1.0

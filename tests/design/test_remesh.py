@@ -92,3 +92,18 @@ def test_bad_spacing_is_refused(bad: float) -> None:
     UV, F = surfaces.grid(3, 3)
     with pytest.raises(ValueError, match="spacing"):
         remesh_flat(UV, F, igl.boundary_loop(F), bad)
+
+
+def test_a_straight_edge_that_wobbles_by_rounding_gives_no_slivers() -> None:
+    # a flattening leaves straight outline edges straight only to ~1e-7 mm: three outline samples
+    # nearly on a line must not become a face (its rest metric would be singular)
+    UV, F = surfaces.grid(40, 20)
+    uv = UV * np.array([120.0, 60.0])
+    bottom = np.flatnonzero(UV[:, 1] == 0.0)
+    uv[bottom, 1] += 1e-7 * np.sin(np.arange(len(bottom)) * 2.3)
+    loop = igl.boundary_loop(F)
+    mesh = remesh_flat(uv, F, loop, 2.5)
+    tri = mesh.uv[mesh.F]
+    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    assert (signed(mesh.uv, mesh.F) / longest ** 2).min() > 0.05      # lattice faces: ≈ 0.43
+    assert abs(face_areas(mesh.uv, mesh.F).sum() - 120.0 * 60.0) < 1e-3 * 120.0 * 60.0
