@@ -53,17 +53,18 @@ GOAL_STEPS_PCT = 0.3
 
 
 def _mesh(name: str):
-    """(V, F, bbox diagonal mm) of a bench surface."""
+    """(V, F, bbox diagonal mm) of a bench surface, ~10k faces: more than 1.25 × 2 × DEFAULT_FACES, so
+    that the default and the doubled reference meshes are both remeshes of the flat domain."""
     from ribbond.design import surfaces
     if name == "cylinder":
-        return (*surfaces.cylinder_patch(), 100.0)
+        return (*surfaces.cylinder_patch(n_around=100, n_along=50), 100.0)
     if name == "torus_patch":
-        return (*surfaces.torus_patch(), 120.0)
+        return (*surfaces.torus_patch(nu=100, nv=50), 120.0)
     if name == "saddle":                                   # symmetric: κx = κy, 110 mm across
-        V, F = surfaces.saddle(size=110.0, kappa_x=1 / 60.0, kappa_y=1 / 60.0, rings=24)
+        V, F = surfaces.saddle(size=110.0, kappa_x=1 / 60.0, kappa_y=1 / 60.0, rings=40)
         return V, F, float(np.linalg.norm(np.ptp(V, axis=0)))
     if name == "hemisphere":                               # 100 mm across
-        V, F = surfaces.sphere_cap(radius=50.0, half_angle_deg=90.0, rings=24)
+        V, F = surfaces.sphere_cap(radius=50.0, half_angle_deg=90.0, rings=40)
         return V, F, float(np.linalg.norm(np.ptp(V, axis=0)))
     raise ValueError(f"unknown surface {name!r}")
 
