@@ -1,7 +1,7 @@
 """Benchmark of the deployed-shape prediction (ribbond.deploy, issue 23) on four analytic surfaces.
 
-For each surface (a cylinder patch, the torus patch of the paper's Fig. 2, a symmetric saddle disk 110 mm
-across, a hemisphere 100 mm across) a fresh subprocess designs it as ``ribbonctl design`` does (default
+For each surface (a cylinder patch, the torus patch of the paper's Fig. 2, a symmetric saddle disk and a
+hemisphere; sizes are bounding-box diagonals: 100, 120, 110, 100 mm; ~10k faces each) a fresh subprocess designs it as ``ribbonctl design`` does (default
 parameters at the bench size, ``design_mesh(predict=False)``), then predicts the deployed shape of the
 layout and reports, each against its goal:
 
@@ -60,12 +60,12 @@ def _mesh(name: str):
         return (*surfaces.cylinder_patch(n_around=100, n_along=50), 100.0)
     if name == "torus_patch":
         return (*surfaces.torus_patch(nu=100, nv=50), 120.0)
-    if name == "saddle":                                   # symmetric: κx = κy, 110 mm across
-        V, F = surfaces.saddle(size=110.0, kappa_x=1 / 60.0, kappa_y=1 / 60.0, rings=40)
-        return V, F, float(np.linalg.norm(np.ptp(V, axis=0)))
-    if name == "hemisphere":                               # 100 mm across
-        V, F = surfaces.sphere_cap(radius=50.0, half_angle_deg=90.0, rings=40)
-        return V, F, float(np.linalg.norm(np.ptp(V, axis=0)))
+    # sizes as bounding-box diagonals (the engine's ``size``), as tests/deploy/test_predict.py: a
+    # hemisphere 100 mm across (diagonal 150 mm) flattens to 172 mm, more than the frame takes
+    if name == "saddle":                                   # symmetric: κx = κy
+        return (*surfaces.saddle(size=80.0, kappa_x=1 / 40.0, kappa_y=1 / 40.0, rings=40), 110.0)
+    if name == "hemisphere":
+        return (*surfaces.sphere_cap(radius=50.0, half_angle_deg=90.0, rings=40), 100.0)
     raise ValueError(f"unknown surface {name!r}")
 
 
