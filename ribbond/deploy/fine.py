@@ -20,12 +20,13 @@ table's κ(τ, μ2). Solved on the table's grid nodes around the layout's (τ, �
 nodes the ratio κ_r / κ interpolates bilinearly (the table's own κ stays exact). The two models then
 agree on coupons by construction; whether they agree on real layouts is the question the bench asks.
 
-Measured so far (τ 0.6 mm, μ2 6 mm, table κ 0.0232 /mm): with ``Material()`` (fabric 1 MPa × 0.4 mm) the
-coupon does not answer to κ_r (measured 0.112 /mm at κ_r = 0, 0.115 at 0.02, 0.138 at 0.06): the misfit
-between the unshrinking ribbons and the fabric contracting by 1/s buckles the mid-surface shell by itself,
-and the calibration fails (``calibrated_curvature`` raises, giving what it reached). With the fabric 20×
-softer in plane it answers (0.0138 at κ_r = 0.02, 0.0221 at 0.04). Either way the last release steps do
-not converge: the fabric squeezed at the ribbons' ends is compressed toward the limit point of the
+Measured so far (τ 0.6 mm, μ2 6 mm, front table κ 0.0290 /mm): with ``Material()`` (fabric 1 MPa × 0.4 mm)
+the coupon hardly answers to κ_r (released in 5 steps: κ_r 0.0068 → 0.097 /mm, 0.0290 → 0.124; in 10
+steps: 0 → 0.112, 0.06 → 0.138): the misfit between the unshrinking ribbons and the fabric contracting by
+1/s buckles the mid-surface shell by itself, so the secant asks for κ_r < 0 and the calibration fails
+(``calibrated_curvature`` raises, giving what it reached). With the fabric 20× softer in plane it
+answers (κ_r 0.02 → 0.0138, 0.04 → 0.0221). Either way the last release steps do not converge: the
+fabric squeezed at the ribbons' ends is compressed toward the limit point of the
 St.Venant-Kirchhoff membrane (edges at 0.64 of their rest length), where its energy stops resisting.
 """
 

@@ -89,7 +89,7 @@ def test_ribbons_bend_the_sheet_toward_their_side(side, sign):
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "issue 23: the coupon's curvature does not answer to κ_r (0.112 /mm at κ_r = 0, 0.115 at 0.02): the "
+    "issue 23: the coupon's curvature hardly answers to κ_r (0.097 /mm at κ_r = 0.0068, 0.124 at 0.029): the "
     "misfit between Ā = I ribbons and the 1/s fabric buckles the mid-surface shell by itself, and the "
     "release stops converging near t = 0.8 (the St.Venant-Kirchhoff membrane collapses in the gaps "
     "squeezed at the ribbons' ends); see the report of helper B"))
