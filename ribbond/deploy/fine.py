@@ -16,8 +16,9 @@ rolls into, ribbons, gaps and the fabric between the rows. ``calibrated_curvatur
 secant on a simulated coupon of the calibration pattern (§5, Fig. 5-6: staggered rows at μ2, ribbons
 l_r long every μ1, the design's w_r) released along the same path (``release``), whose curvature is
 measured by a circle fit of its middle (``coupon_curvature``), so that the coupon rolls into the
-table's κ(τ, μ2). Solved on the table's grid nodes around the layout's (τ, μ2) and cached; between
-nodes the ratio κ_r / κ interpolates bilinearly (the table's own κ stays exact). The two models then
+table's κ(τ, μ2). Solved at the table node nearest each ribbon's (τ, μ2) (one coupon per node the
+layout uses, cached per process) and applied as the ratio κ_r / κ there to the table's κ at the
+ribbon's own (τ, μ2). The two models then
 agree on coupons by construction; whether they agree on real layouts is the question the bench asks.
 
 Measured so far (τ 0.6 mm, μ2 6 mm, front table κ 0.0290 /mm): with ``Material()`` (fabric 1 MPa × 0.4 mm)
