@@ -1,8 +1,8 @@
 """Benchmark of the deployed-shape prediction (ribbond.deploy, issue 23) on four analytic surfaces.
 
 For each surface (a cylinder patch, the torus patch of the paper's Fig. 2, a symmetric saddle disk and a
-hemisphere; sizes are bounding-box diagonals: 100, 120, 110, 100 mm; ~10k faces each) a fresh subprocess designs it as ``ribbonctl design`` does (default
-parameters at the bench size, ``design_mesh(predict=False)``), then predicts the deployed shape of the
+hemisphere; sizes are bounding-box diagonals: 100, 120, 110, 100 mm; ~10k faces each) a fresh
+subprocess designs it as ``ribbonctl design`` does (default parameters at the bench size, ``design_mesh(predict=False)``), then predicts the deployed shape of the
 layout and reports, each against its goal:
 
 - the deploy stage (homogenized model, nominal release and the spread's other releases): time (≤ 30 s),
@@ -174,9 +174,9 @@ def report(r: dict) -> None:
         print(f"  deploy stage (homogenized, nominal + spread): {h['time_s']:.1f} s (goal ≤ {GOAL_DEPLOY_S:.0f} s: "
               f"{_met(h['time_s'] <= GOAL_DEPLOY_S)}); {h['faces']} faces, {h['iterations']} Newton iterations, "
               f"converged {h['converged']}")
-        print(f"  deviation mean / p99 / max {dv['mean']:.2f} / {dv['p99']:.2f} / {dv['max']:.2f} %, spread of the mean "
-              f"{h['spread_mean'][0]:.2f}-{h['spread_mean'][1]:.2f} %; ∫K {K[0]:+.2f} / target {K[1]:+.2f}; area ratio "
-              f"{h['area_ratio']:.3f}; reached {h['reached']}")
+        print(f"  deviation mean / p99 / max {dv['mean']:.2f} / {dv['p99']:.2f} / {dv['max']:.2f} %, "
+              f"spread of the mean {h['spread_mean'][0]:.2f}-{h['spread_mean'][1]:.2f} %; "
+              f"∫K {K[0]:+.2f} / target {K[1]:+.2f}; area ratio {h['area_ratio']:.3f}; reached {h['reached']}")
         print(f"  verdict: {h['verdict']}")
         c = r["convergence"]
         print(f"  2× resolution ({c['double_faces']} faces) against the default: {c['double_vs_default_pct']:.2f} % "
@@ -192,11 +192,12 @@ def report(r: dict) -> None:
     f = r["fine"]
     mb = r["peak_rss_kb"] / 1024
     d = r["fine_vs_homogenized_pct"]
-    goal_s = f"goal ≤ {GOAL_FINE_S:.0f} s: {_met(f['time_s'] <= GOAL_FINE_S)}" if name == "saddle" else "goal on the saddle"
+    goal_s = (f"goal ≤ {GOAL_FINE_S:.0f} s: {_met(f['time_s'] <= GOAL_FINE_S)}" if name == "saddle"
+              else "the goal is the saddle's")
     print(f"  {r['mode']}: {f['time_s']:.0f} s ({goal_s}); {f['faces']} faces, {f['iterations']} Newton iterations, "
           f"converged {f['converged']}; peak {mb:.0f} MB (goal ≤ {GOAL_MB:.0f}: {_met(mb <= GOAL_MB)})")
-    print(f"  fine: deviation mean {f['deviation']['mean']:.2f} %, ∫K {f['K'][0]:+.2f} (homogenized {h['K'][0]:+.2f}, "
-          f"target {h['K'][1]:+.2f}); reached {f['reached']}")
+    print(f"  fine: deviation mean {f['deviation']['mean']:.2f} %, ∫K {f['K'][0]:+.2f} "
+          f"(homogenized {h['K'][0]:+.2f}, target {h['K'][1]:+.2f}); reached {f['reached']}")
     print(f"  homogenized against fine: {d:.2f} % of the diagonal"
           + (f" (goal ≤ {GOAL_FINE_PCT} %: {_met(d <= GOAL_FINE_PCT)})" if FEASIBLE[name] else " (reported)"))
 
@@ -225,7 +226,8 @@ def main() -> int:
                 failures.append(str(exc))
                 print(f"\n{name} ({mode}): FAILED", flush=True)
     print(f"\nload average (1, 5, 15 min) at the start: {', '.join(f'{x:.2f}' for x in load0)}; at the end: "
-          f"{', '.join(f'{x:.2f}' for x in os.getloadavg())} on {os.cpu_count()} cores (shared: read the times with it)")
+          f"{', '.join(f'{x:.2f}' for x in os.getloadavg())} on {os.cpu_count()} cores "
+          "(shared: read the times with it)")
     print(f"pictures: {args.out}")
     if failures:
         print("\n" + "\n\n".join(failures), file=sys.stderr)
