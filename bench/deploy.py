@@ -2,8 +2,8 @@
 
 For each surface (a cylinder patch, the torus patch of the paper's Fig. 2, a symmetric saddle disk and a
 hemisphere; sizes are bounding-box diagonals: 100, 120, 110, 100 mm; ~10k faces each) a fresh
-subprocess designs it as ``ribbonctl design`` does (default parameters at the bench size, ``design_mesh(predict=False)``), then predicts the deployed shape of the
-layout and reports, each against its goal:
+subprocess designs it as ``ribbonctl design`` does (default parameters at the bench size,
+``design_mesh(predict=False)``), then predicts the deployed shape of the layout and reports, each against its goal:
 
 - the deploy stage (homogenized model, nominal release and the spread's other releases): time (≤ 30 s),
   deviation mean / p99 / max and its spread (% of the target's diagonal), ∫K predicted / target, area
