@@ -247,6 +247,40 @@ def _release_on(sheet: Sheet, coarse: Sheet | None, path: Path, steps: int, max_
     return fin.X, r.iterations + fin.iterations, r.converged and fin.converged
 
 
+def _sheets(uv: np.ndarray, V: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], model: str,
+            target_faces: int, coarse_faces: int, kw: dict):
+    """The reference mesh, the sheet on it, the coarse sheet each path is followed on (or None) and
+    the coverage (None for the ribbon-resolved model)."""
+    if model == "ribbon-resolved":
+        from .fine import ribbon_resolved_sheet
+        sheet = ribbon_resolved_sheet(uv, F, ribbons, **kw)
+        ref = ReferenceMesh(uv=sheet.uv, F=sheet.F, target=interpolate(sheet.uv, uv, F, V), coarsened=True)
+        return ref, sheet, None, None
+    ref = reference_mesh(uv, V, F, target_faces)
+    sheet, cov = sheet_for_layout(ref.uv, ref.F, ribbons, **kw)
+    coarse = None
+    if coarse_faces and coarse_faces < 0.5 * len(ref.F):
+        cm = reference_mesh(uv, V, F, coarse_faces, force=True)
+        coarse, _ = sheet_for_layout(cm.uv, cm.F, ribbons, **kw)
+    return ref, sheet, coarse, cov
+
+
+def _agreement(devs: list, ref: ReferenceMesh) -> agreement.Agreement:
+    """The nominal release (``devs[0]``) against the target, and the spread over all of them. ∫K
+    and the area of both on the same mesh: the interior vertices' angle defects leave out a boundary
+    strip whose width is the mesh's, so two meshes of one surface differ by it."""
+    nominal = devs[0]
+    means = [d.mean_pct for d in devs]
+    maxes = [d.max_pct for d in devs]
+    target_area = agreement.surface_area(ref.target, ref.F)
+    return agreement.Agreement(
+        mean_pct=nominal.mean_pct, max_pct=nominal.max_pct,
+        curvature_predicted=agreement.total_gaussian_curvature(nominal.V, ref.F),
+        curvature_target=agreement.total_gaussian_curvature(ref.target, ref.F),
+        area_ratio=agreement.surface_area(nominal.V, ref.F) / target_area if target_area > 0 else float("nan"),
+        spread_mean=(min(means), max(means)), spread_max=(min(maxes), max(maxes)))
+
+
 def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], *,
                      prestretch: float, ribbon_width: float, table: CurvatureTable,
                      target_faces: int = DEFAULT_FACES, coarse_faces: int = COARSE_FACES,
@@ -296,18 +330,7 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
     if not releases:
         raise ValueError("releases must name at least one path (the nominal one first)")
     kw = dict(prestretch=prestretch, ribbon_width=ribbon_width, table=table, material=material)
-    if model == "ribbon-resolved":
-        from .fine import ribbon_resolved_sheet
-        sheet = ribbon_resolved_sheet(uv, F, ribbons, **kw)
-        ref = ReferenceMesh(uv=sheet.uv, F=sheet.F, target=interpolate(sheet.uv, uv, F, V), coarsened=True)
-        cov, coarse = None, None
-    else:
-        ref = reference_mesh(uv, V, F, target_faces)
-        sheet, cov = sheet_for_layout(ref.uv, ref.F, ribbons, **kw)
-        coarse = None
-        if coarse_faces and coarse_faces < 0.5 * len(ref.F):
-            cm = reference_mesh(uv, V, F, coarse_faces, force=True)
-            coarse, _ = sheet_for_layout(cm.uv, cm.F, ribbons, **kw)
+    ref, sheet, coarse, cov = _sheets(uv, V, F, ribbons, model, target_faces, coarse_faces, kw)
     results, iterations, converged = [], 0, True
     for i, path in enumerate(releases):
         def report(k: int, n: int, i: int = i, path: Path = path) -> None:
@@ -320,17 +343,7 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
         results.append((path, X))
     devs = [surface_deviation(X, ref.target, V, F) for _, X in results]
     nominal = devs[0]
-    means = [d.mean_pct for d in devs]
-    maxes = [d.max_pct for d in devs]
-    target_area = agreement.surface_area(ref.target, ref.F)            # the same mesh, as for ∫K
-    a = agreement.Agreement(
-        mean_pct=nominal.mean_pct, max_pct=nominal.max_pct,
-        curvature_predicted=agreement.total_gaussian_curvature(nominal.V, ref.F),
-        # on the same mesh: the interior vertices' angle defects leave out a boundary strip whose
-        # width is the mesh's, so two meshes of one surface differ by it
-        curvature_target=agreement.total_gaussian_curvature(ref.target, ref.F),
-        area_ratio=agreement.surface_area(nominal.V, ref.F) / target_area if target_area > 0 else float("nan"),
-        spread_mean=(min(means), max(means)), spread_max=(min(maxes), max(maxes)))
+    a = _agreement(devs, ref)
     return Prediction(V=nominal.V, F=ref.F, uv=ref.uv, target=ref.target, distance=nominal.distance,
                       deviation_pct=nominal.as_dict(), agreement=a,
                       releases=[{"name": p.name, "deviation_pct": d.as_dict()} for (p, _), d in zip(results, devs)],
