@@ -286,7 +286,7 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
                      target_faces: int = DEFAULT_FACES, coarse_faces: int = COARSE_FACES,
                      material: Material | None = None, model: str = "homogenized",
                      steps: int = DEFAULT_STEPS, releases: Sequence[Path] = RELEASES,
-                     max_iterations: int = 30,
+                     max_iterations: int = 15,
                      progress: Callable[[float, str], None] | None = None) -> Prediction:
     """Predict the deployed shape of the printed layout and how well it agrees with the target.
 

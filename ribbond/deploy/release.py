@@ -207,9 +207,6 @@ def _advance(sheet: Sheet, path: Path, state: _Path, t: float, max_iterations: i
     E = sheet.energy_at(t, t ** path.curvature_exponent)
     r = newton(E, _predictor(state, dt), max_iterations=max_iterations, step_tolerance=STEP_TOLERANCE,
                scale=scale, gradient_tolerance=gtol)
-    if not r.converged and state.previous is not None:           # the predictor overshot: from X itself
-        r = newton(E, state.X, max_iterations=max_iterations, step_tolerance=STEP_TOLERANCE, scale=scale,
-                   gradient_tolerance=gtol)
     if r.converged or halvings == 0:
         return _Path(X=r.X, previous=state.X, t=t, dt=dt), r, r.iterations
     mid, r1, it1 = _advance(sheet, path, state, state.t + 0.5 * dt, max_iterations, scale, gtol, halvings - 1)
@@ -217,7 +214,7 @@ def _advance(sheet: Sheet, path: Path, state: _Path, t: float, max_iterations: i
     return end, r2, r.iterations + it1 + it2
 
 
-def release(sheet: Sheet, *, steps: int = DEFAULT_STEPS, path: Path = NOMINAL, max_iterations: int = 30,
+def release(sheet: Sheet, *, steps: int = DEFAULT_STEPS, path: Path = NOMINAL, max_iterations: int = 15,
             progress: Callable[[int, int, int], None] | None = None) -> Release:
     """Release the printed sheet along ``path`` in ``steps`` steps (module docstring).
 
