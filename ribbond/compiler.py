@@ -26,13 +26,14 @@ COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode",
 
 
 def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path,
-                   tables: Path | None = None, max_faces: int | None = None) -> list[str]:
+                   tables: Path | None = None, max_faces: int | None = None, predict: bool = True) -> list[str]:
     """The command line of one compile (``python -m ribbond.worker``); ``parameters`` in the
     ``--params`` layout (design parameters, an optional ``solver`` table), ``max_faces`` the
-    daemon's ``[limits] max_faces``."""
+    daemon's ``[limits] max_faces``, ``predict`` its ``[design] predict``."""
     return [python, "-m", "ribbond.worker", mesh, str(out), "--params", json.dumps(parameters),
             "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else []) \
-        + (["--max-faces", str(max_faces)] if max_faces is not None else [])
+        + (["--max-faces", str(max_faces)] if max_faces is not None else []) \
+        + ([] if predict else ["--no-predict"])
 
 
 async def run_worker(command: list[str], log_path: Path, on_event: Callable[[dict[str, Any]], None],
@@ -140,7 +141,8 @@ class Compiler:
                 self.records.publish(self.records.get(job.id), progress_event=event)
 
         return await run_worker(worker_command(self.python, job.mesh_path, folder / "design", params,
-                                               folder / "plans", self.tables_dir, self.config.limits.max_faces),
+                                               folder / "plans", self.tables_dir, self.config.limits.max_faces,
+                                               self.config.design.predict),
                                 log_path, on_event, self._compiling, job.id)
 
     def _finish(self, job_id: str, code: int, last: dict[str, Any], log_path: Path) -> None:

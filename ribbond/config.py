@@ -124,6 +124,17 @@ class ManualSettings(BaseModel):
                               "default false: checked like a plain G-code job")
 
 
+class DesignSettings(BaseModel):
+    """What a compile makes."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    # The deploy stage (the released sheet, three ways) is 5-30 s of each compile; a slow host may
+    # leave it to `ribbonctl predict --job` (POST /jobs/{id}/predict), asked for when wanted.
+    predict: bool = Field(True, strict=True, description="predict the deployed shape in every compile "
+                          "(deployed.obj, deployed.png, report.deployed); false: compile without it")
+
+
 class DaemonConfig(BaseModel):
     """Everything ``ribbond`` reads from its configuration file; every field has a default."""
 
@@ -137,6 +148,7 @@ class DaemonConfig(BaseModel):
     limits: Limits = Limits()
     flip: FlipPolicy = FlipPolicy()
     manual: ManualSettings = ManualSettings()
+    design: DesignSettings = DesignSettings()
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @property

@@ -76,6 +76,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-faces", type=int, help="the daemon's [limits] max_faces")
     parser.add_argument("--plans", type=Path, help="also write the front and back plans into this folder")
     parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
+    parser.add_argument("--no-predict", action="store_true", help="skip the deploy stage (the daemon's "
+                        "[design] predict = false)")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     args = parser.parse_args(argv)
     lower_priority(args.nice)
@@ -91,7 +93,8 @@ def main(argv: list[str] | None = None) -> int:
         limited = args.max_faces is not None and args.max_faces < solver.max_faces
         if limited:
             solver = solver.model_copy(update={"max_faces": args.max_faces})
-        result = design_mesh(args.mesh, settings.parameters, solver, progress=JsonProgress(),
+        result = design_mesh(args.mesh, settings.parameters, solver, predict=not args.no_predict,
+                             progress=JsonProgress(),
                              tables_dir=args.tables)
         path = write_design(result, args.out, JsonProgress())
         if args.plans is not None:

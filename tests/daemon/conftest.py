@@ -31,6 +31,8 @@ TIME_SCALE = 0.02
 BAUD = 250000
 #: Small designs: fewer ribbons, short programs.
 PARAMETERS = {"size": {"bbox_diagonal": 70}}
+#: The daemon's compiles predict the deployed shape (the default; the harness turns it off elsewhere).
+PREDICT = "[design]\npredict = true\n"
 #: The profile's frame centre (ultimaker2-tpu): the flip is about the line x = 110.
 CENTER = (110.0, 110.0)
 #: Commands the link sends on its own (handshake, probes): not program lines.
@@ -89,6 +91,8 @@ class Daemon:
         self.state_dir = state_dir
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.config = state_dir / "ribbond.toml"
+        if "[design]" not in extra:            # the deploy stage costs 5-10 s a compile; see PREDICT
+            extra = f"{extra}\n[design]\npredict = false\n"
         self.config.write_text(
             f'state_dir = "{state_dir}"\nlog_level = "info"\n'
             f'[serial]\nport = "{port}"\nbaud = {BAUD}\n'
@@ -283,8 +287,12 @@ def own_printer(state_dir: Path, **options: Any) -> Iterator[tuple[Sim, Daemon]]
 
 
 @pytest.fixture(scope="module")
-def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
-    with running(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port) as daemon:
+def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory,
+                  request: pytest.FixtureRequest) -> Iterator[Daemon]:
+    """The module's daemon; its compiles skip the deploy stage unless the module sets
+    ``DAEMON_EXTRA = PREDICT`` (the tests of the prediction itself)."""
+    extra = getattr(request.module, "DAEMON_EXTRA", "")
+    with running(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port, extra=extra) as daemon:
         yield daemon
 
 

@@ -15,6 +15,7 @@ from ribbond.config import (
     CONFIG_ENV,
     ApiSettings,
     DaemonConfig,
+    DesignSettings,
     FlipPolicy,
     Limits,
     ManualSettings,
@@ -89,6 +90,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
         limits=Limits(max_upload_mb=12.5, max_faces=1000, max_jobs=3),
         flip=FlipPolicy(heaters="off", lower_to=150.0, off_after_s=60.0),
         manual=ManualSettings(raw_console=True),
+        design=DesignSettings(predict=False),
         log_level="debug",
     )
     # Every field differs from its default, so a field the loader dropped would show.
@@ -147,6 +149,7 @@ def test_unknown_key_refused_with_its_path(tmp_path: Path, text: str, field: str
     ("[flip]\nheaters = 'cold'\n", "flip.heaters"),
     ("[flip]\noff_after_s = -1\n", "flip.off_after_s"),
     ("log_level = 'verbose'\n", "log_level"),
+    ("[design]\npredict = 'yes'\n", "design.predict"),
     ("api = 7125\n", "api"),
     ("state_dir = 3\n", "state_dir"),
 ])

@@ -135,6 +135,9 @@ def run_two_sided(api: httpx.Client, sim: Sim, mesh: Path, misalignment: tuple[f
     wait_for(api, job, "awaiting_flip", timeout=60)
     design = api.get(f"/jobs/{job}/files/design.json").json()
     assert design["registration_marks"], "a two-sided design has registration marks"
+    # the harness's daemons compile with [design] predict = false: no deploy stage, no deployed files
+    assert "deployed" not in design["report"] and "deploy" not in design["report"]["timings_s"]
+    assert api.get(f"/jobs/{job}/files/deployed.obj").status_code == 404
     answers = flip_and_align(api, sim, job, design["registration_marks"], misalignment)
     wait_for(api, job, "done", timeout=60)
     return job, design, answers, sim.segments()[first_segment:]

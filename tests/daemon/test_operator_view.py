@@ -31,7 +31,10 @@ from ribbond.gcode.profiles import load_profile
 from ribbond.temperatures import TemperatureHistory
 from sim.process import SimProcess
 
-from .conftest import BAUD, ROOT, Daemon, Sim, frame_ready, running, wait_for
+from .conftest import BAUD, PREDICT, ROOT, Daemon, Sim, frame_ready, running, wait_for
+
+#: The shared daemon predicts in its compiles (the harness turns that off elsewhere).
+DAEMON_EXTRA = PREDICT
 
 pytestmark = pytest.mark.timeout(240)
 

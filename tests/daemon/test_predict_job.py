@@ -16,7 +16,10 @@ from ribbond.design.format import DeployedReport
 from ribbond.design.thickness import TABLE_DIR
 from ribbond.design.verdict import verdict_lines
 
-from .conftest import Daemon, submit, wait_for
+from .conftest import PREDICT, Daemon, submit, wait_for
+
+#: The shared daemon predicts in its compiles (the harness turns that off elsewhere).
+DAEMON_EXTRA = PREDICT
 
 SHIPPED = "tpu95a-lycra-default"
 
@@ -49,7 +52,8 @@ def test_predict_a_ready_job_again(shared_daemon: Daemon, api: httpx.Client, mes
     assert api.post(f"/jobs/{job}/predict").status_code == 409          # still compiling: the compile predicts
     before = wait_for(api, job, "ready", timeout=120)
     assert before["prediction"] is None
-    old_obj = api.get(f"/jobs/{job}/files/deployed.obj").content
+    old_obj = api.get(f"/jobs/{job}/files/deployed.obj").content     # [design] predict = true: the compile's
+    assert old_obj
     design_dir = Path(before["design_dir"])
     kept = {n: (design_dir / n).stat().st_ino for n in ("front.gcode", "back.gcode", "target.obj", "flat.obj")}
 

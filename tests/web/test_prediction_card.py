@@ -13,9 +13,12 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.daemon.conftest import Daemon, submit, wait_for
+from tests.daemon.conftest import PREDICT, Daemon, submit, wait_for
 
 from .conftest import PHONE, shot
+
+#: The shared daemon predicts in its compiles (the harness turns that off elsewhere).
+DAEMON_EXTRA = PREDICT
 
 pytestmark = pytest.mark.timeout(240)
 
