@@ -172,6 +172,21 @@ class AlignmentRefused(ValueError):
         self.mark = mark
 
 
+def _misread_mark(fit: AlignmentFit) -> int:
+    """The index of the mark whose leaving out lets the others fit best (smallest largest residual):
+    the misread one. (The largest residual of the fit of all the marks can sit on a good mark: the
+    least-squares motion shares one mark's error among them all.) Without the marks, or with fewer
+    than three, the largest residual's."""
+    exp = np.asarray(fit.expected, dtype=float).reshape(-1, 2)
+    meas = np.asarray(fit.measured, dtype=float).reshape(-1, 2)
+    res = np.asarray(fit.residuals, dtype=float)
+    if len(exp) < 3 or len(meas) != len(exp):
+        return int(np.argmax(res))
+    keep = ~np.eye(len(exp), dtype=bool)                       # a loop over the few marks, not the mesh
+    left = [fit_rigid(exp[k], meas[k]).max_residual for k in keep]
+    return int(np.argmin(left))
+
+
 def check_fit(fit: AlignmentFit, *, max_residual: float, max_rotation_deg: float, max_offset: float) -> None:
     """Refuse ``fit`` when it is not good enough to print the back side with.
 
@@ -207,7 +222,7 @@ def check_fit(fit: AlignmentFit, *, max_residual: float, max_rotation_deg: float
                 f"the marks do not fit a rigid motion: {detail}, {worst:.2f} mm off (limit "
                 f"{max_residual:.2f} mm); re-check both marks",
                 which="residual", value=worst, limit=max_residual)
-        m = int(np.argmax(res))
+        m = _misread_mark(fit)
         raise AlignmentRefused(
             f"the marks do not fit a rigid motion: mark {m + 1} is {worst:.2f} mm off (limit "
             f"{max_residual:.2f} mm); re-check that mark",

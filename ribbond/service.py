@@ -448,9 +448,11 @@ class RibbonService:
             return side, min(done, stream.side_s), stream_rate(stream) or rate
         if s is JobState.PRINTING_BACK:
             return side, 0.0, rate  # the back's stream is not set up yet: the lines stored are the front's
-        if job.lines_total and s in (JobState.HEATING, JobState.PRINTING_FRONT,
-                                     JobState.PAUSED, JobState.INTERRUPTED, JobState.FAILED, JobState.CANCELLED):
-            # not streaming now: where it stood, by the lines acknowledged
+        if job.lines_total and job.print_progress is None and s in (
+                JobState.HEATING, JobState.PRINTING_FRONT, JobState.PAUSED, JobState.INTERRUPTED,
+                JobState.FAILED, JobState.CANCELLED):
+            # not streaming now and nothing stored: where it stood, by the lines acknowledged (a share
+            # of lines is not a share of time: with a stored progress, that one is shown, never more)
             return side, totals.get(side, 0.0) * min(1.0, max(job.last_acked_line, 0) / job.lines_total), rate
         return side, None, rate
 

@@ -353,3 +353,16 @@ def test_the_fit_cannot_be_altered() -> None:
         fit.residuals[0] = 1.0
     with pytest.raises(AttributeError):
         fit.rotation_deg = 1.0  # type: ignore[misc]
+
+
+@pytest.mark.parametrize("bad", [0, 1, 2])
+def test_the_misread_mark_is_the_one_whose_leaving_out_fits_the_others(bad: int) -> None:
+    # three marks as a refined 70 mm saddle places them; one measured 10 mm off in x and y: the
+    # least-squares fit of all three shares that error, and its largest residual can sit on a good
+    # mark (for mark 1 here it sat on mark 3), so the refusal names the mark whose leaving out fits
+    expected = np.array([[81.1, 80.9], [144.3, 90.7], [92.7, 144.5]])
+    measured = expected.copy()
+    measured[bad] += (10.0, 10.0)
+    with pytest.raises(AlignmentRefused) as err:
+        check_fit(fit_rigid(expected, measured), max_residual=0.3, max_rotation_deg=5.0, max_offset=10.0)
+    assert err.value.mark == bad + 1 and f"mark {bad + 1} is" in str(err.value)

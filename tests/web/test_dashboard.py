@@ -40,12 +40,14 @@ def true_mark(x: float, y: float, dx: float, dy: float, rotation_deg: float) -> 
 
 
 def misalignment_for_the_pad(marks: list[list[float]]) -> tuple[float, float, float]:
-    """A flip misalignment (dx, dy, rotation) about 0.5 mm and 0.6° whose every mark is a whole number
-    of 0.1 mm jogs (within 5 µm) from where the head is sent: the jog pad's finest step reaches it,
-    so the test measures the alignment, not the rounding of a hand on the pad."""
+    """A flip misalignment (dx, dy, rotation) about 0.5 mm and 0.4-2° whose every mark is a whole number
+    of 0.1 mm jogs (within 10 µm) from where the head is sent: the jog pad's finest step reaches it,
+    so the test measures the alignment, not the rounding of a hand on the pad. (Mark 1 fixes the
+    translation, so only the rotation is free for the other marks' four coordinates: with the marks
+    of a refined 70 mm saddle the best within 0.4-2° is 7.3 µm.)"""
     expected = expected_marks(marks, PROFILE.frame)
     best: tuple[float, tuple[float, float, float]] | None = None
-    for rot in np.arange(0.4, 1.2, 0.0005):
+    for rot in np.arange(0.4, 2.0, 0.0005):
         # the translation puts mark 1 exactly 0.5, -0.3 mm from where the head is sent
         tx, ty = true_mark(*marks[0], 0.0, 0.0, rot)
         dx, dy = expected[0][0] + 0.5 - tx, expected[0][1] - 0.3 - ty
@@ -56,7 +58,7 @@ def misalignment_for_the_pad(marks: list[list[float]]) -> tuple[float, float, fl
                 err = max(err, abs(d * 10 - round(d * 10)) / 10)
         if best is None or err < best[0]:
             best = (err, (dx, dy, float(rot)))
-    assert best is not None and best[0] < 0.005, f"no misalignment within 5 µm of the pad's steps: {best}"
+    assert best is not None and best[0] < 0.01, f"no misalignment within 10 µm of the pad's steps: {best}"
     return best[1]
 
 
@@ -146,14 +148,15 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
         tx, ty = true_mark(x, y, dx, dy, rot)
         jog_with_pad(page, "#align-jog", tx - head[0], ty - head[1])
         now = api.get("/printer").json()["head"]
-        assert now[0] == pytest.approx(tx, abs=0.005) and now[1] == pytest.approx(ty, abs=0.005)
+        assert now[0] == pytest.approx(tx, abs=0.01) and now[1] == pytest.approx(ty, abs=0.01)
         if k == 1:
             shot(page, "06-align-mark-1")
         page.click("#align-here")
     # the fit waits for the operator: nothing more is printed until Accept
     page.wait_for_selector("#j-state.fitted", timeout=30 * SECOND)
     result = page.inner_text(".result.fitted")
-    assert f"{rot:.3f}°" in result or f"{rot - 0.001:.3f}°" in result or f"{rot + 0.001:.3f}°" in result, result
+    # within 0.005°: the marks are measured within 10 µm of where the flip put them, ~60 mm apart
+    assert any(f"{rot + k * 0.001:.3f}°" in result for k in range(-5, 6)), result
     extruded = len(shared_sim.segments())
     shot(page, "07-fit-to-accept")
     seen_before_reload = page.evaluate("window.seen")
@@ -462,8 +465,9 @@ def test_manual_control_and_a_plain_gcode_job(browser_page: Any, shared_daemon: 
 
 def test_a_refused_alignment_is_explained(browser_page: Any, shared_daemon: Daemon, shared_sim: Sim,
                                           api: httpx.Client, meshes: dict[str, Path]) -> None:
-    """Marks that no rigid motion fits (mark 1 measured 10 mm off, the others where the head was
-    sent): the page says the alignment was refused, which limit was exceeded and by how much (the
+    """Marks that no rigid motion fits (mark 1 measured 10 mm off in x and in y, the others where
+    the head was sent; one axis alone can be perpendicular to the line to another mark, and then
+    that pair fits too and the culprit is ambiguous): the page says the alignment was refused, which limit was exceeded and by how much (the
     daemon's own numbers), and the re-seat step: the frame stays back side up (not turned over
     again, no flip step), the marks that fitted are kept and mark 1 is measured again; once it is,
     the refusal is gone and the fit is shown. On a phone: each step comes into view with its button
@@ -493,6 +497,7 @@ def test_a_refused_alignment_is_explained(browser_page: Any, shared_daemon: Daem
             assert in_view(page, "#align h2") and in_view(page, "#align-jog button[data-jog='y-']")
             page.click("#align-jog label[data-step='10']")
             page.click("#align-jog button[data-jog='x+']")
+            page.click("#align-jog button[data-jog='y+']")
         page.click("#align-here")
     page.wait_for_selector("#align:not([hidden]) .result.refused", timeout=30 * SECOND)
     text = page.inner_text("#align .result.refused")

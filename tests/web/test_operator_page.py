@@ -21,12 +21,15 @@ from ribbond.design.mesh_io import write_obj
 from ribbond.design.preview import SIDE_COLORS
 from ribbond.design.surfaces import sphere_cap
 from ribbond.gcode.profiles import load_profile
-from tests.daemon.conftest import Daemon, Sim, frame_ready, own_printer, running, submit, wait_for
+from tests.daemon.conftest import PREDICT, Daemon, Sim, frame_ready, own_printer, running, submit, wait_for
 from tests.daemon.test_daemon_e2e import flip_and_align
 from tests.daemon.test_operator_view import SlowSim
 from tests.daemon.test_resume import kill_at, restart
 
 from .conftest import SHOTS, shot
+
+#: The shared daemon predicts in its compiles: the verdict page shows the prediction line.
+DAEMON_EXTRA = PREDICT
 
 pytestmark = pytest.mark.timeout(240)
 
