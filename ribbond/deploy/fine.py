@@ -269,9 +269,16 @@ def _sheet(mesh: FineMesh, ribbons: Sequence[Ribbon], kappa_r: np.ndarray, prest
 
 
 def coupon_curvature(X: np.ndarray, uv: np.ndarray, F: np.ndarray, size: tuple[float, float]) -> float:
-    """The curvature, 1/mm, of a released coupon (X (n, 3) over its flat uv (n, 2), F) rolled along x:
-    the vertices of its middle (the central half each way), projected along the cylinder's axis (the
-    mean image of the flat y direction there), fitted by a circle (least squares, Kåsa)."""
+    """The curvature, 1/mm, of a released coupon (X (n, 3) over its flat uv (n, 2), F) rolled along x
+    (``coupon_circle``)."""
+    return 1.0 / coupon_circle(X, uv, F, size)[0]
+
+
+def coupon_circle(X: np.ndarray, uv: np.ndarray, F: np.ndarray, size: tuple[float, float]) -> tuple[float, float]:
+    """(radius, the largest distance of a fitted vertex from the circle), mm, of a released coupon
+    rolled along x: the vertices of its middle (the central half each way), projected along the
+    cylinder's axis (the mean image of the flat y direction there), fitted by a circle (least
+    squares, Kåsa)."""
     Xs, Ys = size
     c = uv[F].mean(axis=1)
     inner = (np.abs(c[:, 0] - Xs / 2) < Xs / 4) & (np.abs(c[:, 1] - Ys / 2) < Ys / 4)
@@ -287,7 +294,8 @@ def coupon_curvature(X: np.ndarray, uv: np.ndarray, F: np.ndarray, size: tuple[f
     b2 = np.cross(axis, b1)
     x, y = P @ b1, P @ b2
     cx, cy, k0 = np.linalg.lstsq(np.column_stack([x, y, np.ones_like(x)]), x ** 2 + y ** 2, rcond=None)[0]
-    return float(1.0 / np.sqrt(k0 + cx ** 2 / 4 + cy ** 2 / 4))
+    radius = float(np.sqrt(k0 + cx ** 2 / 4 + cy ** 2 / 4))
+    return radius, float(np.abs(np.hypot(x - cx / 2, y - cy / 2) - radius).max())
 
 
 _CALIBRATED: dict[tuple, float] = {}

@@ -19,6 +19,7 @@ import pytest
 
 from ribbond.deploy import predict_deployed
 from ribbond.deploy.compare import kabsch
+from ribbond.deploy.fine import coupon_circle
 from ribbond.deploy.predict import RELEASES, interpolate
 from ribbond.design import surfaces
 from ribbond.design.mesh_io import write_obj
@@ -84,21 +85,9 @@ def test_parallel_ribbons_roll_into_the_tables_cylinder_with_eq10_lengths():
     # the cylinder: its axis is the image of the across direction; the middle vertices, projected
     # along it, lie on a circle (least-squares fit, Kåsa) of curvature κ(τ, μ2) of the front table
     kappa = table_curvature(TABLE, "front", np.array([tau]), np.array([mu2]))[0]
-    e = np.stack([p.V[p.F[:, 1]] - p.V[p.F[:, 0]], p.V[p.F[:, 2]] - p.V[p.F[:, 0]]], axis=2)
-    u = np.stack([p.uv[p.F[:, 1]] - p.uv[p.F[:, 0]], p.uv[p.F[:, 2]] - p.uv[p.F[:, 0]]], axis=2)
-    axis = (e @ np.linalg.inv(u) @ np.array([0.0, 1.0]))[inner].mean(axis=0)
-    axis /= np.linalg.norm(axis)
-    mid = (p.uv[:, 0] > 30) & (p.uv[:, 0] < 90) & (p.uv[:, 1] > 20) & (p.uv[:, 1] < 60)
-    P = p.V[mid] - p.V[mid].mean(axis=0)
-    P -= np.outer(P @ axis, axis)
-    b1 = np.cross(axis, P[np.argmax(np.linalg.norm(P, axis=1))])
-    b1 /= np.linalg.norm(b1)
-    b2 = np.cross(axis, b1)
-    x, y = P @ b1, P @ b2
-    cx, cy, k0 = np.linalg.lstsq(np.column_stack([x, y, np.ones_like(x)]), x ** 2 + y ** 2, rcond=None)[0]
-    radius = np.sqrt(k0 + cx ** 2 / 4 + cy ** 2 / 4)
+    radius, off_circle = coupon_circle(p.V, p.uv, p.F, size)
     assert 1.0 / radius == pytest.approx(kappa, rel=0.03)
-    assert np.abs(np.hypot(x - cx / 2, y - cy / 2) - radius).max() < 0.01 * radius     # a circle
+    assert off_circle < 0.01 * radius                                                  # a circle
     # and across the ribbons it stays straight
     t = np.linspace(20.0, 60.0, 9)
     P = interpolate(np.column_stack([np.full_like(t, 60.0), t]), p.uv, p.F, p.V)
