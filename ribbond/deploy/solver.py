@@ -160,8 +160,8 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
         (``tolerance``, ``energy_tolerance``) are then off, so how slowly the energy creeps never stops it.
     progress : called after each iteration with (iteration, energy, ‖∇E‖∞).
     hessian : ``"regularized"``: the exact Hessian plus μ × its mean diagonal, μ from the last one
-        that worked, raised ×30 up to 1e-3 until positive definite, lowered after three successes
-        (Levenberg; μ starts at 1e-9), else the positive semidefinite approximation (near a stable equilibrium
+        that worked, raised ×30 up to 1e-3 until positive definite, lowered after each success
+        (Levenberg; μ starts at 0), else the positive semidefinite approximation (near a stable equilibrium
         it is Newton's method, quadratic); while even 1e-3 fails and the positive semidefinite one
         is used, the exact one is tried again only every third iteration; ``"projected"``: the positive semidefinite one always
         (converges only linearly where the sheet is under compression, whose negative curvature it
@@ -201,7 +201,7 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
         alpha, En, d = 0.0, E, np.zeros_like(gf)
         # the exact Hessian shifted by μ (raised ×30 up to 1e-3 × its mean diagonal until positive
         # definite), else the positive semidefinite approximation
-        # from the last shift that worked (lowered after three successes in a row: Levenberg)
+        # from the last shift that worked (lowered after each success: Levenberg)
         levels = [("exact", m) for m in _SHIFTS] if hessian == "regularized" else []
         # while the exact Hessian stays indefinite at the largest shift, try it only every third
         # iteration (each try is a factorization wasted)
