@@ -119,14 +119,14 @@ def reached(a: Agreement) -> bool:
 def verdict(a: Agreement) -> str:
     """The sentence a person reads about the prediction."""
     kt, kp = a.curvature_target, a.curvature_predicted
-    shape = (f"∫K {kp:+.2f} against the target's {kt:+.2f}"
-             + (f" ({100 * a.curvature_kept:.0f} % of it)" if abs(kt) > REACHED_CURVATURE_ABS else ""))
+    shape = f"∫K {kp:+.2f} against the target's {kt:+.2f}"
     floppy = (f"; the sheet is floppy: released in other plausible ways it lands {a.spread_mean[0]:.1f}–"
               f"{a.spread_mean[1]:.1f} % from the target on average, so the shape will depend on handling"
               if a.wide else "")
     if reached(a):
+        kept = f" ({100 * a.curvature_kept:.0f} % of it)" if abs(kt) > REACHED_CURVATURE_ABS else ""
         return (f"will take the target's shape: {a.mean_pct:.1f} % of the diagonal from it on average, "
-                f"{shape}, area {100 * a.area_ratio:.0f} % of the target's" + floppy)
+                f"{shape}{kept}, area {100 * a.area_ratio:.0f} % of the target's" + floppy)
     why = []
     if not a.curvature_ok:
         if abs(kt) > REACHED_CURVATURE_ABS and abs(kp) < abs(kt):

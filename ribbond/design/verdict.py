@@ -104,7 +104,7 @@ def deployed_parts(deployed: dict[str, Any]) -> list[tuple[str, str]]:
                       else "NO: it will NOT take the target's shape"))
     k = deployed.get("total_gaussian_curvature")
     if k:
-        parts.append(("curvature", f"total Gaussian curvature {k['predicted']:+.2f}, target {k['target']:+.2f}"))
+        parts.append(("curvature", f"∫K {k['predicted']:+.2f} (total Gaussian curvature), target {k['target']:+.2f}"))
     if deployed.get("area_ratio") is not None:
         parts.append(("area", f"{100 * deployed['area_ratio']:.0f} % of the target's"))
     sp = deployed.get("spread")
