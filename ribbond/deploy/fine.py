@@ -38,9 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from scipy.spatial import Delaunay, cKDTree
+from scipy.spatial import cKDTree
 
 from ribbond.design.format import Ribbon
+from ribbond.design.remesh import delaunay_inside
 from ribbond.design.thickness import CurvatureTable, table_curvature
 
 from .release import Sheet, release
@@ -165,17 +166,7 @@ def fine_mesh(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribbon_w
     P, I, J = _cut(P, I, J, outline, h, ribbons, ribbon_width, tree)
     edge = _boundary_points(outline, h, tree)
     pts = _dedupe(np.vstack([edge, rib, P]), 0.3 * h)
-    T = Delaunay(pts).simplices.astype(np.int64)
-    a, b = pts[T[:, 1]] - pts[T[:, 0]], pts[T[:, 2]] - pts[T[:, 0]]
-    signed = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    c = pts[T].mean(axis=1)
-    keep = shapely.contains_xy(outline, c[:, 0], c[:, 1]) & (np.abs(signed) > 1e-6 * h * h)
-    T, signed = T[keep], signed[keep]
-    T[signed < 0] = T[signed < 0][:, [0, 2, 1]]
-    used = np.unique(T)
-    index = np.full(len(pts), -1, dtype=np.int64)
-    index[used] = np.arange(len(used))
-    pts, T = pts[used], index[T]
+    pts, T = delaunay_inside(pts, outline)
     which, direction = _face_ribbons(pts[T].mean(axis=1), ribbons, ribbon_width)
     return FineMesh(uv=pts, F=T, ribbon=which, direction=direction, edge=h)
 

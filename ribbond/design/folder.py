@@ -339,18 +339,24 @@ def write_design_folder(out_dir: Path, *, target_V: np.ndarray, target_F: np.nda
             write_obj(tmp / "flat.obj", P, F,
                       header=header.format("flat (pre-stretched), front-side print coordinates, z = 0"))
             files = {"design.json": design_to_json(design).encode(), **extra}
-            for name, data in files.items():
-                _write_synced(tmp / name, bytes(data))
-            _fsync_dir(tmp)
-            try:  # what a consumer will read; the OBJ precision must not flip a sliver face
-                read_design_folder(tmp)
-            except ValueError as exc:
-                raise ValueError(f"the design as written does not read back: {exc}") from None
-            _swap_in(tmp, out_dir)
+            _write_checked_swap(tmp, out_dir, files, "the design as written")
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
     return out_dir
+
+
+def _write_checked_swap(tmp: Path, out_dir: Path, files: dict[str, bytes], what: str) -> None:
+    """Write ``files`` into ``tmp`` (synced), check that it reads back as a design folder (what a
+    consumer will read; the OBJ precision must not flip a sliver face), and swap it in."""
+    for name, data in files.items():
+        _write_synced(tmp / name, bytes(data))
+    _fsync_dir(tmp)
+    try:
+        read_design_folder(tmp)
+    except ValueError as exc:
+        raise ValueError(f"{what} does not read back: {exc}") from None
+    _swap_in(tmp, out_dir)
 
 
 def _swap_in(tmp: Path, out_dir: Path) -> None:
@@ -421,14 +427,7 @@ def replace_design_files(folder: Path, files: Mapping[str, bytes]) -> Path:
             for old in folder.iterdir():
                 if old.name not in files:
                     _link_or_copy(old, tmp / old.name)
-            for name, data in files.items():
-                _write_synced(tmp / name, bytes(data))
-            _fsync_dir(tmp)
-            try:
-                read_design_folder(tmp)
-            except ValueError as exc:
-                raise ValueError(f"the design as it would be written does not read back: {exc}") from None
-            _swap_in(tmp, folder)
+            _write_checked_swap(tmp, folder, files, "the design as it would be written")
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise

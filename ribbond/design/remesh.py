@@ -87,6 +87,24 @@ def _outline_samples(ring: np.ndarray, spacing: float) -> np.ndarray:
     return np.column_stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])])
 
 
+def delaunay_inside(points: np.ndarray, outline: shapely.Geometry) -> tuple[np.ndarray, np.ndarray]:
+    """The Delaunay triangles of ``points`` (k, 2) whose centroid lies in ``outline``, slivers
+    (area ≤ ``_SLIVER`` × longest edge²) dropped, counter-clockwise, the unused points dropped:
+    (points (k', 2), triangles (t, 3))."""
+    tri = Delaunay(points).simplices.astype(np.int64)
+    centroid = points[tri].mean(axis=1)
+    a, b = points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]]
+    signed = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    longest = np.linalg.norm(points[tri] - points[np.roll(tri, 1, axis=1)], axis=2).max(axis=1)
+    keep = shapely.contains_xy(outline, centroid[:, 0], centroid[:, 1]) & (np.abs(signed) > _SLIVER * longest ** 2)
+    tri, signed = tri[keep], signed[keep]
+    tri[signed < 0] = tri[signed < 0][:, [0, 2, 1]]
+    used = np.unique(tri)
+    index = np.full(len(points), -1, dtype=np.int64)
+    index[used] = np.arange(len(used))
+    return points[used], index[tri]
+
+
 def remesh_flat(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, spacing: float) -> FlatRemesh:
     """Triangulate the flat domain of (uv (n, 2), F (m, 3)) with edges of about ``spacing`` mm.
 
@@ -113,18 +131,7 @@ def remesh_flat(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray, spacing: fl
     lattice = lattice[inside]
     far = shapely.distance(outline.boundary, shapely.points(lattice)) > 0.5 * spacing
     points = np.vstack([edge, lattice[far]])
-    tri = Delaunay(points).simplices.astype(np.int64)
-    centroid = points[tri].mean(axis=1)
-    a, b = points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]]
-    signed = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    longest = np.linalg.norm(points[tri] - points[np.roll(tri, 1, axis=1)], axis=2).max(axis=1)
-    keep = shapely.contains_xy(outline, centroid[:, 0], centroid[:, 1]) & (np.abs(signed) > _SLIVER * longest ** 2)
-    tri, signed = tri[keep], signed[keep]
-    tri[signed < 0] = tri[signed < 0][:, [0, 2, 1]]
-    used = np.unique(tri)
-    index = np.full(len(points), -1, dtype=np.int64)
-    index[used] = np.arange(len(used))
-    points, tri = points[used], index[tri]
+    points, tri = delaunay_inside(points, outline)
     face, bary = locate(points, uv, F)
     parent, _ = locate(points[tri].mean(axis=1), uv, F)
     return FlatRemesh(uv=points, F=tri, face=face, bary=bary, parent=parent, spacing=float(spacing),
