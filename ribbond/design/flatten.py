@@ -517,10 +517,11 @@ class BoundedFlattener:
                 used_aa = True
             targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds, coupled)
             if used_aa and not energy <= e_acc:
-                # Safeguard (Peng et al. 2018): the plain step from the last accepted iterate.
+                # Safeguard (Peng et al. 2018): the plain step from the last accepted iterate. The
+                # history is kept: resetting it at each rejection left the tail unaccelerated
+                # (bench saddle, 112k faces: 332 of 385 steps rejected; kept, 93 of 233).
                 rejected += 1
                 used_aa = False
-                aa.reset(x_acc[: n - 1].ravel(), g_acc[: n - 1].ravel())
                 uv = g_acc
                 targets, s1, s2, energy = self.local(uv, s1_acc, s2_acc, bounds, coupled)
             accelerated += used_aa
@@ -594,11 +595,6 @@ class _Anderson:
     @property
     def ready(self) -> bool:
         return self.count > 0
-
-    def reset(self, x: np.ndarray, g: np.ndarray) -> None:
-        """Forget the history; (x, G(x)) is the new starting pair."""
-        self.count = self.head = 0
-        self.f, self.g = g - x, g
 
     def push(self, x: np.ndarray, g: np.ndarray) -> None:
         f = g - x
