@@ -20,7 +20,7 @@ subprocess designs it as ``ribbonctl design`` does (default parameters at the be
 
 Both models' ``deployed.png`` are written to ``--out`` (default ``bench/out/deploy``).
 
-    python bench/deploy.py [--surfaces cylinder saddle] [--fine [--uncalibrated]] [--no-convergence]
+    python bench/deploy.py [--surfaces cylinder saddle] [--fine [--uncalibrated]] [--only-fine] [--out DIR]
 """
 
 from __future__ import annotations
