@@ -29,6 +29,12 @@ steps: 0 → 0.112, 0.06 → 0.138): the misfit between the unshrinking ribbons 
 answers (κ_r 0.02 → 0.0138, 0.04 → 0.0221). Either way the last release steps do not converge: the
 fabric squeezed at the ribbons' ends is compressed toward the limit point of the
 St.Venant-Kirchhoff membrane (edges at 0.64 of their rest length), where its energy stops resisting.
+A bare fabric that wrinkles instead (Pipkin's tension-field relaxation of the same law, tried with
+finite-difference-checked derivatives and not kept) makes it worse: the coupon crumples (κ 0.25 and
+0.22 /mm at κ_r 0.01 and 0.03; fabric edges down to 2 % of their rest length), its strips between
+the rows shortening by leaving the ribbons' surface. On one mid-surface the fabric pulls the ribbons
+at their middle, not at their underside, so the bilayer's moment is missing and the misfit can only
+buckle: the model needs the fabric's measured tension at s (a tensile test) or a layered sheet.
 """
 
 from __future__ import annotations
