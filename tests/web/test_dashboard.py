@@ -40,14 +40,15 @@ def true_mark(x: float, y: float, dx: float, dy: float, rotation_deg: float) -> 
 
 
 def misalignment_for_the_pad(marks: list[list[float]]) -> tuple[float, float, float]:
-    """A flip misalignment (dx, dy, rotation) about 0.5 mm and 0.4-2° whose every mark is a whole number
-    of 0.1 mm jogs (within 10 µm) from where the head is sent: the jog pad's finest step reaches it,
-    so the test measures the alignment, not the rounding of a hand on the pad. (Mark 1 fixes the
-    translation, so only the rotation is free for the other marks' four coordinates: with the marks
-    of a refined 70 mm saddle the best within 0.4-2° is 7.3 µm.)"""
+    """A flip misalignment (dx, dy, rotation) about 0.5 mm and ±0.4-2° whose marks are as close as can be
+    to a whole number of 0.1 mm jogs from where the head is sent, so that the pad's finest step
+    nearly reaches them. (Mark 1 fixes the translation, so only the rotation is free for the other
+    marks' four coordinates: the best is 7-16 µm, depending on where the layout puts the marks; the
+    fit is checked against the marks the pad reached, see ``rotation_through``.)"""
     expected = expected_marks(marks, PROFILE.frame)
     best: tuple[float, tuple[float, float, float]] | None = None
-    for rot in np.arange(0.4, 2.0, 0.0005):
+    rotations = np.arange(0.4, 2.0, 0.0005)
+    for rot in np.concatenate([rotations, -rotations]):
         # the translation puts mark 1 exactly 0.5, -0.3 mm from where the head is sent
         tx, ty = true_mark(*marks[0], 0.0, 0.0, rot)
         dx, dy = expected[0][0] + 0.5 - tx, expected[0][1] - 0.3 - ty
@@ -58,8 +59,17 @@ def misalignment_for_the_pad(marks: list[list[float]]) -> tuple[float, float, fl
                 err = max(err, abs(d * 10 - round(d * 10)) / 10)
         if best is None or err < best[0]:
             best = (err, (dx, dy, float(rot)))
-    assert best is not None and best[0] < 0.01, f"no misalignment within 10 µm of the pad's steps: {best}"
+    assert best is not None and best[0] < 0.025, f"no misalignment within 25 µm of the pad's steps: {best}"
     return best[1]
+
+
+def rotation_through(sent: list[tuple[float, float]], reached: list[tuple[float, float]]) -> float:
+    """The rotation (degrees) of the least-squares rigid motion taking the points the head was sent
+    to onto the points the operator jogged it to (2-D Kabsch): what an exact fit must report."""
+    p = np.asarray(sent) - np.mean(sent, axis=0)
+    q = np.asarray(reached) - np.mean(reached, axis=0)
+    return math.degrees(math.atan2(float(np.sum(p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0])),
+                                   float(np.sum(p * q))))
 
 
 def presses(d: float) -> list[tuple[float, int]]:
@@ -141,6 +151,7 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
     assert shared_sim.flip(dx, dy, rot)["side"] == "back"
     page.click("#flip-done")
 
+    sent, reached = [], []
     for k, (x, y) in enumerate(marks, start=1):
         page.wait_for_selector(f"#align-text[data-mark='{k}']", timeout=60 * SECOND)
         assert f"The head is above mark {k} of {len(marks)}" in page.inner_text("#align-text")
@@ -148,15 +159,20 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
         tx, ty = true_mark(x, y, dx, dy, rot)
         jog_with_pad(page, "#align-jog", tx - head[0], ty - head[1])
         now = api.get("/printer").json()["head"]
-        assert now[0] == pytest.approx(tx, abs=0.01) and now[1] == pytest.approx(ty, abs=0.01)
+        assert now[0] == pytest.approx(tx, abs=0.025) and now[1] == pytest.approx(ty, abs=0.025)
+        sent.append((head[0], head[1]))
+        reached.append((now[0], now[1]))
         if k == 1:
             shot(page, "06-align-mark-1")
         page.click("#align-here")
     # the fit waits for the operator: nothing more is printed until Accept
     page.wait_for_selector("#j-state.fitted", timeout=30 * SECOND)
     result = page.inner_text(".result.fitted")
-    # within 0.005°: the marks are measured within 10 µm of where the flip put them, ~60 mm apart
-    assert any(f"{rot + k * 0.001:.3f}°" in result for k in range(-5, 6)), result
+    # the fit reports the rotation of the marks as the pad reached them (within 0.005°), and that is
+    # within 0.05° of the flip's: the marks are reached within 25 µm, ~60 mm apart
+    fitted = rotation_through(sent, reached)
+    assert abs(fitted - rot) < 0.05, (fitted, rot)
+    assert any(f"{fitted + k * 0.001:.3f}°" in result for k in range(-5, 6)), (result, fitted, rot)
     extruded = len(shared_sim.segments())
     shot(page, "07-fit-to-accept")
     seen_before_reload = page.evaluate("window.seen")
