@@ -22,9 +22,10 @@ README_MAX_LINES = 300
 
 # [text](target) and ![alt](target); the target ends at whitespace or ")"
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
-# a path in the package: ribbond/... not preceded by a path character (so /etc/ribbond/... and
-# ribbond-design/3 are not taken); a glob (*.toml) is allowed
-PACKAGE_PATH = re.compile(r"(?<![\w/.-])ribbond/[\w./*-]*")
+# a path in the project: ribbond/..., tests/..., bench/..., sim/..., systemd/... not preceded by a
+# path character (so /etc/ribbond/... and ribbond-design/3 are not taken); a glob (*.toml) is allowed.
+# examples/ is left out: the pages name the meshes make_meshes.py generates there.
+PROJECT_PATH = re.compile(r"(?<![\w/.-])(?:ribbond|tests|bench|sim|systemd)/[\w./*-]*")
 PYTHON_M = re.compile(r"python -m ([\w.]+)")
 FENCE = re.compile(r"^(```|~~~)")
 
@@ -77,9 +78,9 @@ def broken_links(page: Path) -> list[str]:
 
 
 def missing_paths(page: Path) -> list[str]:
-    """Each ribbond/... path the page names that does not exist (a glob: that matches nothing)."""
+    """Each project path the page names that does not exist (a glob: that matches nothing)."""
     missing = []
-    for raw in sorted(set(PACKAGE_PATH.findall(page.read_text()))):
+    for raw in sorted(set(PROJECT_PATH.findall(page.read_text()))):
         path = raw.rstrip(".,:;")
         if "*" in path:
             if not list(ROOT.glob(path)):
@@ -120,7 +121,7 @@ def test_links_resolve(page):
 
 
 @pytest.mark.parametrize("page", PAGES, ids=_rel)
-def test_named_package_paths_exist(page):
+def test_named_project_paths_exist(page):
     assert not missing_paths(page), f"{_rel(page)} names paths that do not exist: {missing_paths(page)}"
 
 
@@ -134,15 +135,17 @@ def test_the_checks_can_fail(tmp_path, monkeypatch):
     monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
     (tmp_path / "ribbond").mkdir()
     (tmp_path / "ribbond" / "real.py").write_text("")
+    (tmp_path / "tests").mkdir()
     (tmp_path / "there.md").write_text("# A heading `here`\n")
     page = tmp_path / "page.md"
     page.write_text(
         "[ok](there.md) [ok](there.md#a-heading-here) [gone](nowhere.md) [bad](there.md#nothing)\n"
         "[web](https://example.org/x) `ribbond/real.py` `ribbond/gone.py` `ribbond/*.py` `ribbond/*.toml`\n"
+        "tests/gone.py: examples/meshes/made.obj\n"
         "/etc/ribbond/ribbond.toml ribbond-design/3\n"
         "python -m json.tool, python -m ribbond_no_such_module\n"
         "```\n[in code](not-a-link.md)\n```\n"
     )
     assert broken_links(page) == ["nowhere.md: no such file", "there.md#nothing: no heading #nothing in there.md"]
-    assert missing_paths(page) == ["ribbond/*.toml", "ribbond/gone.py"]
+    assert missing_paths(page) == ["ribbond/*.toml", "ribbond/gone.py", "tests/gone.py"]
     assert missing_modules(page) == ["ribbond_no_such_module"]
