@@ -150,7 +150,7 @@ def test_torus_front_ribbons_bend_toward_the_front(tmp_path):
     assert sides == {"front"}
     assert _bending_sign(p, "front") < -0.8
     # reported; large here because the layout misses the design's spacing across (its own report:
-    # spacing_error_across_pct) and most thicknesses are clamped to the table (see README figures)
+    # spacing_error_across_pct) and most thicknesses are clamped to the table (see docs/benchmarks.md)
     assert np.isfinite(p.deviation_pct["mean"]) and 0 < p.deviation_pct["mean"] <= p.deviation_pct["max"]
 
 

@@ -250,7 +250,7 @@ def test_the_shipped_table():
     table = load_curvature_table("tpu95a-lycra-default")
     assert table.name == "tpu95a-lycra-default"
     assert table.prestretch == 1.6
-    assert "not measured" in table.description.lower() and "README" in table.description
+    assert "not measured" in table.description.lower() and "docs/calibration.md" in table.description
     front, back = np.asarray(table.front), np.asarray(table.back)
     assert len(table.thickness) == 8 and len(table.spacing) == 6
     assert front.shape == back.shape == (8, 6)
