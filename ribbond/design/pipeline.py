@@ -118,9 +118,10 @@ def _bbox_diagonal(V: np.ndarray) -> float:
     return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, repr=False)
 class _Run:
-    """One design in the making: what was asked, then what each stage made, in stage order."""
+    """One design in the making: what was asked, then what each stage made, in stage order (a stage's
+    fields are unset until it has run)."""
 
     mesh_path: str | Path
     params: DesignParameters
@@ -198,7 +199,8 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
                 progress: DesignProgress | None = None, predict: bool = True,
                 tables_dir: Path | None = None) -> DesignResult:
-    """Run the engine on a mesh file: load, curvature and line field, flattening, placement.
+    """Run the engine's ``STAGES`` on a mesh file: load, curvature and line field, flattening, stripes,
+    ribbons, G-code, the predicted deployed shape and the preview.
 
     Parameters
     ----------
