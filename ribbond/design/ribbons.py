@@ -431,7 +431,8 @@ class _Intervals:
 
     r : the ribbon each interval's middle falls in (−1 before the first); vec, face : the link it lies
     on and that link's face; cosang : |cos| of its angle to the direction field; keep : in a ribbon,
-    on a polyline, inside the inset outline and aligned; positive : κ1 > 0 there.
+    on a polyline, inside the inset outline and aligned; positive : κ1 > 0 there; trimmed : how many
+    ribbons lose an interval for its angle.
     """
 
     lo: np.ndarray
@@ -447,8 +448,12 @@ class _Intervals:
 
 @dataclass(frozen=True)
 class _Pieces:
-    """Runs of kept intervals with one ribbon and one sign: [A, B] of the long enough ones, the first
-    interval of each (``start_q``), which runs they are (``kept``), the intervals in them."""
+    """Runs of kept intervals with one ribbon and one sign.
+
+    A, B : where the long enough ones start and end (arc length); start_q : the first interval of
+    every run; kept : the indices of the long enough runs; kept_interval : the intervals in them;
+    dropped : how many runs were too short.
+    """
 
     A: np.ndarray
     B: np.ndarray
