@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -280,23 +281,54 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
         raise ValueError(f"ribbon_width must be > 0, got {ribbon_width!r}")
     m = len(F)
     centroid = uv[F].mean(axis=1)
-    bare_cov = Coverage(direction=np.tile([1.0, 0.0], (m, 1)), f_along=np.zeros(m), f_across=np.zeros(m),
+    if not ribbons:
+        return Coverage(direction=np.tile([1.0, 0.0], (m, 1)), f_along=np.zeros(m), f_across=np.zeros(m),
                         kappa=np.zeros(m), thickness=np.zeros(m), mu2=np.full(m, np.inf),
                         bare=np.ones(m, dtype=bool))
-    if not ribbons:
-        return bare_cov
     if raster is None:
         raster = layout_raster(uv, F, ribbons, ribbon_width, pixel=pixel)
     elif raster.ribbon_width != ribbon_width or (pixel is not None and pixel != raster.pixel):
         raise ValueError(f"the raster was made for w_r = {raster.ribbon_width} mm, pixel {raster.pixel} mm, "
                          f"not w_r = {ribbon_width} mm, pixel {pixel} mm")
-    samples, image, pixel = raster.samples, raster.image, raster.pixel
-
-    thick = np.array([r.thickness for r in ribbons])
-    sign = np.array([1.0 if r.side == "front" else -1.0 for r in ribbons])
+    samples = raster.samples
     mu = np.array([r.spacing for r in ribbons], dtype=float)                 # (R, 2) windows only
+    near = _near_ribbons(samples, centroid, mu, raster.pixel)
+    d = near.direction
+    n = np.column_stack([-d[:, 1], d[:, 0]])
+    # the nearest centerline point and its ribbon's windows
+    _, i0 = raster.tree.query(centroid, workers=-1)
+    c0 = samples.xy[i0]
+    mu1_w, mu2_w = mu[samples.ribbon[i0], 0], mu[samples.ribbon[i0], 1]
+    f_d = _fraction_along(raster.image, c0, d, n, mu1_w, mu2_w, n_along)
+    f_p = _fraction_across(raster.image, centroid, d, n, mu1_w, mu2_w, n_across)
+    f_d, f_p = np.clip(f_d, 0.0, 1.0), np.clip(f_p, 0.0, 1.0)
+    # the measuring lines jump from row to row between faces: smooth over the nearest faces
+    # (Gaussian, σ = μ2 / 2), the scale below which the pattern is not a material
+    f_d, f_p = _smooth(centroid, 0.5 * float(np.median(mu[:, 1])), f_d, f_p)
+    # thickness, side and the table's curvature at the measured μ2
+    mu2 = np.where(f_p > 1e-9, ribbon_width / np.maximum(f_p, 1e-9), np.inf)
+    kappa, tau_mean = _rest_curvature(table, ribbons, samples.ribbon[near.sid], near.w, near.wsum, mu2)
+    bare = near.bare
+    kappa[bare], tau_mean[bare], f_d[bare], f_p[bare] = 0.0, 0.0, 0.0, 0.0
+    mu2[bare] = np.inf
+    return Coverage(direction=d, f_along=f_d, f_across=f_p, kappa=kappa, thickness=tau_mean, mu2=mu2,
+                    bare=bare)
 
-    # the ribbons within reach of each centroid: coarse samples (~1 mm), Gaussian weights
+
+class _Near(NamedTuple):
+    """The centerline samples within reach of each face centroid (k per face, Gaussian weights)."""
+
+    sid: np.ndarray          # (m, k) sample ids
+    w: np.ndarray            # (m, k) weights, 0 beyond reach
+    wsum: np.ndarray         # (m,)
+    bare: np.ndarray         # (m,) no sample within reach
+    direction: np.ndarray    # (m, 2) the weighted mean direction of the samples' tangents ((1, 0) where bare)
+
+
+def _near_ribbons(samples: RibbonSamples, centroid: np.ndarray, mu: np.ndarray, pixel: float) -> _Near:
+    """The ribbons within reach of each centroid (half a cell along): coarse samples (~1 mm), Gaussian
+    weights, and their mean direction (the principal axis of the weighted tangents)."""
+    m = len(centroid)
     stride = max(int(round(1.0 / (pixel / _SAMPLES_PER_PIXEL))), 1)
     coarse = np.arange(0, len(samples.xy), stride)
     reach = 0.5 * float(np.median(mu[:, 0]))                                 # half a cell along
@@ -315,15 +347,14 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     _, U = np.linalg.eigh(T)
     d = U[:, :, 1]
     d[bare] = (1.0, 0.0)
-    n = np.column_stack([-d[:, 1], d[:, 0]])
+    return _Near(sid=sid, w=w, wsum=wsum, bare=bare, direction=d)
 
-    # the nearest centerline point and its ribbon's windows
-    _, i0 = raster.tree.query(centroid, workers=-1)
-    c0 = samples.xy[i0]
-    mu1_w, mu2_w = mu[samples.ribbon[i0], 0], mu[samples.ribbon[i0], 1]
 
-    # f_d: along d over ± μ1 (triangular), on the nearest centerline's row and the rows μ2 to either
-    # side (weights ¼, ½, ¼: both staggered grids of a cell), each line straying ± μ2/3 sideways
+def _fraction_along(image: CoverageImage, c0: np.ndarray, d: np.ndarray, n: np.ndarray, mu1_w: np.ndarray,
+                    mu2_w: np.ndarray, n_along: int) -> np.ndarray:
+    """f_d: along d over ± μ1 (triangular), on the nearest centerline's row and the rows μ2 to either
+    side (weights ¼, ½, ¼: both staggered grids of a cell), each line straying ± μ2/3 sideways."""
+    m = len(c0)
     ta, wa = _windows(n_along)
     lat = np.linspace(-1.0, 1.0, 5)
     base = c0[:, None, :] + (mu1_w[:, None] * ta[None, :])[:, :, None] * d[:, None, :]     # (m, na, 2)
@@ -338,37 +369,35 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
         ins = image.sample(image.inside, line)
         num += wr * (cov * wa).sum(axis=1)
         den += wr * (ins * wa).sum(axis=1)
-    f_d = num / np.maximum(den, 1e-12)
+    return num / np.maximum(den, 1e-12)
 
-    # f_p: across over ± μ2 (triangular) of the union of the ribbons met within ± μ1/2 along
+
+def _fraction_across(image: CoverageImage, centroid: np.ndarray, d: np.ndarray, n: np.ndarray,
+                     mu1_w: np.ndarray, mu2_w: np.ndarray, n_across: int) -> np.ndarray:
+    """f_p: across over ± μ2 (triangular) of the union of the ribbons met within ± μ1/2 along."""
     tc, wc = _windows(n_across)
     across = centroid[:, None, :] + (mu2_w[:, None] * tc[None, :])[:, :, None] * n[:, None, :]
-    cov = np.zeros((m, n_across))
+    cov = np.zeros((len(centroid), n_across))
     for off in np.linspace(-0.5, 0.5, 9):
         p = across + ((off * mu1_w)[:, None, None]) * d[:, None, :]
         cov = np.maximum(cov, image.sample(image.covered, p))
     ins = image.sample(image.inside, across)
-    f_p = (cov * wc).sum(axis=1) / np.maximum((ins * wc).sum(axis=1), 1e-12)
-    f_d, f_p = np.clip(f_d, 0.0, 1.0), np.clip(f_p, 0.0, 1.0)
-    # the measuring lines jump from row to row between faces: smooth over the nearest faces
-    # (Gaussian, σ = μ2 / 2), the scale below which the pattern is not a material
-    f_d, f_p = _smooth(centroid, 0.5 * float(np.median(mu[:, 1])), f_d, f_p)
+    return (cov * wc).sum(axis=1) / np.maximum((ins * wc).sum(axis=1), 1e-12)
 
-    # thickness, side and the table's curvature at the measured μ2
-    mu2 = np.where(f_p > 1e-9, ribbon_width / np.maximum(f_p, 1e-9), np.inf)
+
+def _rest_curvature(table: CurvatureTable, ribbons: Sequence[Ribbon], rib: np.ndarray, w: np.ndarray,
+                    wsum: np.ndarray, mu2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The weighted means over the nearby samples (their ribbons ``rib`` (m, k)) of the table's signed
+    curvature, at each ribbon's thickness and side and the measured μ2, and of the thickness."""
+    thick = np.array([r.thickness for r in ribbons])
+    sign = np.array([1.0 if r.side == "front" else -1.0 for r in ribbons])
     mu2_tab = np.clip(mu2, table.spacing[0], table.spacing[-1])
-    rib = samples.ribbon[sid]                                                # (m, k)
     tau = thick[rib]
     mu2k = np.broadcast_to(mu2_tab[:, None], rib.shape).ravel()
     kf = table_curvature(table, "front", tau.ravel(), mu2k).reshape(rib.shape)
     kb = table_curvature(table, "back", tau.ravel(), mu2k).reshape(rib.shape)
     kap = np.where(sign[rib] > 0, kf, -kb)
-    kappa = (w * kap).sum(axis=1) / wsum
-    tau_mean = (w * tau).sum(axis=1) / wsum
-    kappa[bare], tau_mean[bare], f_d[bare], f_p[bare] = 0.0, 0.0, 0.0, 0.0
-    mu2[bare] = np.inf
-    return Coverage(direction=d, f_along=f_d, f_across=f_p, kappa=kappa, thickness=tau_mean, mu2=mu2,
-                    bare=bare)
+    return (w * kap).sum(axis=1) / wsum, (w * tau).sum(axis=1) / wsum
 
 
 def _smooth(points: np.ndarray, sigma: float, *fields: np.ndarray, k: int = 24) -> list[np.ndarray]:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import cvxopt
@@ -170,26 +171,14 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
     if hessian not in ("regularized", "projected"):
         raise ValueError(f"hessian must be 'regularized' or 'projected', not {hessian!r}")
     t0 = time.perf_counter()
-    X = np.array(X0, dtype=float)
-    if X.ndim != 2 or X.shape[1] != 3 or not np.all(np.isfinite(X)):
-        raise ValueError(f"the start positions must be a finite (n, 3) array, got shape {X.shape}")
-    n3 = X.size
-    pins = pinned_dofs(X)
-    free = np.setdiff1d(np.arange(n3), pins)
-    scale = float(scale if scale is not None else np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
-    E = energy.energy(X)
-    e_ref = max(abs(E), 1e-30)
+    state, free, scale = _start(energy, X0, scale)
     converged = False
     gnorm = np.inf
     it = 0
-    level, streak, psd_streak = 0, 0, 0
-    fac: _Factor | None = None
-    di: np.ndarray | None = None
-    factorizations = 0
     history: list[float] = []
     last_step = np.inf
     for it in range(1, max_iterations + 1):
-        g, exact, psd = energy.gradient_and_hessians(X, free, lower=True)     # all CHOLMOD reads
+        g, exact, psd = energy.gradient_and_hessians(state.X, free, lower=True)     # all CHOLMOD reads
         gf = g[free]
         gnorm = float(np.abs(gf).max())
         if gradient_tolerance is not None and gnorm <= gradient_tolerance and (
@@ -197,78 +186,155 @@ def newton(energy: ShellEnergy, X0: np.ndarray, *, max_iterations: int = 200, to
             converged = True                           # in balance, and no longer moving
             it -= 1
             break
-        accepted = False
-        alpha, En, d = 0.0, E, np.zeros_like(gf)
-        # the exact Hessian shifted by μ (raised ×30 up to 1e-3 × its mean diagonal until positive
-        # definite), else the positive semidefinite approximation
-        # from the last shift that worked (lowered after each success: Levenberg)
-        levels = [("exact", m) for m in _SHIFTS] if hessian == "regularized" else []
-        # while the exact Hessian stays indefinite at the largest shift, try it only every third
-        # iteration (each try is a factorization wasted)
-        kinds = levels[min(level, len(levels) - 1):] if level < len(levels) or psd_streak % 3 == 0 else []
-        kinds = kinds + [("psd", 1e-8)]
-        unshifted: dict[str, sp.csc_matrix] = {}
-        for kind, mu_rel in kinds:
-            if kind not in unshifted:
-                unshifted[kind] = exact() if kind == "exact" else psd()
-            Hf = unshifted[kind].copy()
-            di = di if di is not None else _diagonal(Hf)         # the pattern is fixed
-            dmean = float(np.mean(np.abs(Hf.data[di]))) or 1.0
-            Hf.data[di] += mu_rel * dmean
-            fac = fac if fac is not None else _Factor(Hf)     # the sparsity is fixed: analyse once
-            factorizations += 1
-            if not fac.factor(Hf):                     # indefinite: shift more, or the positive one
-                continue
-            d = -fac.solve(gf)
-            slope = float(d @ gf)
-            if not np.all(np.isfinite(d)) or slope >= 0:
-                continue
-            if -slope <= 1e-13 * e_ref and gradient_tolerance is None:   # no decrease left: at the minimum
-                converged = True
-                break
-            # backtracking (Armijo); the largest move at most a tenth of the size
-            dmax = float(np.abs(d).max())
-            alpha = min(1.0, 0.1 * scale / dmax)
-            while alpha > 1e-8:
-                Xn = X.ravel().copy()
-                Xn[free] += alpha * d
-                Xn = Xn.reshape(-1, 3)
-                En = energy.energy(Xn)
-                if np.isfinite(En) and En <= E + 1e-4 * alpha * slope:
-                    accepted = True
-                    break
-                alpha *= 0.5
-            if accepted:
-                new = _SHIFTS.index(mu_rel) if kind == "exact" else len(_SHIFTS)
-                psd_streak = psd_streak + 1 if kind == "psd" else 0
-                streak = streak + 1 if new == level else 0
-                level = new
-                if streak >= 1 and 0 < level < len(_SHIFTS):
-                    level, streak = level - 1, 0
-                break
-        if converged:
-            if progress is not None:
-                progress(it, E, gnorm)
-            break
-        if not accepted:                               # no descent left at machine precision
+        step = _search(energy, state, gf, exact, psd, free, scale, hessian, gradient_tolerance)
+        if step is None:                               # no descent left at machine precision
             converged = gradient_tolerance is not None and gnorm <= 10 * gradient_tolerance
             break
-        step = alpha * float(np.abs(d).max())
-        last_step = step
-        dE = E - En
-        X, E = Xn, En
-        e_ref = max(e_ref, abs(E))
+        if step.minimum:
+            converged = True
+            if progress is not None:
+                progress(it, state.E, gnorm)
+            break
+        last_step = step.move
+        dE = state.E - step.E
+        state.X, state.E = step.X, step.E
+        state.e_ref = max(state.e_ref, abs(state.E))
         if progress is not None:
-            progress(it, E, gnorm)
-        history.append(E)
-        if gradient_tolerance is not None:
-            continue
-        if dE <= tolerance * e_ref and step <= step_tolerance * scale:
+            progress(it, state.E, gnorm)
+        history.append(state.E)
+        if gradient_tolerance is None and _settled(history, state, dE, step.move, tolerance,
+                                                   step_tolerance * scale, energy_tolerance, window):
             converged = True
             break
-        if len(history) > window and history[-window - 1] - E <= energy_tolerance * abs(E):
-            converged = True                           # the energy has settled (soft modes creep)
-            break
-    return NewtonResult(X=X, energy=float(E), iterations=it, converged=converged, gradient_norm=gnorm,
-                        time_s=time.perf_counter() - t0, factorizations=factorizations)
+    return NewtonResult(X=state.X, energy=float(state.E), iterations=it, converged=converged, gradient_norm=gnorm,
+                        time_s=time.perf_counter() - t0, factorizations=state.factorizations)
 
+
+@dataclass(eq=False)
+class _State:
+    """Newton's iteration so far: the positions and their energy, and how the Hessian was made to work.
+
+    Attributes
+    ----------
+    X : (n, 3) positions; E : their energy; e_ref : the largest |E| met (the relative tolerances' scale).
+    level : the shift to try first, an index into ``_SHIFTS`` (its length: the positive semidefinite one);
+    streak : iterations in a row that worked at ``level``; psd_streak : in a row with the positive one.
+    fac : the factorization, analysed once; di : where H.data holds the diagonal (the pattern is fixed).
+    factorizations : how many were made.
+    """
+
+    X: np.ndarray
+    E: float
+    e_ref: float
+    level: int = 0
+    streak: int = 0
+    psd_streak: int = 0
+    fac: _Factor | None = None
+    di: np.ndarray | None = None
+    factorizations: int = 0
+
+
+class _Step(NamedTuple):
+    """The step one iteration takes: the largest vertex move, the new positions and energy; or, with
+    ``minimum``, none: no decrease is left to find."""
+
+    move: float
+    X: np.ndarray
+    E: float
+    minimum: bool = False
+
+
+def _start(energy: ShellEnergy, X0: np.ndarray, scale: float | None) -> tuple[_State, np.ndarray, float]:
+    """The start, checked; the free degrees of freedom (all but six pinned); the size."""
+    X = np.array(X0, dtype=float)
+    if X.ndim != 2 or X.shape[1] != 3 or not np.all(np.isfinite(X)):
+        raise ValueError(f"the start positions must be a finite (n, 3) array, got shape {X.shape}")
+    pins = pinned_dofs(X)
+    free = np.setdiff1d(np.arange(X.size), pins)
+    scale = float(scale if scale is not None else np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
+    E = energy.energy(X)
+    return _State(X=X, E=E, e_ref=max(abs(E), 1e-30)), free, scale
+
+
+def _hessian_kinds(state: _State, hessian: str) -> list[tuple[str, float]]:
+    """The Hessians to try in turn: the exact one shifted by μ (raised ×30 up to 1e-3 × its mean
+    diagonal until positive definite), from the last shift that worked (lowered after each success:
+    Levenberg), else the positive semidefinite approximation."""
+    levels = [("exact", m) for m in _SHIFTS] if hessian == "regularized" else []
+    # while the exact Hessian stays indefinite at the largest shift, try it only every third
+    # iteration (each try is a factorization wasted)
+    kinds = (levels[min(state.level, len(levels) - 1):] if state.level < len(levels) or state.psd_streak % 3 == 0
+             else [])
+    return kinds + [("psd", 1e-8)]
+
+
+def _search(energy: ShellEnergy, state: _State, gf: np.ndarray, exact: Callable[[], sp.csc_matrix],
+            psd: Callable[[], sp.csc_matrix], free: np.ndarray, scale: float, hessian: str,
+            gradient_tolerance: float | None) -> _Step | None:
+    """The first Hessian whose Newton direction descends and whose line search succeeds gives the
+    step (and sets the shift to start from next time); None when none does."""
+    unshifted: dict[str, sp.csc_matrix] = {}
+    for kind, mu_rel in _hessian_kinds(state, hessian):
+        if kind not in unshifted:
+            unshifted[kind] = exact() if kind == "exact" else psd()
+        d = _direction(state, unshifted[kind], mu_rel, gf)
+        if d is None:                                  # indefinite: shift more, or the positive one
+            continue
+        slope = float(d @ gf)
+        if not np.all(np.isfinite(d)) or slope >= 0:
+            continue
+        if -slope <= 1e-13 * state.e_ref and gradient_tolerance is None:   # no decrease left: at the minimum
+            return _Step(move=0.0, X=state.X, E=state.E, minimum=True)
+        step = _backtrack(energy, state, d, free, slope, scale)
+        if step is not None:
+            _adapt_shift(state, kind, mu_rel)
+            return step
+    return None
+
+
+def _direction(state: _State, H: sp.csc_matrix, mu_rel: float, gf: np.ndarray) -> np.ndarray | None:
+    """−(H + μ · mean |diag H|)⁻¹ ∇E on the free degrees of freedom; None where that is not positive definite."""
+    Hf = H.copy()
+    state.di = state.di if state.di is not None else _diagonal(Hf)         # the pattern is fixed
+    dmean = float(np.mean(np.abs(Hf.data[state.di]))) or 1.0
+    Hf.data[state.di] += mu_rel * dmean
+    state.fac = state.fac if state.fac is not None else _Factor(Hf)     # the sparsity is fixed: analyse once
+    state.factorizations += 1
+    if not state.fac.factor(Hf):
+        return None
+    return -state.fac.solve(gf)
+
+
+def _backtrack(energy: ShellEnergy, state: _State, d: np.ndarray, free: np.ndarray, slope: float,
+               scale: float) -> _Step | None:
+    """Backtracking (Armijo) along d, the largest move at most a tenth of the size; None below 1e-8."""
+    dmax = float(np.abs(d).max())
+    alpha = min(1.0, 0.1 * scale / dmax)
+    while alpha > 1e-8:
+        Xn = state.X.ravel().copy()
+        Xn[free] += alpha * d
+        Xn = Xn.reshape(-1, 3)
+        En = energy.energy(Xn)
+        if np.isfinite(En) and En <= state.E + 1e-4 * alpha * slope:
+            return _Step(move=alpha * float(np.abs(d).max()), X=Xn, E=En)
+        alpha *= 0.5
+    return None
+
+
+def _adapt_shift(state: _State, kind: str, mu_rel: float) -> None:
+    """Start next time from the shift that worked; lowered by one when it worked twice in a row (Levenberg)."""
+    new = _SHIFTS.index(mu_rel) if kind == "exact" else len(_SHIFTS)
+    state.psd_streak = state.psd_streak + 1 if kind == "psd" else 0
+    state.streak = state.streak + 1 if new == state.level else 0
+    state.level = new
+    if state.streak >= 1 and 0 < state.level < len(_SHIFTS):
+        state.level, state.streak = state.level - 1, 0
+
+
+def _settled(history: list[float], state: _State, dE: float, move: float, tolerance: float, max_move: float,
+             energy_tolerance: float, window: int) -> bool:
+    """The energy rules: a tiny relative decrease with a small step, or the energy settled over ``window``."""
+    if dE <= tolerance * state.e_ref and move <= max_move:
+        return True
+    # the energy has settled (soft modes creep)
+    return len(history) > window and history[-window - 1] - state.E <= energy_tolerance * abs(state.E)

@@ -245,7 +245,59 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         with the ``problem`` keys above.
     """
     V, F = _as_arrays(V, F)
-    n, m = len(V), len(F)
+    _check_face_count(len(F))
+    _check_finite(V, None)
+    _check_indices(V, F, repeats=True)
+    _check_areas(V, F)
+    he = _half_edges(F, len(V))
+    _check_edges_manifold(V, he)
+    _check_orientation(V, he)
+    _check_vertices_manifold(V, he)
+    _check_connected(he)
+    _check_one_boundary_loop(F, he)
+    return np.asarray(igl.boundary_loop(F), dtype=np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class _HalfEdges:
+    """The half-edges of F: half-edge h = 3 f + k runs from F[f, k] to F[f, (k + 1) % 3].
+
+    Attributes
+    ----------
+    src, dst, face_of : (3m,) where each half-edge starts, ends, and its face.
+    order : (3m,) the half-edges sorted by undirected edge (stable); first, counts : (e,) where each
+        edge's half-edges start in ``order`` and how many there are.
+    h1, h2 : the two half-edges of each interior edge (two faces).
+    """
+
+    n: int
+    m: int
+    src: np.ndarray
+    dst: np.ndarray
+    face_of: np.ndarray
+    order: np.ndarray
+    first: np.ndarray
+    counts: np.ndarray
+    h1: np.ndarray
+    h2: np.ndarray
+
+
+def _half_edges(F: np.ndarray, n: int) -> _HalfEdges:
+    """Half-edges keyed by their sorted vertex pair, grouped into edges with ``np.unique``."""
+    m = len(F)
+    src = F.ravel()
+    dst = F[:, [1, 2, 0]].ravel()
+    face_of = np.repeat(np.arange(m, dtype=np.int64), 3)
+    key = np.minimum(src, dst) * np.int64(n) + np.maximum(src, dst)
+    order = np.argsort(key, kind="stable")
+    _, first, counts = np.unique(key[order], return_index=True, return_counts=True)
+    interior = np.flatnonzero(counts == 2)
+    return _HalfEdges(n=n, m=m, src=src, dst=dst, face_of=face_of, order=order, first=first, counts=counts,
+                      h1=order[first[interior]], h2=order[first[interior] + 1])
+
+
+def _check_face_count(m: int) -> None:
+    """``"empty"`` and ``"too_small"``."""
     if m == 0:
         raise MeshError("empty", "the mesh has no faces")
     if m < MIN_FACES:
@@ -253,10 +305,10 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
                                      f"least {MIN_FACES} faces (a surface's bending lives on the edges two "
                                      "faces share, and a single triangle has none: its deployed shape "
                                      "cannot be predicted); subdivide it or give the whole surface")
-    _check_finite(V, None)
-    _check_indices(V, F, repeats=True)
 
-    # Degenerate faces, relative to the size of the used part of the mesh.
+
+def _check_areas(V: np.ndarray, F: np.ndarray) -> None:
+    """``"zero_area"``: degenerate faces, relative to the size of the used part of the mesh."""
     P = V[np.unique(F)]
     diag2 = float(np.sum((P.max(axis=0) - P.min(axis=0)) ** 2))
     a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
@@ -268,29 +320,24 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         raise MeshError("zero_area", f"{_count(zero.size, 'face')} with (near) zero area: "
                                      f"{_listing(items, zero.size)}")
 
-    # Half-edges: half-edge h = 3 f + k runs from F[f, k] to F[f, (k + 1) % 3].
-    src = F.ravel()
-    dst = F[:, [1, 2, 0]].ravel()
-    face_of = np.repeat(np.arange(m, dtype=np.int64), 3)
-    key = np.minimum(src, dst) * np.int64(n) + np.maximum(src, dst)
-    order = np.argsort(key, kind="stable")
-    _, first, counts = np.unique(key[order], return_index=True, return_counts=True)
-    n_edges = len(first)
 
-    over = np.flatnonzero(counts > 2)
+def _check_edges_manifold(V: np.ndarray, he: _HalfEdges) -> None:
+    """``"non_manifold_edge"``: an edge shared by more than two faces."""
+    over = np.flatnonzero(he.counts > 2)
     if over.size:
         items = []
         for e in over[:_LIST_LIMIT]:
-            h = order[first[e]: first[e] + counts[e]]
-            u, v = sorted((int(src[h[0]]), int(dst[h[0]])))
+            h = he.order[he.first[e]: he.first[e] + he.counts[e]]
+            u, v = sorted((int(he.src[h[0]]), int(he.dst[h[0]])))
             items.append(f"edge {u}–{v} ({_xyz(V[u])} – {_xyz(V[v])}) in faces "
-                         f"{', '.join(str(f) for f in face_of[h])}")
+                         f"{', '.join(str(f) for f in he.face_of[h])}")
         raise MeshError("non_manifold_edge", f"{_count(over.size, 'edge')} shared by more than two "
                                              f"faces: {_listing(items, over.size)}")
 
-    interior = np.flatnonzero(counts == 2)
-    h1 = order[first[interior]]
-    h2 = order[first[interior] + 1]
+
+def _check_orientation(V: np.ndarray, he: _HalfEdges) -> None:
+    """``"orientation"``: two faces traversing their shared edge the same way."""
+    src, dst, face_of, h1, h2 = he.src, he.dst, he.face_of, he.h1, he.h2
     flipped = np.flatnonzero(src[h1] != dst[h2])
     if flipped.size:
         items = [f"edge {src[h1[i]]}→{dst[h1[i]]} at {_xyz(V[src[h1[i]]])} – "
@@ -299,18 +346,24 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         raise MeshError("orientation", f"inconsistent orientation: {_count(flipped.size, 'edge')} "
                                        f"where neighbouring faces disagree: "
                                        f"{_listing(items, flipped.size)}; "
-                                       f"{_winding_advice(m, face_of[h1], face_of[h2], flipped)}")
+                                       f"{_winding_advice(he.m, face_of[h1], face_of[h2], flipped)}")
 
-    # Fans: corners (one per half-edge start) of the same vertex are joined across each interior
-    # edge; a manifold vertex has all its corners in one fan.
+
+def _check_vertices_manifold(V: np.ndarray, he: _HalfEdges) -> None:
+    """``"non_manifold_vertex"``: a vertex whose faces form more than one fan.
+
+    Corners (one per half-edge start) of the same vertex are joined across each interior edge; a
+    manifold vertex has all its corners in one fan.
+    """
     def nxt(h: np.ndarray) -> np.ndarray:
         return h - h % 3 + (h % 3 + 1) % 3
 
+    h1, h2 = he.h1, he.h2
     a_corners = np.concatenate([h1, nxt(h1)])  # corner of src(h1), corner of dst(h1)
     b_corners = np.concatenate([nxt(h2), h2])  # corner of dst(h2) = src(h1), of src(h2) = dst(h1)
-    n_fans, fan = _components(3 * m, a_corners, b_corners)
-    vertex_fan = np.unique(src * np.int64(n_fans) + fan)
-    fans_per_vertex = np.bincount(vertex_fan // n_fans, minlength=n)
+    n_fans, fan = _components(3 * he.m, a_corners, b_corners)
+    vertex_fan = np.unique(he.src * np.int64(n_fans) + fan)
+    fans_per_vertex = np.bincount(vertex_fan // n_fans, minlength=he.n)
     pinched = np.flatnonzero(fans_per_vertex > 1)
     if pinched.size:
         items = [f"vertex {v} at {_xyz(V[v])} ({fans_per_vertex[v]} fans)"
@@ -319,7 +372,10 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
                                                f"where separate fans of faces touch (a 'bow-tie'): "
                                                f"{_listing(items, pinched.size)}")
 
-    n_comp, comp = _components(m, face_of[h1], face_of[h2])
+
+def _check_connected(he: _HalfEdges) -> None:
+    """``"components"``: more than one connected component."""
+    n_comp, comp = _components(he.m, he.face_of[he.h1], he.face_of[he.h2])
     if n_comp > 1:
         sizes = np.bincount(comp, minlength=n_comp)
         sizes_desc = np.sort(sizes)[::-1]
@@ -332,15 +388,18 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
                                       f"is in one with {sizes[smallest]} faces); the target must "
                                       f"be a single piece")
 
-    border = order[first[counts == 1]]
+
+def _check_one_boundary_loop(F: np.ndarray, he: _HalfEdges) -> None:
+    """``"closed"`` (no boundary) and ``"not_disk"`` (more than one boundary loop, or genus)."""
+    m, n_edges = he.m, len(he.first)
+    border = he.order[he.first[he.counts == 1]]
     if border.size == 0:
         raise MeshError("closed", f"the surface is closed (no boundary edges; {m} faces, Euler "
                                   f"characteristic {_n_used(F) - n_edges + m}); it must be cut "
                                   f"open into a topological disk to be flattened")
-
     chi = _n_used(F) - n_edges + m
-    _, loop_label = _components(n, src[border], dst[border])
-    loops = len(np.unique(loop_label[src[border]]))
+    _, loop_label = _components(he.n, he.src[border], he.dst[border])
+    loops = len(np.unique(loop_label[he.src[border]]))
     genus2 = 2 - loops - chi  # χ = 2 − 2g − b for a connected orientable surface
     if loops != 1 or chi != 1:
         genus = genus2 // 2
@@ -350,7 +409,6 @@ def check_disk(V: np.ndarray, F: np.ndarray) -> np.ndarray:
                                     f"besides the outer boundary) and genus {genus} (Euler "
                                     f"characteristic {chi}, a disk has 1); it needs cuts to become a "
                                     f"topological disk, which is what the method flattens")
-    return np.asarray(igl.boundary_loop(F), dtype=np.int64)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -417,37 +417,45 @@ def _parse_obj(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
         raise MeshError("empty", f"{name}: no vertex ('v') or face ('f') lines")
     rec = np.array(records, dtype=object).reshape(-1, 2)
     is_v = rec[:, 0] == b"v"
-    v_rest = rec[is_v, 1].tolist()
+    V = _obj_vertices(data, rec[is_v, 1].tolist(), np.flatnonzero(is_v), name)
     f_rest = rec[~is_v, 1].tolist()
-    f_record = np.flatnonzero(~is_v)
-
-    def line_of_record(k: int) -> int:  # error path only
-        for i, m in enumerate(_OBJ_RECORD.finditer(data)):
-            if i == k:
-                return _line_of(data, m.start())
-        return 0
-
-    # Vertices: the first three numbers of each 'v' line (w or colours after them are ignored).
-    if v_rest:
-        triples = _XYZ_LINE.findall(b"\n".join(v_rest))
-        if len(triples) != len(v_rest):
-            bad = next((i for i, r in enumerate(v_rest) if not _XYZ_LINE.match(r)), 0)
-            raise MeshError("unreadable", f"{name}: line {line_of_record(int(np.flatnonzero(is_v)[bad]))}: "
-                                          f"a vertex needs 3 coordinates")
-        toks = list(itertools.chain.from_iterable(triples))
-        try:
-            V = _floats(toks).reshape(-1, 3)
-        except (ValueError, OverflowError):
-            bad = _first_bad(toks, float)
-            line = line_of_record(int(np.flatnonzero(is_v)[bad // 3]))
-            raise MeshError("unreadable", f"{name}: line {line}: bad vertex coordinate "
-                                          f"{_show(toks[bad])}") from None
-    else:
-        V = np.zeros((0, 3))
     if not f_rest:
         return V, np.zeros((0, 3), dtype=np.int64)
+    return V, _obj_faces(data, f_rest, is_v, len(V), name, max_faces)
 
-    # Faces: corners 'i', 'i/j', 'i//k', 'i/j/k' → keep i; one newline token ends each face.
+
+def _obj_record_line(data: bytes, k: int) -> int:
+    """The line of the k-th 'v' or 'f' record (error path only)."""
+    for i, m in enumerate(_OBJ_RECORD.finditer(data)):
+        if i == k:
+            return _line_of(data, m.start())
+    return 0
+
+
+def _obj_vertices(data: bytes, v_rest: list[bytes], v_record: np.ndarray, name: str) -> np.ndarray:
+    """The first three numbers of each 'v' line (w or colours after them are ignored)."""
+    if not v_rest:
+        return np.zeros((0, 3))
+    triples = _XYZ_LINE.findall(b"\n".join(v_rest))
+    if len(triples) != len(v_rest):
+        bad = next((i for i, r in enumerate(v_rest) if not _XYZ_LINE.match(r)), 0)
+        raise MeshError("unreadable", f"{name}: line {_obj_record_line(data, int(v_record[bad]))}: "
+                                      f"a vertex needs 3 coordinates")
+    toks = list(itertools.chain.from_iterable(triples))
+    try:
+        return _floats(toks).reshape(-1, 3)
+    except (ValueError, OverflowError):
+        bad = _first_bad(toks, float)
+        line = _obj_record_line(data, int(v_record[bad // 3]))
+        raise MeshError("unreadable", f"{name}: line {line}: bad vertex coordinate "
+                                      f"{_show(toks[bad])}") from None
+
+
+def _obj_faces(data: bytes, f_rest: list[bytes], is_v: np.ndarray, nv: int, name: str,
+               max_faces: int | None) -> np.ndarray:
+    """The 'f' lines fan-triangulated: corners 'i', 'i/j', 'i//k', 'i/j/k' → keep i."""
+    f_record = np.flatnonzero(~is_v)
+    # one newline token ends each face
     body = _OBJ_CORNER_TAIL.sub(b"", b"\n".join(f_rest) + b"\n")
     toks = np.array(_TOKEN_OR_NEWLINE.findall(body), dtype=object)
     newline = toks == b"\n"
@@ -457,21 +465,31 @@ def _parse_obj(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
     few = np.flatnonzero(counts < 3)
     if few.size:
         k = int(few[0])
-        raise MeshError("unreadable", f"{name}: line {line_of_record(int(f_record[k]))}: a face needs "
+        raise MeshError("unreadable", f"{name}: line {_obj_record_line(data, int(f_record[k]))}: a face needs "
                                       f"at least 3 corners, found {counts[k]}")
     _check_max_faces(name, int((counts - 2).sum()), max_faces, "")
     try:
         idx = _ints(corners)
     except (ValueError, OverflowError):
         bad = _first_bad(corners, int)
-        line = line_of_record(int(f_record[face_of[bad]]))
+        line = _obj_record_line(data, int(f_record[face_of[bad]]))
         raise MeshError("unreadable", f"{name}: line {line}: bad face corner "
                                       f"{_show(corners[bad])} (expected a vertex number)") from None
-    nv = len(V)
+    F, _ = _fan(_obj_vertex_indices(data, idx, face_of, is_v, nv, name), counts)
+    return F
+
+
+def _obj_vertex_indices(data: bytes, idx: np.ndarray, face_of: np.ndarray, is_v: np.ndarray, nv: int,
+                        name: str) -> np.ndarray:
+    """OBJ vertex numbers (from 1; negative: relative to the vertices before the face) as 0-based indices."""
+    f_record = np.flatnonzero(~is_v)
+
+    def line(corner: int) -> int:
+        return _obj_record_line(data, int(f_record[face_of[corner]]))
+
     zero = np.flatnonzero(idx == 0)
     if zero.size:
-        line = line_of_record(int(f_record[face_of[zero[0]]]))
-        raise MeshError("bad_index", f"{name}: line {line}: face refers to vertex 0, but OBJ "
+        raise MeshError("bad_index", f"{name}: line {line(zero[0])}: face refers to vertex 0, but OBJ "
                                      f"vertex numbers start at 1")
     neg = idx < 0
     if neg.any():  # relative: -1 is the last vertex defined before this face's line
@@ -480,8 +498,7 @@ def _parse_obj(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
         badneg = np.flatnonzero(neg & (resolved < 0))
         if badneg.size:
             b = int(badneg[0])
-            line = line_of_record(int(f_record[face_of[b]]))
-            raise MeshError("bad_index", f"{name}: line {line}: face refers to vertex {idx[b]} "
+            raise MeshError("bad_index", f"{name}: line {line(b)}: face refers to vertex {idx[b]} "
                                          f"(relative), but only {v_before[b]} vertices precede it")
         idx = resolved
     else:
@@ -489,11 +506,9 @@ def _parse_obj(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
     over = np.flatnonzero(idx >= nv)
     if over.size:
         b = int(over[0])
-        line = line_of_record(int(f_record[face_of[b]]))
-        raise MeshError("bad_index", f"{name}: line {line}: face refers to vertex {idx[b] + 1}, "
+        raise MeshError("bad_index", f"{name}: line {line(b)}: face refers to vertex {idx[b] + 1}, "
                                      f"but the file has {nv} vertices")
-    F, _ = _fan(idx, counts)
-    return V, F
+    return idx
 
 
 def _parse_plain_obj(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
@@ -878,21 +893,31 @@ def _ply_binary_element(data: bytes, off: int, el: _PlyElement, bo: str, name: s
     """
     if not el.props or el.count == 0:
         return [None] * len(el.props), off
-
-    def truncated(done: int) -> MeshError:
-        return MeshError("unreadable", f"{name}: truncated PLY: the header (line {el.line}) declares "
-                                       f"{el.count} '{el.name}' records but the file ends within "
-                                       f"record {done}")
-
     if not any(p.count_type for p in el.props):
-        dt = np.dtype([(f"p{i}", bo + p.type) for i, p in enumerate(el.props)])
-        if off + el.count * dt.itemsize > len(data):
-            raise truncated((len(data) - off) // dt.itemsize)
-        rec = np.frombuffer(data, dtype=dt, count=el.count, offset=off)
-        return [rec[f"p{i}"] for i in range(len(el.props))], off + el.count * dt.itemsize
+        return _ply_scalar_records(data, off, el, bo, name)
+    uniform = _ply_uniform_records(data, off, el, bo, name)
+    if uniform is not None:
+        return uniform
+    return _ply_mixed_records(data, off, el, bo, name)
 
-    # Lists: assume every record has the first record's list lengths (the common case: all
-    # triangles), read with one structured dtype, and verify; otherwise walk record by record.
+
+def _ply_truncated(name: str, el: _PlyElement, done: int) -> MeshError:
+    return MeshError("unreadable", f"{name}: truncated PLY: the header (line {el.line}) declares "
+                                   f"{el.count} '{el.name}' records but the file ends within "
+                                   f"record {done}")
+
+
+def _ply_scalar_records(data: bytes, off: int, el: _PlyElement, bo: str, name: str) -> tuple[list, int]:
+    """An element without lists: one structured dtype."""
+    dt = np.dtype([(f"p{i}", bo + p.type) for i, p in enumerate(el.props)])
+    if off + el.count * dt.itemsize > len(data):
+        raise _ply_truncated(name, el, (len(data) - off) // dt.itemsize)
+    rec = np.frombuffer(data, dtype=dt, count=el.count, offset=off)
+    return [rec[f"p{i}"] for i in range(len(el.props))], off + el.count * dt.itemsize
+
+
+def _ply_first_list_lengths(data: bytes, off: int, el: _PlyElement, bo: str, name: str) -> list[int]:
+    """The list lengths of the element's first record."""
     first: list[int] = []
     pos = off
     try:
@@ -904,34 +929,47 @@ def _ply_binary_element(data: bytes, off: int, el: _PlyElement, bo: str, name: s
                 first.append(c)
                 pos += np.dtype(p.count_type).itemsize + max(c, 0) * np.dtype(p.type).itemsize
     except ValueError:
-        raise truncated(0) from None
+        raise _ply_truncated(name, el, 0) from None
     if pos > len(data):
-        raise truncated(0)
-    if all(c >= 0 for c in first):
-        fields_dt = []
-        it = iter(first)
-        for i, p in enumerate(el.props):
-            if p.count_type is None:
-                fields_dt.append((f"p{i}", bo + p.type))
-            else:
-                fields_dt.append((f"c{i}", bo + p.count_type))
-                fields_dt.append((f"p{i}", bo + p.type, (next(it),)))
-        dt = np.dtype(fields_dt)
-        if off + el.count * dt.itemsize <= len(data):
-            rec = np.frombuffer(data, dtype=dt, count=el.count, offset=off)
-            uniform = all(np.all(rec[f"c{i}"] == rec[f"c{i}"][0])
-                          for i, p in enumerate(el.props) if p.count_type)
-            if uniform:
-                out = []
-                for i, p in enumerate(el.props):
-                    if p.count_type is None:
-                        out.append(rec[f"p{i}"])
-                    else:
-                        counts = rec[f"c{i}"].astype(np.int64)
-                        out.append((counts, rec[f"p{i}"].reshape(-1)))
-                return out, off + el.count * dt.itemsize
+        raise _ply_truncated(name, el, 0)
+    return first
 
-    # Mixed list lengths: one pass over the records to find the lists, then gather in bulk.
+
+def _ply_uniform_records(data: bytes, off: int, el: _PlyElement, bo: str, name: str
+                         ) -> tuple[list, int] | None:
+    """Lists, assuming every record has the first record's list lengths (the common case: all
+    triangles), read with one structured dtype and verified; None when they differ."""
+    first = _ply_first_list_lengths(data, off, el, bo, name)
+    if not all(c >= 0 for c in first):
+        return None
+    fields_dt = []
+    it = iter(first)
+    for i, p in enumerate(el.props):
+        if p.count_type is None:
+            fields_dt.append((f"p{i}", bo + p.type))
+        else:
+            fields_dt.append((f"c{i}", bo + p.count_type))
+            fields_dt.append((f"p{i}", bo + p.type, (next(it),)))
+    dt = np.dtype(fields_dt)
+    if off + el.count * dt.itemsize > len(data):
+        return None
+    rec = np.frombuffer(data, dtype=dt, count=el.count, offset=off)
+    uniform = all(np.all(rec[f"c{i}"] == rec[f"c{i}"][0])
+                  for i, p in enumerate(el.props) if p.count_type)
+    if not uniform:
+        return None
+    out = []
+    for i, p in enumerate(el.props):
+        if p.count_type is None:
+            out.append(rec[f"p{i}"])
+        else:
+            counts = rec[f"c{i}"].astype(np.int64)
+            out.append((counts, rec[f"p{i}"].reshape(-1)))
+    return out, off + el.count * dt.itemsize
+
+
+def _ply_mixed_records(data: bytes, off: int, el: _PlyElement, bo: str, name: str) -> tuple[list, int]:
+    """Mixed list lengths: one pass over the records to find the lists, then gather in bulk."""
     layout = []
     for p in el.props:
         if p.count_type is None:
@@ -941,8 +979,8 @@ def _ply_binary_element(data: bytes, off: int, el: _PlyElement, bo: str, name: s
             layout.append((struct.Struct(bo + cfmt), np.dtype(p.count_type).itemsize,
                            np.dtype(p.type).itemsize))
     nprops = len(el.props)
-    starts = [[] for _ in range(nprops)]
-    counts_l = [[] for _ in range(nprops)]
+    starts: list[list[int]] = [[] for _ in range(nprops)]
+    counts_l: list[list[int]] = [[] for _ in range(nprops)]
     size = len(data)
     pos = off
     for k in range(el.count):
@@ -952,7 +990,7 @@ def _ply_binary_element(data: bytes, off: int, el: _PlyElement, bo: str, name: s
                 pos += csize
             else:
                 if pos + csize > size:
-                    raise truncated(k)
+                    raise _ply_truncated(name, el, k)
                 c = cs.unpack_from(data, pos)[0]
                 if c < 0:
                     raise MeshError("unreadable", f"{name}: '{el.name}' record {k} has a negative "
@@ -962,7 +1000,13 @@ def _ply_binary_element(data: bytes, off: int, el: _PlyElement, bo: str, name: s
                 counts_l[i].append(c)
                 pos += c * isize
         if pos > size:
-            raise truncated(k)
+            raise _ply_truncated(name, el, k)
+    return _ply_gather(data, el, bo, starts, counts_l), pos
+
+
+def _ply_gather(data: bytes, el: _PlyElement, bo: str, starts: list[list[int]], counts_l: list[list[int]]
+                ) -> list:
+    """Each property's values from where the records hold them (byte offsets, list lengths)."""
     raw = np.frombuffer(data, dtype=np.uint8)
     out = []
     for i, p in enumerate(el.props):
@@ -977,7 +1021,7 @@ def _ply_binary_element(data: bytes, off: int, el: _PlyElement, bo: str, name: s
                 np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts))
             byte_idx = item[:, None] + np.arange(isize)
             out.append((counts, raw[byte_idx].view(bo + p.type).reshape(-1)))
-    return out, pos
+    return out
 
 
 def _ply_binary_body(data: bytes, off: int, elements: list[_PlyElement], vert: _PlyElement,

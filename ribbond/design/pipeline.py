@@ -4,16 +4,19 @@ Stages: ``load`` (read, clean, validate, scale), ``curvature`` (principal curvat
 line field), ``flatten`` (the bounded directional flattening, placed in the printer frame),
 ``stripes`` (spacing by Eq. 10 and the two stripe patterns), ``ribbons`` (the staggered ribbons,
 their sides and thicknesses, the registration marks), ``gcode`` (the print programs), ``deploy``
-(the predicted deployed shape, ``ribbond.deploy``), ``preview`` and ``write`` (the design folder). The arrays stay in the functions of the stage modules; this module only wires them
-together, times them and reports progress.
+(the predicted deployed shape, ``ribbond.deploy``), ``preview`` and ``write`` (the design folder).
+``STAGES`` lists them in order; ``design_mesh`` runs them in one loop that times each and reports
+its progress. The arrays stay in the functions of the stage modules; the stages here only wire them
+together, on one ``_Run`` that carries what each stage made to the next.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 import shapely
@@ -28,14 +31,14 @@ from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
 from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, RefinedReport,
                      Report, Ribbon, RibbonsReport, SidePrintReport, Source)
-from .frames import face_frames
+from .frames import FaceFrames, face_frames
 from .intake import TargetMesh, load_target
 from .mesh_io import obj_bytes
 from .line_field import ANISOTROPY_THRESHOLD, LineField, curvature_line_field, field_k1_deviation
 from .params import DesignParameters, SolverSettings, check_printable, check_smoothing
 from .placement import fit_scale, place_in_frame, registration_marks
 from .preview import render_preview
-from .refine import refine_target
+from .refine import Refined, refine_target
 from .report import flattening_report
 from .ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
 from .thickness import CurvatureTable, load_curvature_table, ribbon_thickness
@@ -115,11 +118,89 @@ def _bbox_diagonal(V: np.ndarray) -> float:
     return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
 
 
+@dataclass(eq=False, repr=False)
+class _Run:
+    """One design in the making: what was asked, then what each stage made, in stage order (a stage's
+    fields are unset until it has run)."""
+
+    mesh_path: str | Path
+    params: DesignParameters
+    solver: SolverSettings
+    profile: PrinterProfile
+    frame: FrameSpec
+    table: CurvatureTable
+    progress: DesignProgress
+    predict: bool
+    t_start: float
+    timings: dict[str, float] = field(default_factory=dict)
+    # load
+    target: TargetMesh = field(init=False)
+    coarse_faces: int = field(init=False)
+    refined: Refined | None = field(init=False)
+    size: float = field(init=False)
+    V: np.ndarray = field(init=False)
+    F: np.ndarray = field(init=False)
+    # curvature
+    frames: FaceFrames = field(init=False)
+    curvature: Curvature = field(init=False)
+    line_field: LineField = field(init=False)
+    field_dev: dict[str, float] | None = field(init=False)
+    # flatten, then the flat sheet in print coordinates
+    flat: FlatteningResult = field(init=False)
+    uv: np.ndarray = field(init=False)
+    rotation: float = field(init=False)
+    scale: float = field(init=False)
+    direction: np.ndarray = field(init=False)
+    pullback: np.ndarray = field(init=False)
+    k1_target: np.ndarray = field(init=False)
+    kappa1: np.ndarray = field(init=False)
+    report: dict[str, Any] = field(init=False)
+    # stripes, ribbons
+    stripes: StripeGrid = field(init=False)
+    layout: RibbonLayout = field(init=False)
+    ribbons: list[Ribbon] = field(init=False)
+    clamped: int = field(init=False)
+    marks: np.ndarray = field(init=False)
+    front: int = field(init=False)
+    parameters: Parameters = field(init=False)
+    design: Design = field(init=False)
+    # gcode, deploy, preview
+    programs: Programs = field(init=False)
+    prediction: Prediction | None = None
+    deployed_png: bytes | None = None
+    preview_svg: bytes = field(init=False)
+    preview_png: bytes = field(init=False)
+
+    @property
+    def mesh_name(self) -> str:
+        return Path(self.mesh_path).name
+
+
+class _Stage(NamedTuple):
+    """A stage of the engine as the progress shows it.
+
+    Attributes
+    ----------
+    name : the stage's name (``timings_s`` is keyed by it).
+    description : what it does, formatted with the run (``{run.mesh_name}``).
+    work : does it on the run and returns the summary line.
+    after : what follows its report, untimed (the report's entries, the checks on its result).
+    applies : whether the run has this stage.
+    """
+
+    name: str
+    description: str
+    work: Callable[[_Run], str]
+    after: Callable[[_Run], None] | None = None
+    applies: Callable[[_Run], bool] = lambda run: True
+
+
 def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = None,
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
                 progress: DesignProgress | None = None, predict: bool = True,
                 tables_dir: Path | None = None) -> DesignResult:
-    """Run the engine on a mesh file: load, curvature and line field, flattening, placement.
+    """Run the engine's ``STAGES`` on a mesh file: load, curvature and line field, flattening, stripes,
+    ribbons, G-code, the predicted deployed shape and the preview.
 
     Parameters
     ----------
@@ -137,9 +218,28 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     DesignError
         when the design cannot be made as asked (it does not fit the frame, it folds).
     """
-    params = parameters or DesignParameters()
-    solver = solver or SolverSettings()
-    progress = progress or NoProgress()
+    run = _prepare(mesh_path, parameters or DesignParameters(), solver or SolverSettings(), frame,
+                   progress or NoProgress(), predict, tables_dir)
+    for stage in STAGES:
+        if stage.applies(run):
+            _run_stage(run, stage)
+    return _result(run)
+
+
+def _run_stage(run: _Run, stage: _Stage) -> None:
+    """One stage between its start and finish reports, timed; then what follows its report."""
+    run.progress.stage_started(stage.name, stage.description.format(run=run))
+    t = time.perf_counter()
+    summary = stage.work(run)
+    run.timings[stage.name] = time.perf_counter() - t
+    run.progress.stage_finished(stage.name, run.timings[stage.name], summary)
+    if stage.after is not None:
+        stage.after(run)
+
+
+def _prepare(mesh_path: str | Path, params: DesignParameters, solver: SolverSettings, frame: FrameSpec | None,
+             progress: DesignProgress, predict: bool, tables_dir: Path | None) -> _Run:
+    """Check what was asked before any stage: printable, and a curvature table for the pre-stretch."""
     profile = load_profile(params.printer_profile)
     frame = frame or profile.frame
     try:
@@ -152,191 +252,221 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
         raise DesignError(f"the curvature table {table.name!r} was measured at pre-stretch s = "
                           f"{table.prestretch:g}, but the design asks for s = {params.prestretch:g}: "
                           "give a table measured at that pre-stretch (curvature_table = path of a .toml file)")
-    timings: dict[str, float] = {}
-    t_start = time.perf_counter()
+    return _Run(mesh_path=mesh_path, params=params, solver=solver, profile=profile, frame=frame, table=table,
+                progress=progress, predict=predict, t_start=time.perf_counter())
 
-    # -- load -----------------------------------------------------------------------------------
-    progress.stage_started("load", f"reading {Path(mesh_path).name}")
-    t = time.perf_counter()
-    target = load_target(mesh_path, max_faces=solver.max_faces, merge_tolerance=solver.merge_tolerance)
-    coarse_faces = len(target.F)
-    target, refined = refine_target(target, solver.refine_below_faces, solver.refine_to_faces,
-                                     solver.max_faces)
-    diag0 = _bbox_diagonal(target.V)
-    size = params.size.bbox_diagonal if params.size is not None else NOMINAL_DIAGONAL
-    V = (target.V - target.V.mean(axis=0)) * (size / diag0)
-    F = target.F
-    timings["load"] = time.perf_counter() - t
-    progress.stage_finished("load", timings["load"],
-                            f"{len(F)} faces, {len(V)} vertices"
-                            + (f", {target.merged} duplicate vertices merged" if target.merged else "")
-                            + (f"; refined {coarse_faces:,} → {len(F):,} faces ({refined.method}, at most "
-                               f"{refined.offset_pct:.2f} % of the diagonal off the file's surface) for the layout"
-                               if refined is not None else ""))
 
-    # -- curvature and the k1 line field ---------------------------------------------------------
-    progress.stage_started("curvature", "principal curvatures and the k1 line field")
-    t = time.perf_counter()
-    frames = face_frames(V, F)
-    curvature = face_curvature(V, F, frames)
-    field = curvature_line_field(V, F, frames, curvature, params.smoothing_lambda,
-                                 solver.umbilic_tolerance, method=solver.line_field)
-    timings["curvature"] = time.perf_counter() - t
-    field_dev = field_k1_deviation(field, curvature)
-    progress.stage_finished("curvature", timings["curvature"],
-                            f"{100 * field.umbilic.mean():.1f} % of the surface umbilic, "
-                            + (f"field {field_dev['median']:.2f}° median off k1, " if field_dev else "")
-                            + f"{len(field.singular_vertices)} singular vertices"
-                            + ("" if field.aligned else "; no curvature direction anywhere: "
-                               "smoothest field in an arbitrary direction"))
+def _load(run: _Run) -> str:
+    """Read, clean, validate and refine the target; centre it and scale it to the design size."""
+    solver = run.solver
+    target = load_target(run.mesh_path, max_faces=solver.max_faces, merge_tolerance=solver.merge_tolerance)
+    run.coarse_faces = len(target.F)
+    run.target, run.refined = refine_target(target, solver.refine_below_faces, solver.refine_to_faces,
+                                            solver.max_faces)
+    diag0 = _bbox_diagonal(run.target.V)
+    run.size = run.params.size.bbox_diagonal if run.params.size is not None else NOMINAL_DIAGONAL
+    run.V = (run.target.V - run.target.V.mean(axis=0)) * (run.size / diag0)
+    run.F = run.target.F
+    refined, F = run.refined, run.F
+    return (f"{len(F)} faces, {len(run.V)} vertices"
+            + (f", {run.target.merged} duplicate vertices merged" if run.target.merged else "")
+            + (f"; refined {run.coarse_faces:,} → {len(F):,} faces ({refined.method}, at most "
+               f"{refined.offset_pct:.2f} % of the diagonal off the file's surface) for the layout"
+               if refined is not None else ""))
 
-    # -- flattening -------------------------------------------------------------------------------
-    progress.stage_started("flatten", "bounded directional flattening")
-    t = time.perf_counter()
-    flattener = BoundedFlattener(V, F, field.angle, params.bounds, solver, frames=frames,
+
+def _curvature(run: _Run) -> str:
+    """The principal curvatures and the k1 line field."""
+    run.frames = face_frames(run.V, run.F)
+    run.curvature = face_curvature(run.V, run.F, run.frames)
+    run.line_field = lines = curvature_line_field(run.V, run.F, run.frames, run.curvature,
+                                                  run.params.smoothing_lambda, run.solver.umbilic_tolerance,
+                                                  method=run.solver.line_field)
+    run.field_dev = field_dev = field_k1_deviation(lines, run.curvature)
+    return (f"{100 * lines.umbilic.mean():.1f} % of the surface umbilic, "
+            + (f"field {field_dev['median']:.2f}° median off k1, " if field_dev else "")
+            + f"{len(lines.singular_vertices)} singular vertices"
+            + ("" if lines.aligned else "; no curvature direction anywhere: "
+               "smoothest field in an arbitrary direction"))
+
+
+def _flatten(run: _Run) -> str:
+    """The bounded directional flattening, placed in the frame (and scaled to fill it when no size)."""
+    params, lines = run.params, run.line_field
+    flattener = BoundedFlattener(run.V, run.F, lines.angle, params.bounds, run.solver, frames=run.frames,
                                  prestretch=params.prestretch,
-                                 k1_defined=field.anisotropy > ANISOTROPY_THRESHOLD)
-    flat = flattener.solve(boundary=target.boundary,
-                           progress=lambda i, dsig, e: progress.iteration("flatten", i, dsig, e))
+                                 k1_defined=lines.anisotropy > ANISOTROPY_THRESHOLD)
+    run.flat = flat = flattener.solve(boundary=run.target.boundary,
+                                      progress=lambda i, dsig, e: run.progress.iteration("flatten", i, dsig, e))
     if flat.folded.any():
         bad = np.flatnonzero(flat.folded)
         raise DesignError(f"the flattening folded {len(bad)} faces over (first: face {bad[0]}); "
                           "the surface cannot be laid flat within the stretch bounds")
-    uv, rotation = place_in_frame(flat.uv, frame, margin=0.0)
-    if params.size is None:
-        scale = fit_scale(uv, frame, solver.layout_margin)
-        V, uv = V * scale, (uv - np.array(frame.center)) * scale + np.array(frame.center)
-        size *= scale
-    else:
-        scale = 1.0
-        fits = fit_scale(uv, frame, solver.layout_margin)
-        if fits < 1.0:
-            w, h = uv.max(axis=0) - uv.min(axis=0)
-            raise DesignError(
-                f"at size {size:.1f} mm (bounding-box diagonal) the flat layout is {w:.0f} × {h:.0f} mm, "
-                f"larger than the frame's {frame.size[0]:.0f} × {frame.size[1]:.0f} mm less a "
-                f"{solver.layout_margin:.0f} mm margin; the largest size that fits is "
-                f"{size * fits:.1f} mm")
-    timings["flatten"] = time.perf_counter() - t
-    progress.stage_finished("flatten", timings["flatten"],
-                            f"{flat.iterations} iterations, "
-                            + ("converged" if flat.converged else "stopped at the iteration cap")
-                            + f"; sparse solver {linalg.BACKEND_DESCRIPTION}")
+    run.uv, run.rotation = place_in_frame(flat.uv, run.frame, margin=0.0)
+    _fit_in_frame(run)
+    return (f"{flat.iterations} iterations, "
+            + ("converged" if flat.converged else "stopped at the iteration cap")
+            + f"; sparse solver {linalg.BACKEND_DESCRIPTION}")
 
-    c, s = np.cos(rotation), np.sin(rotation)
+
+def _fit_in_frame(run: _Run) -> None:
+    """Scale the design to the largest that fits the frame, or refuse a given size that does not fit."""
+    frame, margin = run.frame, run.solver.layout_margin
+    fits = fit_scale(run.uv, frame, margin)
+    if run.params.size is None:
+        run.scale = fits
+        run.V, run.uv = run.V * fits, (run.uv - np.array(frame.center)) * fits + np.array(frame.center)
+        run.size *= fits
+        return
+    run.scale = 1.0
+    if fits < 1.0:
+        w, h = run.uv.max(axis=0) - run.uv.min(axis=0)
+        raise DesignError(
+            f"at size {run.size:.1f} mm (bounding-box diagonal) the flat layout is {w:.0f} × {h:.0f} mm, "
+            f"larger than the frame's {frame.size[0]:.0f} × {frame.size[1]:.0f} mm less a "
+            f"{margin:.0f} mm margin; the largest size that fits is {run.size * fits:.1f} mm")
+
+
+def _in_print_coordinates(run: _Run) -> None:
+    """The ribbon direction and κ1 in print coordinates, the map back to the target, the flattening's report."""
+    c, s = np.cos(run.rotation), np.sin(run.rotation)
     placed = np.array([[c, s], [-s, c]])
-    direction = flat.ribbon_direction @ placed
+    run.direction = run.flat.ribbon_direction @ placed
     # print vector p -> flat (placed p) -> target frame J⁻¹ placed p: the report's angles on the target.
     # The adjugate is det J · J⁻¹: the same line for an angle, and defined where J is singular.
-    J = flat.jacobians
+    J = run.flat.jacobians
     adjugate = np.stack([np.stack([J[:, 1, 1], -J[:, 0, 1]], axis=1),
                          np.stack([-J[:, 1, 0], J[:, 0, 0]], axis=1)], axis=1)
-    pullback = adjugate @ placed
-    k1_target = np.column_stack([np.cos(curvature.angle), np.sin(curvature.angle)])
-    kappa1 = curvature.normal_curvature(field.local) / scale
-    report = flattening_report(flat, frames.area, params.bounds, timings,
-                               total_time=time.perf_counter() - t_start)
+    run.pullback = adjugate @ placed
+    run.k1_target = np.column_stack([np.cos(run.curvature.angle), np.sin(run.curvature.angle)])
+    run.kappa1 = run.curvature.normal_curvature(run.line_field.local) / run.scale
+    run.report = flattening_report(run.flat, run.frames.area, run.params.bounds, run.timings,
+                                   total_time=time.perf_counter() - run.t_start)
 
-    # -- stripe patterns --------------------------------------------------------------------------
-    progress.stage_started("stripes", "ribbon spacing (Eq. 10) and the stripe patterns θ and ψ")
-    t = time.perf_counter()
-    stripes = stripe_grid(uv, F, target.boundary, flat.sigma, direction, kappa1, params,
-                          pullback=pullback, k1_target=k1_target,
-                          anisotropic=field.anisotropy > ANISOTROPY_THRESHOLD,
-                          edge_fraction=solver.stripe_edge_fraction, max_faces=solver.stripe_max_faces,
-                          spacing_weight=solver.stripe_spacing_weight,
-                          direction_weight=solver.stripe_direction_weight)
-    timings["stripes"] = time.perf_counter() - t
+
+def _stripes(run: _Run) -> str:
+    """The ribbon spacing (Eq. 10) and the two stripe patterns."""
+    solver = run.solver
+    run.stripes = stripes = stripe_grid(
+        run.uv, run.F, run.target.boundary, run.flat.sigma, run.direction, run.kappa1, run.params,
+        pullback=run.pullback, k1_target=run.k1_target,
+        anisotropic=run.line_field.anisotropy > ANISOTROPY_THRESHOLD,
+        edge_fraction=solver.stripe_edge_fraction, max_faces=solver.stripe_max_faces,
+        spacing_weight=solver.stripe_spacing_weight, direction_weight=solver.stripe_direction_weight)
     singular = int(stripes.theta.singular.sum() + stripes.psi.singular.sum())
-    progress.stage_finished("stripes", timings["stripes"],
-                            f"on {len(stripes.F)} faces of {stripes.spacing:.2f} mm, inverse iterations "
-                            f"θ {stripes.theta.iterations}, ψ {stripes.psi.iterations}, {singular} singular faces")
+    return (f"on {len(stripes.F)} faces of {stripes.spacing:.2f} mm, inverse iterations "
+            f"θ {stripes.theta.iterations}, ψ {stripes.psi.iterations}, {singular} singular faces")
 
-    # -- ribbons ----------------------------------------------------------------------------------
-    progress.stage_started("ribbons", "staggered ribbons, sides and thicknesses")
-    t = time.perf_counter()
-    outline = shapely.Polygon(uv[target.boundary])
-    layout = layout_ribbons(stripes, outline, params)
-    _check_some_ribbons(layout, params, size)
-    ribbons, clamped = _ribbons(layout, table)
+
+def _cut_ribbons(run: _Run) -> str:
+    """The staggered ribbons cut to the outline, their sides and thicknesses; the registration marks."""
+    outline = shapely.Polygon(run.uv[run.target.boundary])
+    run.layout = layout = layout_ribbons(run.stripes, outline, run.params)
+    _check_some_ribbons(layout, run.params, run.size)
+    run.ribbons, run.clamped = _ribbons(layout, run.table)
     try:
-        marks = registration_marks(uv, frame, MARK_OFFSET)
+        run.marks = registration_marks(run.uv, run.frame, MARK_OFFSET)
     except ValueError as exc:
         raise DesignError(str(exc)) from None
-    timings["ribbons"] = time.perf_counter() - t
-    front = int(layout.front.sum())
-    progress.stage_finished("ribbons", timings["ribbons"],
-                            f"{layout.count} ribbons: {front} front, {layout.count - front} back; "
-                            f"{layout.dropped_short} dropped as too short, {layout.trimmed_angle} trimmed, "
-                            f"{clamped} thicknesses clamped to the table")
+    run.front = front = int(layout.front.sum())
+    return (f"{layout.count} ribbons: {front} front, {layout.count - front} back; "
+            f"{layout.dropped_short} dropped as too short, {layout.trimmed_angle} trimmed, "
+            f"{run.clamped} thicknesses clamped to the table")
 
+
+def _design_document(run: _Run) -> None:
+    """The ``design.json`` content so far: the ribbons' report, the resolved parameters, the faces."""
+    layout, report = run.layout, run.report
     q = ribbon_quantiles(layout)
     ribbon_dev = q.pop("ribbon_k1_deviation_deg", None)
-    report["field_k1_deviation_deg"] = Deviation(**field_dev) if field_dev else None
+    report["field_k1_deviation_deg"] = Deviation(**run.field_dev) if run.field_dev else None
     report["ribbon_k1_deviation_deg"] = Deviation(**ribbon_dev) if ribbon_dev else None
-    report["umbilic_pct"] = float(100.0 * np.mean(field.anisotropy <= ANISOTROPY_THRESHOLD))
-    if refined is not None:
-        report["refined"] = RefinedReport(from_faces=coarse_faces, faces=len(F), levels=refined.levels,
-                                          method=refined.method, offset_pct=refined.offset_pct)
+    report["umbilic_pct"] = float(100.0 * np.mean(run.line_field.anisotropy <= ANISOTROPY_THRESHOLD))
+    if run.refined is not None:
+        report["refined"] = RefinedReport(from_faces=run.coarse_faces, faces=len(run.F), levels=run.refined.levels,
+                                          method=run.refined.method, offset_pct=run.refined.offset_pct)
     report["ribbons"] = RibbonsReport(
-        front=front, back=layout.count - front, dropped_short=layout.dropped_short,
-        trimmed_angle=layout.trimmed_angle, thickness_clamped=clamped,
+        front=run.front, back=layout.count - run.front, dropped_short=layout.dropped_short,
+        trimmed_angle=layout.trimmed_angle, thickness_clamped=run.clamped,
         **{key: Quantiles(**value) for key, value in q.items()})
-    parameters = Parameters.resolved(params, size)
-    design = Design(
+    run.parameters = Parameters.resolved(run.params, run.size)
+    target, flat = run.target, run.flat
+    run.design = Design(
         source=Source(file=target.name, sha256=target.sha256, faces=target.source_faces),
-        parameters=parameters,
-        faces=Faces.from_arrays(flat.sigma[:, 0], flat.sigma[:, 1], direction, kappa1),
-        ribbons=ribbons,
-        registration_marks=[(float(x), float(y)) for x, y in marks],
+        parameters=run.parameters,
+        faces=Faces.from_arrays(flat.sigma[:, 0], flat.sigma[:, 1], run.direction, run.kappa1),
+        ribbons=run.ribbons,
+        registration_marks=[(float(x), float(y)) for x, y in run.marks],
         report=Report(**report))
 
-    # -- G-code -----------------------------------------------------------------------------------
-    progress.stage_started("gcode", f"print programs for {profile.name}")
-    t = time.perf_counter()
-    programs = _programs(design, profile if frame == profile.frame else profile.model_copy(update={"frame": frame}))
-    timings["gcode"] = time.perf_counter() - t
-    fs, bs = programs.front.stats, programs.back.stats
-    progress.stage_finished("gcode", timings["gcode"],
-                            f"front {fs.lines} lines, ~{fs.time_s / 60:.0f} min; back {bs.lines} lines, "
-                            f"~{bs.time_s / 60:.0f} min; travel {fs.travel_mm + bs.travel_mm:.0f} mm for "
-                            f"{fs.extrusion_mm + bs.extrusion_mm:.0f} mm printed")
+
+def _gcode(run: _Run) -> str:
+    """The print programs, for the frame the design was placed in."""
+    profile, frame = run.profile, run.frame
+    run.programs = _programs(run.design, profile if frame == profile.frame
+                             else profile.model_copy(update={"frame": frame}))
+    fs, bs = run.programs.front.stats, run.programs.back.stats
+    return (f"front {fs.lines} lines, ~{fs.time_s / 60:.0f} min; back {bs.lines} lines, "
+            f"~{bs.time_s / 60:.0f} min; travel {fs.travel_mm + bs.travel_mm:.0f} mm for "
+            f"{fs.extrusion_mm + bs.extrusion_mm:.0f} mm printed")
+
+
+def _check_extrusion(run: _Run) -> None:
+    """A program that extrudes nothing prints nothing: refuse it; else the report's print figures."""
+    fs, bs = run.programs.front.stats, run.programs.back.stats
     if fs.extrusion_mm + bs.extrusion_mm <= 0.0:
-        raise DesignError(f"the print programs extrude nothing ({len(ribbons)} ribbons): the design would print "
+        raise DesignError(f"the print programs extrude nothing ({len(run.ribbons)} ribbons): the design would print "
                           "nothing; check ribbon_width and the curvature table's thicknesses")
-    report["print"] = PrintReport(front=SidePrintReport(**fs.report()), back=SidePrintReport(**bs.report()))
+    run.report["print"] = PrintReport(front=SidePrintReport(**fs.report()), back=SidePrintReport(**bs.report()))
 
-    # -- deploy: the predicted deployed shape --------------------------------------------------------
-    prediction = None
-    if predict:
-        progress.stage_started("deploy", "predicting the deployed shape (the flat sheet released, "
-                                         f"{len(RELEASES)} ways)")
-        t = time.perf_counter()
-        prediction = _predict(uv, V, F, ribbons, params, table, progress)
-        timings["deploy"] = time.perf_counter() - t
-        progress.stage_finished("deploy", timings["deploy"], _deploy_summary(prediction))
-        report["deployed"] = DeployedReport(**prediction.report())
 
-    # -- preview ----------------------------------------------------------------------------------
-    progress.stage_started("preview", "rendering the layout preview")
-    t = time.perf_counter()
-    deployed_png = (prediction.render_png(V, F, title=f"{target.name}: predicted deployed shape")
-                    if prediction is not None else None)
-    svg, png = render_preview(
-        uv, F, flat.sigma[:, 1], ribbons, params.ribbon_width, marks=marks, frame_bounds=frame.bounds,
-        sigma2_bounds=parameters.bounds[1], flip_axis=frame.flip_axis,
-        title=f"{target.name}: {len(ribbons)} ribbons ({front} front, {len(ribbons) - front} back), "
-              f"size {size:.0f} mm")
-    timings["preview"] = time.perf_counter() - t
-    progress.stage_finished("preview", timings["preview"],
-                            f"{len(png) // 1024} kB PNG, {len(svg) // 1024} kB SVG")
-    report["timings_s"] = dict(timings)
-    report["time_s"] = time.perf_counter() - t_start
-    design = design.updated(report=Report(**report))
-    return DesignResult(target=target, V=V, F=F, flat_uv=uv, curvature=curvature, field=field,
-                        flattening=flat, kappa1=kappa1, ribbon_direction=direction, stripes=stripes,
-                        layout=layout, frame=frame, design=design, programs=programs,
-                        preview_svg=svg, preview_png=png, prediction=prediction, deployed_png=deployed_png)
+def _deploy(run: _Run) -> str:
+    """The predicted deployed shape (``ribbond.deploy``)."""
+    run.prediction = _predict(run.uv, run.V, run.F, run.ribbons, run.params, run.table, run.progress)
+    return _deploy_summary(run.prediction)
+
+
+def _deployed_report(run: _Run) -> None:
+    assert run.prediction is not None
+    run.report["deployed"] = DeployedReport(**run.prediction.report())
+
+
+def _preview(run: _Run) -> str:
+    """The picture of the predicted shape and the layout preview."""
+    name, n = run.target.name, len(run.ribbons)
+    run.deployed_png = (run.prediction.render_png(run.V, run.F, title=f"{name}: predicted deployed shape")
+                        if run.prediction is not None else None)
+    run.preview_svg, run.preview_png = render_preview(
+        run.uv, run.F, run.flat.sigma[:, 1], run.ribbons, run.params.ribbon_width, marks=run.marks,
+        frame_bounds=run.frame.bounds, sigma2_bounds=run.parameters.bounds[1], flip_axis=run.frame.flip_axis,
+        title=f"{name}: {n} ribbons ({run.front} front, {n - run.front} back), size {run.size:.0f} mm")
+    return f"{len(run.preview_png) // 1024} kB PNG, {len(run.preview_svg) // 1024} kB SVG"
+
+
+#: The engine's stages in order: what the worker, the daemon and ``ribbonctl design`` show.
+STAGES = (
+    _Stage("load", "reading {run.mesh_name}", _load),
+    _Stage("curvature", "principal curvatures and the k1 line field", _curvature),
+    _Stage("flatten", "bounded directional flattening", _flatten, after=_in_print_coordinates),
+    _Stage("stripes", "ribbon spacing (Eq. 10) and the stripe patterns θ and ψ", _stripes),
+    _Stage("ribbons", "staggered ribbons, sides and thicknesses", _cut_ribbons, after=_design_document),
+    _Stage("gcode", "print programs for {run.profile.name}", _gcode, after=_check_extrusion),
+    _Stage("deploy", f"predicting the deployed shape (the flat sheet released, {len(RELEASES)} ways)", _deploy,
+           after=_deployed_report, applies=lambda run: run.predict),
+    _Stage("preview", "rendering the layout preview", _preview),
+)
+
+
+def _result(run: _Run) -> DesignResult:
+    """The design with its timings, and everything the stages computed."""
+    run.report["timings_s"] = dict(run.timings)
+    run.report["time_s"] = time.perf_counter() - run.t_start
+    design = run.design.updated(report=Report(**run.report))
+    return DesignResult(target=run.target, V=run.V, F=run.F, flat_uv=run.uv, curvature=run.curvature,
+                        field=run.line_field, flattening=run.flat, kappa1=run.kappa1,
+                        ribbon_direction=run.direction, stripes=run.stripes, layout=run.layout, frame=run.frame,
+                        design=design, programs=run.programs, preview_svg=run.preview_svg,
+                        preview_png=run.preview_png, prediction=run.prediction, deployed_png=run.deployed_png)
 
 
 def _check_some_ribbons(layout: RibbonLayout, params: DesignParameters, size: float) -> None:

@@ -22,11 +22,13 @@ from __future__ import annotations
 import io
 import threading
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import matplotlib
 import numpy as np
 import shapely
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.colors import ListedColormap, Normalize
@@ -47,6 +49,8 @@ FRAME_COLOR = "#808080"
 SVG_HASHSALT = "ribbond-preview"
 #: How far the colour map is mixed towards white, so the ribbons stand out on it.
 COLORMAP_LIGHTEN = 0.5
+#: How the registration marks are drawn (a circle and a cross each), and shown in the legend.
+_MARK_STYLE = dict(linestyle="none", color="black", markersize=9, markeredgewidth=1.0)
 #: Size of the axes' longer side, inches (the figure adds the colour bar, title and legend).
 AXES_INCHES = 8.0
 
@@ -230,6 +234,55 @@ def _figure_size(lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
     return ax_w + 2.0, ax_h + 1.6
 
 
+@dataclass(frozen=True)
+class _Checked:
+    """The preview's inputs, checked: arrays of the right shapes and the colour range of σ2."""
+
+    uv: np.ndarray
+    faces: np.ndarray
+    s2: np.ndarray
+    width: float
+    points: list[np.ndarray]
+    sides: list[str]
+    marks: np.ndarray | None
+    frame: tuple[float, float, float, float] | None
+    vmin: float
+    vmax: float
+
+
+def _checked(flat_uv: np.ndarray, F: np.ndarray, sigma2: np.ndarray, ribbons: Sequence[RibbonLike],
+             ribbon_width: float, marks: np.ndarray | None, frame_bounds: tuple[float, float, float, float] | None,
+             sigma2_bounds: tuple[float, float] | None, dpi: int, flip_axis: str | None) -> _Checked:
+    """Check ``render_preview``'s arguments in its documented order; the first problem raises."""
+    uv = _float_array(flat_uv, "flat_uv", "(n, 2)", 2)
+    if len(uv) < 3:
+        raise ValueError(f"flat_uv has {len(uv)} vertices: a surface needs at least 3")
+    faces = _faces(F, len(uv))
+    s2 = _float_array(sigma2, "sigma2", "(m,)", None)
+    if len(s2) != len(faces):
+        raise ValueError(f"sigma2 has {len(s2)} values but F has {len(faces)} faces: one per face")
+    width = float(ribbon_width)
+    if not (np.isfinite(width) and width > 0):
+        raise ValueError(f"ribbon_width = {ribbon_width!r}: must be a finite number > 0 (mm)")
+    points, sides = _ribbon_points(ribbons)
+    mk = None
+    if marks is not None:
+        mk = _float_array(marks, "marks", "(k, 2)", 2)
+    frame = _frame(frame_bounds) if frame_bounds is not None else None
+    if flip_axis not in ("x", "y", None):
+        raise ValueError(f"flip_axis = {flip_axis!r}: must be 'x', 'y' or None")
+    if sigma2_bounds is not None:
+        vmin, vmax = _bounds_pair(sigma2_bounds, "sigma2_bounds")
+    else:
+        vmin, vmax = float(s2.min()), float(s2.max())
+    if vmax - vmin < 1e-9 * max(1.0, abs(vmin)):
+        vmin, vmax = vmin - 0.005 * max(1.0, abs(vmin)), vmax + 0.005 * max(1.0, abs(vmax))
+    if not (isinstance(dpi, (int, np.integer)) and 10 <= dpi <= 1200):
+        raise ValueError(f"dpi = {dpi!r}: must be an integer in 10..1200")
+    return _Checked(uv=uv, faces=faces, s2=s2, width=width, points=points, sides=sides, marks=mk, frame=frame,
+                    vmin=vmin, vmax=vmax)
+
+
 def render_preview(flat_uv: np.ndarray,
                    F: np.ndarray,
                    sigma2: np.ndarray,
@@ -283,35 +336,29 @@ def render_preview(flat_uv: np.ndarray,
         naming the problem: a wrong shape, a non-finite value, a face index out of range, a ribbon
         (by index) with an unknown side or fewer than two points, invalid bounds.
     """
-    uv = _float_array(flat_uv, "flat_uv", "(n, 2)", 2)
-    if len(uv) < 3:
-        raise ValueError(f"flat_uv has {len(uv)} vertices: a surface needs at least 3")
-    faces = _faces(F, len(uv))
-    s2 = _float_array(sigma2, "sigma2", "(m,)", None)
-    if len(s2) != len(faces):
-        raise ValueError(f"sigma2 has {len(s2)} values but F has {len(faces)} faces: one per face")
-    width = float(ribbon_width)
-    if not (np.isfinite(width) and width > 0):
-        raise ValueError(f"ribbon_width = {ribbon_width!r}: must be a finite number > 0 (mm)")
-    points, sides = _ribbon_points(ribbons)
-    mk = None
-    if marks is not None:
-        mk = _float_array(marks, "marks", "(k, 2)", 2)
-    frame = _frame(frame_bounds) if frame_bounds is not None else None
-    if flip_axis not in ("x", "y", None):
-        raise ValueError(f"flip_axis = {flip_axis!r}: must be 'x', 'y' or None")
-    if sigma2_bounds is not None:
-        vmin, vmax = _bounds_pair(sigma2_bounds, "sigma2_bounds")
-    else:
-        vmin, vmax = float(s2.min()), float(s2.max())
-    if vmax - vmin < 1e-9 * max(1.0, abs(vmin)):
-        vmin, vmax = vmin - 0.005 * max(1.0, abs(vmin)), vmax + 0.005 * max(1.0, abs(vmax))
-    if not (isinstance(dpi, (int, np.integer)) and 10 <= dpi <= 1200):
-        raise ValueError(f"dpi = {dpi!r}: must be an integer in 10..1200")
-
-    lo, hi = _extent(uv, points, width, mk, frame)
+    c = _checked(flat_uv, F, sigma2, ribbons, ribbon_width, marks, frame_bounds, sigma2_bounds, dpi, flip_axis)
+    lo, hi = _extent(c.uv, c.points, c.width, c.marks, c.frame)
     fig = Figure(figsize=_figure_size(lo, hi), dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
+    ax = _axes(fig, lo, hi)
+    _draw_stretch(fig, ax, c)
+    if c.frame is not None:
+        _draw_frame(ax, c.frame, flip_axis)
+    counts = _draw_ribbons(ax, c.points, c.sides, c.width)
+    outline = LineCollection(c.uv[boundary_edges(c.faces)], colors=OUTLINE_COLOR, linewidths=1.1,
+                             capstyle="round", joinstyle="round", zorder=3)
+    outline.set_gid("outline")
+    ax.add_collection(outline, autolim=False)
+    if c.marks is not None and len(c.marks):
+        _draw_marks(ax, c.marks)
+    _legend(fig, counts, c.marks, c.frame, flip_axis)
+    if title:
+        fig.suptitle(title, fontsize=11, parse_math=False)  # a file name may hold "$"
+    return _saved(fig, dpi)
+
+
+def _axes(fig: Figure, lo: np.ndarray, hi: np.ndarray) -> Axes:
+    """The axes over the layout's extent, equal scale, in millimetres, with a light grid."""
     ax = fig.add_subplot()
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
@@ -321,33 +368,39 @@ def render_preview(flat_uv: np.ndarray,
     ax.tick_params(labelsize=8)
     ax.set_axisbelow(True)
     ax.grid(True, color="#e6e6e6", linewidth=0.5)
+    return ax
 
-    # σ2 underneath: one flat-coloured triangle per face, rasterized in the SVG.
-    cmap = _light_colormap()
-    norm = Normalize(vmin=vmin, vmax=vmax)
-    field = PolyCollection(uv[faces], array=s2, cmap=cmap, norm=norm, edgecolors="none",
+
+def _draw_stretch(fig: Figure, ax: Axes, c: _Checked) -> None:
+    """σ2 underneath: one flat-coloured triangle per face, rasterized in the SVG; and its colour bar."""
+    norm = Normalize(vmin=c.vmin, vmax=c.vmax)
+    field = PolyCollection(c.uv[c.faces], array=c.s2, cmap=_light_colormap(), norm=norm, edgecolors="none",
                            linewidths=0.0, antialiased=False, rasterized=True, zorder=1)
     ax.add_collection(field, autolim=False)
-    below, above = bool((s2 < vmin).any()), bool((s2 > vmax).any())
+    below, above = bool((c.s2 < c.vmin).any()), bool((c.s2 > c.vmax).any())
     extend = {(False, False): "neither", (True, False): "min", (False, True): "max",
               (True, True): "both"}[(below, above)]
     cbar = fig.colorbar(field, ax=ax, extend=extend, shrink=0.85, pad=0.02, aspect=30)
     cbar.set_label(r"$\sigma_2$ (stretch across the ribbons)")
     cbar.ax.tick_params(labelsize=8)
 
-    if frame is not None:
-        rect = Rectangle((frame[0], frame[1]), frame[2] - frame[0], frame[3] - frame[1], fill=False,
-                         edgecolor=FRAME_COLOR, linestyle="--", linewidth=1.0, zorder=0.5)
-        rect.set_gid("frame")
-        ax.add_patch(rect)
-        if flip_axis is not None:
-            cx, cy = (frame[0] + frame[2]) / 2, (frame[1] + frame[3]) / 2
-            xs, ys = ([cx, cx], [frame[1], frame[3]]) if flip_axis == "y" else ([frame[0], frame[2]], [cy, cy])
-            axis_line = Line2D(xs, ys, color=FRAME_COLOR, linestyle="-.", linewidth=1.0, zorder=0.6)
-            axis_line.set_gid("flip-axis")
-            ax.add_line(axis_line)
 
-    # Ribbons at their real width: one compound path per side, in data units.
+def _draw_frame(ax: Axes, frame: tuple[float, float, float, float], flip_axis: str | None) -> None:
+    """The printable frame, dashed, and the axis the fabric is turned over about, through its centre."""
+    rect = Rectangle((frame[0], frame[1]), frame[2] - frame[0], frame[3] - frame[1], fill=False,
+                     edgecolor=FRAME_COLOR, linestyle="--", linewidth=1.0, zorder=0.5)
+    rect.set_gid("frame")
+    ax.add_patch(rect)
+    if flip_axis is not None:
+        cx, cy = (frame[0] + frame[2]) / 2, (frame[1] + frame[3]) / 2
+        xs, ys = ([cx, cx], [frame[1], frame[3]]) if flip_axis == "y" else ([frame[0], frame[2]], [cy, cy])
+        axis_line = Line2D(xs, ys, color=FRAME_COLOR, linestyle="-.", linewidth=1.0, zorder=0.6)
+        axis_line.set_gid("flip-axis")
+        ax.add_line(axis_line)
+
+
+def _draw_ribbons(ax: Axes, points: list[np.ndarray], sides: list[str], width: float) -> dict[str, int]:
+    """Ribbons at their real width: one compound path per side, in data units. Returns the count per side."""
     counts = {"front": 0, "back": 0}
     for side in ("back", "front"):
         mine = [p for p, s in zip(points, sides) if s == side]
@@ -358,12 +411,24 @@ def render_preview(flat_uv: np.ndarray,
                               zorder=2)
             patch.set_gid(f"{side}-ribbons")
             ax.add_patch(patch)
+    return counts
 
-    outline = LineCollection(uv[boundary_edges(faces)], colors=OUTLINE_COLOR, linewidths=1.1,
-                             capstyle="round", joinstyle="round", zorder=3)
-    outline.set_gid("outline")
-    ax.add_collection(outline, autolim=False)
 
+def _draw_marks(ax: Axes, mk: np.ndarray) -> None:
+    """The registration marks, a circle and a cross each, numbered from 1."""
+    for marker, part in (("o", "circles"), ("+", "crosses")):
+        m = Line2D(mk[:, 0], mk[:, 1], marker=marker, markerfacecolor="none", zorder=4, **_MARK_STYLE)
+        m.set_gid(f"registration-marks-{part}")
+        ax.add_line(m)
+    for number, (x, y) in enumerate(mk, start=1):
+        label = ax.annotate(str(number), (x, y), xytext=(5, 5), textcoords="offset points",
+                            fontsize=9, fontweight="bold", color="black", zorder=5)
+        label.set_gid(f"registration-mark-{number}")
+
+
+def _legend(fig: Figure, counts: dict[str, int], mk: np.ndarray | None,
+            frame: tuple[float, float, float, float] | None, flip_axis: str | None) -> None:
+    """The legend under the axes: the ribbons per side, the outline, the marks, the frame and flip axis."""
     handles: list[object] = [
         Patch(facecolor=SIDE_COLORS["front"], label=f"front ribbons ({counts['front']})"),
         Patch(facecolor=SIDE_COLORS["back"], label=f"back ribbons ({counts['back']})"),
@@ -371,19 +436,8 @@ def render_preview(flat_uv: np.ndarray,
     ]
     labels = [h.get_label() for h in handles]  # type: ignore[attr-defined]
     if mk is not None:
-        mark_style = dict(linestyle="none", color="black", markersize=9, markeredgewidth=1.0)
-        circle = Line2D([], [], marker="o", markerfacecolor="none", **mark_style)
-        cross = Line2D([], [], marker="+", **mark_style)
-        if len(mk):
-            for marker, part in (("o", "circles"), ("+", "crosses")):
-                m = Line2D(mk[:, 0], mk[:, 1], marker=marker, markerfacecolor="none", zorder=4,
-                           **mark_style)
-                m.set_gid(f"registration-marks-{part}")
-                ax.add_line(m)
-            for number, (x, y) in enumerate(mk, start=1):
-                label = ax.annotate(str(number), (x, y), xytext=(5, 5), textcoords="offset points",
-                                    fontsize=9, fontweight="bold", color="black", zorder=5)
-                label.set_gid(f"registration-mark-{number}")
+        circle = Line2D([], [], marker="o", markerfacecolor="none", **_MARK_STYLE)
+        cross = Line2D([], [], marker="+", **_MARK_STYLE)
         handles.append((circle, cross))
         labels.append(f"registration marks 1–{len(mk)}" if len(mk) else "registration marks (0)")
     if frame is not None:
@@ -394,9 +448,10 @@ def render_preview(flat_uv: np.ndarray,
             labels.append(f"flip axis ({flip_axis})")
     fig.legend(handles, labels, loc="outside lower center", ncols=min(len(handles), 5),
                frameon=False, fontsize=9, handlelength=2.2)
-    if title:
-        fig.suptitle(title, fontsize=11, parse_math=False)  # a file name may hold "$"
 
+
+def _saved(fig: Figure, dpi: int) -> tuple[bytes, bytes]:
+    """The figure as SVG (deterministic ids, no date) and PNG bytes."""
     svg = io.BytesIO()
     with _SVG_LOCK, matplotlib.rc_context({"svg.hashsalt": SVG_HASHSALT}):
         fig.savefig(svg, format="svg", dpi=dpi, metadata={"Date": None})

@@ -19,7 +19,7 @@ Everything is done on arc-length intervals of the centerlines, for all ribbons a
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
@@ -404,6 +404,237 @@ def across_spacing(midpoints: np.ndarray, tangents: np.ndarray, own_line: np.nda
     return np.abs(gap[found] - harmonic) / harmonic
 
 
+@dataclass
+class _Cuts:
+    """The ribbons cut so far, grid by grid, with what the layout's checks measure on them."""
+
+    points: list[np.ndarray] = field(default_factory=list)
+    grids: list[np.ndarray] = field(default_factory=list)
+    kappas: list[np.ndarray] = field(default_factory=list)
+    spacings: list[np.ndarray] = field(default_factory=list)
+    lengths: list[np.ndarray] = field(default_factory=list)
+    deviation: list[np.ndarray] = field(default_factory=list)
+    deviation_weight: list[np.ndarray] = field(default_factory=list)
+    k1_deviation: list[np.ndarray] = field(default_factory=list)
+    k1_weight: list[np.ndarray] = field(default_factory=list)
+    along: list[np.ndarray] = field(default_factory=list)
+    mids_xy: list[np.ndarray] = field(default_factory=list)
+    mids_tangent: list[np.ndarray] = field(default_factory=list)
+    mids_line: list[np.ndarray] = field(default_factory=list)
+    dropped: int = 0
+    trimmed: int = 0
+
+
+@dataclass(frozen=True)
+class _Intervals:
+    """A grid's centerlines cut at every breakpoint into arc-length intervals [lo, hi].
+
+    r : the ribbon each interval's middle falls in (−1 before the first); vec, face : the link it lies
+    on and that link's face; cosang : |cos| of its angle to the direction field; keep : in a ribbon,
+    on a polyline, inside the inset outline and aligned; positive : κ1 > 0 there; trimmed : how many
+    ribbons lose an interval for its angle.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    r: np.ndarray
+    vec: np.ndarray
+    face: np.ndarray
+    cosang: np.ndarray
+    keep: np.ndarray
+    positive: np.ndarray
+    trimmed: int
+
+
+@dataclass(frozen=True)
+class _Pieces:
+    """Runs of kept intervals with one ribbon and one sign.
+
+    A, B : where the long enough ones start and end (arc length); start_q : the first interval of
+    every run; kept : the indices of the long enough runs; kept_interval : the intervals in them;
+    dropped : how many runs were too short.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    start_q: np.ndarray
+    kept: np.ndarray
+    kept_interval: np.ndarray
+    dropped: int
+
+
+def _ribbon_spans(c: _Centerlines, s_mid: np.ndarray, l_r: float, w_r: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each ribbon's arc-length span [a, b]: l_r centred on its midpoint, within its polyline, halfway
+    to its neighbours; with the node before each midpoint and its polyline."""
+    node_of = np.clip(np.searchsorted(c.s, s_mid, side="right") - 1, 0, len(c.s) - 1)
+    pid = c.poly[node_of]
+    half = np.minimum(0.5 * l_r, 0.5 * c.closed_length[pid])
+    first_s = c.s[c.start[pid]]
+    last_s = c.s[np.append(c.start[1:], len(c.s))[pid] - 1]
+    a = np.maximum(s_mid - half, first_s)
+    b = np.minimum(s_mid + half, last_s)
+    same_prev = np.insert(pid[1:] == pid[:-1], 0, False)
+    same_next = np.append(pid[1:] == pid[:-1], False)
+    prev_mid = np.insert(0.5 * (s_mid[1:] + s_mid[:-1]), 0, -np.inf)
+    next_mid = np.append(0.5 * (s_mid[1:] + s_mid[:-1]), np.inf)
+    # midpoints closer than l_r (where stripes merge): cut halfway, a ribbon width apart
+    a = np.where(same_prev, np.maximum(a, prev_mid + 0.5 * w_r), a)
+    b = np.where(same_next, np.minimum(b, next_mid - 0.5 * w_r), b)
+    return node_of, pid, a, np.maximum(a, b)
+
+
+def _breakpoints(c: _Centerlines, k1: np.ndarray, a: np.ndarray, b: np.ndarray,
+                 inset: shapely.Geometry) -> np.ndarray:
+    """Where the centerlines may be cut: nodes, ribbon ends, where they leave the inset outline, κ1 = 0."""
+    li = np.flatnonzero(c.link_face >= 0)
+    d_len = c.s[li + 1] - c.s[li]
+    sign_change = k1[li] * k1[li + 1] < 0
+    zero_s = c.s[li] + d_len * np.where(sign_change, k1[li] / np.where(sign_change, k1[li] - k1[li + 1], 1), 0)
+    lines = shapely.linestrings(c.xy, indices=c.poly)
+    crossings = shapely.intersection(lines, inset.boundary)
+    parts, owner = shapely.get_parts(crossings, return_index=True)
+    parts_pts = shapely.get_coordinates(parts)
+    n_per_part = shapely.get_num_coordinates(parts)
+    cross_owner = np.repeat(owner, n_per_part)
+    cross_s = (shapely.line_locate_point(lines[cross_owner], shapely.points(parts_pts))
+               + c.s[c.start[cross_owner]]) if len(parts_pts) else np.zeros(0)
+    loop = np.isfinite(c.closed_length[cross_owner])    # a walked-thrice loop crosses thrice
+    cross_s = np.concatenate([cross_s] + [cross_s[loop] + k * c.closed_length[cross_owner][loop]
+                                          for k in (1, 2)])
+    return np.unique(np.concatenate([c.s, a, b, zero_s[sign_change], cross_s]))
+
+
+def _intervals(c: _Centerlines, k1: np.ndarray, a: np.ndarray, b: np.ndarray, inset: shapely.Geometry,
+               direction: np.ndarray, cos_trim: float) -> _Intervals:
+    """The intervals between breakpoints, what each lies in, and which are kept (see ``_Intervals``)."""
+    bp = _breakpoints(c, k1, a, b, inset)
+    lo, hi = bp[:-1], bp[1:]
+    mid = 0.5 * (lo + hi)
+    r = np.searchsorted(a, mid, side="right") - 1
+    in_ribbon = (r >= 0) & (mid < b[np.maximum(r, 0)])
+    has_next = c.link_face >= 0
+    link = np.clip(np.searchsorted(c.s, mid, side="right") - 1, 0, len(c.s) - 1)
+    on_line = has_next[link] & (c.poly[np.minimum(link + 1, len(c.s) - 1)] == c.poly[link])
+    x = np.interp(mid, c.s, c.xy[:, 0])
+    y = np.interp(mid, c.s, c.xy[:, 1])
+    inside = shapely.contains_xy(inset, x, y)
+    vec = c.xy[np.minimum(link + 1, len(c.s) - 1)] - c.xy[link]
+    vlen = np.linalg.norm(vec, axis=1)
+    face = c.link_face[link]
+    fdir = direction[np.maximum(face, 0)]
+    cosang = np.abs(np.einsum("kc,kc->k", vec, fdir)) / np.maximum(vlen, 1e-300)
+    aligned = cosang >= cos_trim
+    positive = np.interp(mid, c.s, k1) > 0
+    candidate = in_ribbon & on_line & inside
+    return _Intervals(lo=lo, hi=hi, r=r, vec=vec, face=face, cosang=cosang, keep=candidate & aligned,
+                      positive=positive, trimmed=len(np.unique(r[candidate & ~aligned])))
+
+
+def _pieces(iv: _Intervals, min_length: float) -> _Pieces:
+    """The runs of kept intervals with one ribbon and one sign, without a break; the short ones dropped."""
+    keep, r, positive = iv.keep, iv.r, iv.positive
+    brk = np.ones(len(keep), dtype=bool)
+    brk[1:] = ~(keep[:-1] & (r[1:] == r[:-1]) & (positive[1:] == positive[:-1]))
+    start_q = np.flatnonzero(keep & brk)
+    piece = np.cumsum(keep & brk) - 1
+    end_q = np.zeros(len(start_q), dtype=np.int64)
+    np.maximum.at(end_q, piece[keep], np.flatnonzero(keep))
+    A, B = iv.lo[start_q], iv.hi[end_q]
+    long_enough = (B - A) >= min_length
+    pieces_q = np.flatnonzero(long_enough)
+    return _Pieces(A=A[long_enough], B=B[long_enough], start_q=start_q, kept=pieces_q,
+                   kept_interval=keep & np.isin(piece, pieces_q), dropped=int(np.sum(~long_enough)))
+
+
+def _measure_directions(cuts: _Cuts, grid: StripeGrid, iv: _Intervals, kept: np.ndarray) -> None:
+    """The kept segments' angles to the direction field, and on the target to its own k1 (where defined)."""
+    cuts.deviation.append(np.degrees(np.arccos(np.clip(iv.cosang[kept], 0.0, 1.0))))
+    cuts.deviation_weight.append((iv.hi - iv.lo)[kept])
+    on_face = np.maximum(iv.face, 0)
+    vec_t = np.einsum("kij,kj->ki", grid.pullback[on_face], iv.vec)     # the segment on the target
+    cos_k1 = np.abs(np.einsum("kc,kc->k", vec_t, grid.k1_target[on_face])) / np.maximum(
+        np.linalg.norm(vec_t, axis=1), 1e-300)
+    on_k1 = kept & grid.anisotropic[np.maximum(iv.face, 0)]
+    cuts.k1_deviation.append(np.degrees(np.arccos(np.clip(cos_k1[on_k1], 0.0, 1.0))))
+    cuts.k1_weight.append((iv.hi - iv.lo)[on_k1])
+
+
+def _add_pieces(cuts: _Cuts, c: _Centerlines, A: np.ndarray, B: np.ndarray, g: int,
+                along: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    """The pieces' polylines (simplified), lengths and the means of κ1, μ1, μ2 along them."""
+    inner_lo = np.searchsorted(c.s, A, side="right")
+    inner_hi = np.searchsorted(c.s, B, side="left")
+    n_inner = np.maximum(inner_hi - inner_lo, 0)
+    counts = n_inner + 2
+    off = np.concatenate([[0], np.cumsum(counts)])
+    owner_p = np.repeat(np.arange(len(A)), counts)
+    local = np.arange(off[-1]) - off[owner_p]
+    s_pts = np.where(local == 0, A[owner_p],
+                     np.where(local == counts[owner_p] - 1, B[owner_p],
+                              c.s[np.minimum(inner_lo[owner_p] + local - 1, len(c.s) - 1)]))
+    xy = np.column_stack([np.interp(s_pts, c.s, c.xy[:, 0]), np.interp(s_pts, c.s, c.xy[:, 1])])
+    ds = np.diff(s_pts)
+    same_piece = owner_p[1:] == owner_p[:-1]
+    ds = np.where(same_piece, ds, 0.0)
+    length = np.bincount(owner_p[:-1], weights=ds, minlength=len(A))
+
+    def mean_along(values: np.ndarray) -> np.ndarray:
+        v = np.interp(s_pts, c.s, values)
+        return np.bincount(owner_p[:-1], weights=0.5 * (v[1:] + v[:-1]) * ds,
+                           minlength=len(A)) / length
+
+    k1, mu1, mu2 = along
+    cuts.kappas.append(mean_along(k1))
+    cuts.spacings.append(np.column_stack([mean_along(mu1), mean_along(mu2)]))
+    cuts.lengths.append(length)
+    cuts.grids.append(np.full(len(A), g))
+    cuts.points.extend(_simplified(xy, owner_p))
+
+
+def _measure_midpoints(cuts: _Cuts, c: _Centerlines, s_mid: np.ndarray, node_of: np.ndarray, pid: np.ndarray,
+                       ribbons: np.ndarray, mu1: np.ndarray, first_line: int) -> None:
+    """The spacing along between neighbouring kept ribbons, and the kept midpoints for the spacing across."""
+    kept_mid = np.zeros(len(s_mid), dtype=bool)
+    kept_mid[ribbons] = True
+    mu1_mid = np.interp(s_mid, c.s, mu1)
+    pair = kept_mid[:-1] & kept_mid[1:] & (pid[1:] == pid[:-1])
+    along = np.abs(np.diff(s_mid) - 0.5 * (mu1_mid[1:] + mu1_mid[:-1])) / (0.5 * (mu1_mid[1:] + mu1_mid[:-1]))
+    cuts.along.append(along[pair])
+    cuts.mids_xy.append(np.column_stack([np.interp(s_mid[kept_mid], c.s, c.xy[:, 0]),
+                                         np.interp(s_mid[kept_mid], c.s, c.xy[:, 1])]))
+    has_next = c.link_face >= 0
+    at = node_of[kept_mid]
+    nxt = np.where(has_next[at], at + 1, at)
+    prv = np.where(has_next[at], at, np.maximum(at - 1, 0))
+    cuts.mids_tangent.append(c.xy[nxt] - c.xy[prv])
+    cuts.mids_line.append(first_line + pid[kept_mid])
+
+
+def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: float, inset: shapely.Geometry,
+              params: DesignParameters, first_line: int) -> None:
+    """Cut the ribbons of one staggered grid (centerlines ``c`` at arg θ = ``level``) into ``cuts``."""
+    if len(c.s) < 2:
+        return
+    edges = grid.theta.topology.edges
+    k1 = _on_edges(grid.kappa1, edges, c.edge, c.t)
+    mu1 = _on_edges(grid.mu1, edges, c.edge, c.t)
+    mu2 = _on_edges(grid.mu2, edges, c.edge, c.t)
+    s_mid = _midpoints(c, grid.psi, grid.psi.direction, level)
+    if len(s_mid) == 0:
+        return
+    node_of, pid, a, b = _ribbon_spans(c, s_mid, params.ribbon_length, params.ribbon_width)
+    iv = _intervals(c, k1, a, b, inset, grid.direction, np.cos(np.deg2rad(params.max_trim_angle)))
+    cuts.trimmed += iv.trimmed
+    pieces = _pieces(iv, params.min_ribbon_length)
+    cuts.dropped += pieces.dropped
+    if len(pieces.A) == 0:
+        return
+    _measure_directions(cuts, grid, iv, pieces.kept_interval)
+    _add_pieces(cuts, c, pieces.A, pieces.B, g, (k1, mu1, mu2))
+    _measure_midpoints(cuts, c, s_mid, node_of, pid, iv.r[pieces.start_q[pieces.kept]], mu1, first_line)
+
+
 def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters) -> RibbonLayout:
     """Cut the ribbons from the staggered grid (§6.2).
 
@@ -413,169 +644,27 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
     outline : the flat surface's outline, mm.
     params : ribbon length and width, minimum length, trim angle.
     """
-    l_r, w_r = params.ribbon_length, params.ribbon_width
-    inset = outline.buffer(-(0.5 * w_r + SIMPLIFY_TOLERANCE))   # simplified within the tolerance later
+    inset = outline.buffer(-(0.5 * params.ribbon_width + SIMPLIFY_TOLERANCE))   # simplified within the tolerance later
     shapely.prepare(inset)
-    X1 = grid.psi.direction
-    edges = grid.theta.topology.edges
-    gap = 10.0 * l_r + 1.0
-    cos_trim = np.cos(np.deg2rad(params.max_trim_angle))
-
-    pts_all: list[np.ndarray] = []
-    grids, kappas, spacings, lengths = [], [], [], []
-    dev_all, devw_all, along_all, k1dev_all, k1w_all = [], [], [], [], []
-    mids_xy: list[np.ndarray] = []
-    mids_tangent: list[np.ndarray] = []
-    mids_line: list[np.ndarray] = []
+    gap = 10.0 * params.ribbon_length + 1.0
+    cuts = _Cuts()
     centerlines: list[list[np.ndarray]] = [[], []]
-    dropped = trimmed = 0
     for g, level in enumerate((0.0, np.pi)):
         c = _centerlines(grid.theta, level, gap)
         starts = np.append(c.start, len(c.s))
         centerlines[g] = [c.xy[starts[p]:starts[p + 1]] for p in range(len(c.start))]
-        if len(c.s) < 2:
-            continue
-        k1 = _on_edges(grid.kappa1, edges, c.edge, c.t)
-        mu1 = _on_edges(grid.mu1, edges, c.edge, c.t)
-        mu2 = _on_edges(grid.mu2, edges, c.edge, c.t)
-        s_mid = _midpoints(c, grid.psi, X1, level)
-        if len(s_mid) == 0:
-            continue
-        # ribbon intervals: l_r centred on each midpoint, within the polyline, halfway to neighbours
-        node_of = np.clip(np.searchsorted(c.s, s_mid, side="right") - 1, 0, len(c.s) - 1)
-        pid = c.poly[node_of]
-        half = np.minimum(0.5 * l_r, 0.5 * c.closed_length[pid])
-        first_s = c.s[c.start[pid]]
-        last_s = c.s[np.append(c.start[1:], len(c.s))[pid] - 1]
-        a = np.maximum(s_mid - half, first_s)
-        b = np.minimum(s_mid + half, last_s)
-        same_prev = np.insert(pid[1:] == pid[:-1], 0, False)
-        same_next = np.append(pid[1:] == pid[:-1], False)
-        prev_mid = np.insert(0.5 * (s_mid[1:] + s_mid[:-1]), 0, -np.inf)
-        next_mid = np.append(0.5 * (s_mid[1:] + s_mid[:-1]), np.inf)
-        # midpoints closer than l_r (where stripes merge): cut halfway, a ribbon width apart
-        a = np.where(same_prev, np.maximum(a, prev_mid + 0.5 * w_r), a)
-        b = np.where(same_next, np.minimum(b, next_mid - 0.5 * w_r), b)
-        b = np.maximum(a, b)
-
-        # breakpoints: nodes, ribbon ends, where the centerlines leave the inset outline, κ1 = 0
-        has_next = c.link_face >= 0
-        li = np.flatnonzero(has_next)
-        d_len = c.s[li + 1] - c.s[li]
-        sign_change = k1[li] * k1[li + 1] < 0
-        zero_s = c.s[li] + d_len * np.where(sign_change, k1[li] / np.where(sign_change, k1[li] - k1[li + 1], 1), 0)
-        lines = shapely.linestrings(c.xy, indices=c.poly)
-        crossings = shapely.intersection(lines, inset.boundary)
-        parts, owner = shapely.get_parts(crossings, return_index=True)
-        parts_pts = shapely.get_coordinates(parts)
-        n_per_part = shapely.get_num_coordinates(parts)
-        cross_owner = np.repeat(owner, n_per_part)
-        cross_s = (shapely.line_locate_point(lines[cross_owner], shapely.points(parts_pts))
-                   + c.s[c.start[cross_owner]]) if len(parts_pts) else np.zeros(0)
-        loop = np.isfinite(c.closed_length[cross_owner])    # a walked-thrice loop crosses thrice
-        cross_s = np.concatenate([cross_s] + [cross_s[loop] + k * c.closed_length[cross_owner][loop]
-                                              for k in (1, 2)])
-        bp = np.unique(np.concatenate([c.s, a, b, zero_s[sign_change], cross_s]))
-        lo, hi = bp[:-1], bp[1:]
-        mid = 0.5 * (lo + hi)
-        r = np.searchsorted(a, mid, side="right") - 1
-        in_ribbon = (r >= 0) & (mid < b[np.maximum(r, 0)])
-        link = np.clip(np.searchsorted(c.s, mid, side="right") - 1, 0, len(c.s) - 1)
-        on_line = has_next[link] & (c.poly[np.minimum(link + 1, len(c.s) - 1)] == c.poly[link])
-        x = np.interp(mid, c.s, c.xy[:, 0])
-        y = np.interp(mid, c.s, c.xy[:, 1])
-        inside = shapely.contains_xy(inset, x, y)
-        vec = c.xy[np.minimum(link + 1, len(c.s) - 1)] - c.xy[link]
-        vlen = np.linalg.norm(vec, axis=1)
-        face = c.link_face[link]
-        fdir = grid.direction[np.maximum(face, 0)]
-        cosang = np.abs(np.einsum("kc,kc->k", vec, fdir)) / np.maximum(vlen, 1e-300)
-        aligned = cosang >= cos_trim
-        positive = np.interp(mid, c.s, k1) > 0
-        candidate = in_ribbon & on_line & inside
-        keep = candidate & aligned
-        trimmed += len(np.unique(r[candidate & ~aligned]))
-
-        # pieces: runs of kept intervals with one ribbon and one sign, without a break
-        brk = np.ones(len(mid), dtype=bool)
-        brk[1:] = ~(keep[:-1] & (r[1:] == r[:-1]) & (positive[1:] == positive[:-1]))
-        start_q = np.flatnonzero(keep & brk)
-        piece = np.cumsum(keep & brk) - 1
-        end_q = np.zeros(len(start_q), dtype=np.int64)
-        np.maximum.at(end_q, piece[keep], np.flatnonzero(keep))
-        A, B = lo[start_q], hi[end_q]
-        long_enough = (B - A) >= params.min_ribbon_length
-        dropped += int(np.sum(~long_enough))
-        A, B = A[long_enough], B[long_enough]
-        pieces_q = np.flatnonzero(long_enough)
-        kept_interval = keep & np.isin(piece, pieces_q)
-        if len(A) == 0:
-            continue
-        dev_all.append(np.degrees(np.arccos(np.clip(cosang[kept_interval], 0.0, 1.0))))
-        devw_all.append((hi - lo)[kept_interval])
-        on_face = np.maximum(face, 0)
-        vec_t = np.einsum("kij,kj->ki", grid.pullback[on_face], vec)     # the segment on the target
-        cos_k1 = np.abs(np.einsum("kc,kc->k", vec_t, grid.k1_target[on_face])) / np.maximum(
-            np.linalg.norm(vec_t, axis=1), 1e-300)
-        on_k1 = kept_interval & grid.anisotropic[np.maximum(face, 0)]
-        k1dev_all.append(np.degrees(np.arccos(np.clip(cos_k1[on_k1], 0.0, 1.0))))
-        k1w_all.append((hi - lo)[on_k1])
-
-        # geometry and means along each piece
-        inner_lo = np.searchsorted(c.s, A, side="right")
-        inner_hi = np.searchsorted(c.s, B, side="left")
-        n_inner = np.maximum(inner_hi - inner_lo, 0)
-        counts = n_inner + 2
-        off = np.concatenate([[0], np.cumsum(counts)])
-        owner_p = np.repeat(np.arange(len(A)), counts)
-        local = np.arange(off[-1]) - off[owner_p]
-        s_pts = np.where(local == 0, A[owner_p],
-                         np.where(local == counts[owner_p] - 1, B[owner_p],
-                                  c.s[np.minimum(inner_lo[owner_p] + local - 1, len(c.s) - 1)]))
-        xy = np.column_stack([np.interp(s_pts, c.s, c.xy[:, 0]), np.interp(s_pts, c.s, c.xy[:, 1])])
-        ds = np.diff(s_pts)
-        same_piece = owner_p[1:] == owner_p[:-1]
-        ds = np.where(same_piece, ds, 0.0)
-        length = np.bincount(owner_p[:-1], weights=ds, minlength=len(A))
-
-        def mean_along(values: np.ndarray) -> np.ndarray:
-            v = np.interp(s_pts, c.s, values)
-            return np.bincount(owner_p[:-1], weights=0.5 * (v[1:] + v[:-1]) * ds,
-                               minlength=len(A)) / length
-
-        kappas.append(mean_along(k1))
-        spacings.append(np.column_stack([mean_along(mu1), mean_along(mu2)]))
-        lengths.append(length)
-        grids.append(np.full(len(A), g))
-        pts_all.extend(_simplified(xy, owner_p))
-
-        # spacing checks: midpoints of ribbons that were kept
-        ribbon_of_piece = r[start_q[pieces_q]]
-        kept_mid = np.zeros(len(s_mid), dtype=bool)
-        kept_mid[ribbon_of_piece] = True
-        mu1_mid = np.interp(s_mid, c.s, mu1)
-        pair = kept_mid[:-1] & kept_mid[1:] & (pid[1:] == pid[:-1])
-        along = np.abs(np.diff(s_mid) - 0.5 * (mu1_mid[1:] + mu1_mid[:-1])) / (0.5 * (mu1_mid[1:] + mu1_mid[:-1]))
-        along_all.append(along[pair])
-        mids_xy.append(np.column_stack([np.interp(s_mid[kept_mid], c.s, c.xy[:, 0]),
-                                        np.interp(s_mid[kept_mid], c.s, c.xy[:, 1])]))
-        at = node_of[kept_mid]
-        nxt = np.where(has_next[at], at + 1, at)
-        prv = np.where(has_next[at], at, np.maximum(at - 1, 0))
-        mids_tangent.append(c.xy[nxt] - c.xy[prv])
-        mids_line.append(g * len(centerlines[0]) + pid[kept_mid])
-
-    lines_all = centerlines[0] + centerlines[1]
-    across = ([across_spacing(np.concatenate(mids_xy), np.concatenate(mids_tangent), np.concatenate(mids_line),
-                              lines_all, grid.mu2_at)] if mids_xy else [])
+        _cut_grid(cuts, grid, c, g, level, inset, params, g * len(centerlines[0]))
+    across = ([across_spacing(np.concatenate(cuts.mids_xy), np.concatenate(cuts.mids_tangent),
+                              np.concatenate(cuts.mids_line), centerlines[0] + centerlines[1], grid.mu2_at)]
+              if cuts.mids_xy else [])
 
     def cat(parts: list[np.ndarray], shape: tuple[int, ...] = (0,)) -> np.ndarray:
         return np.concatenate(parts) if parts else np.zeros(shape)
 
-    return RibbonLayout(points=pts_all, grid=cat(grids).astype(np.int64), kappa1=cat(kappas),
-                        spacing=cat(spacings, (0, 2)), length=cat(lengths), dropped_short=dropped,
-                        trimmed_angle=trimmed, direction_deviation=cat(dev_all),
-                        direction_weight=cat(devw_all), k1_deviation=cat(k1dev_all), k1_weight=cat(k1w_all),
-                        spacing_error_across=cat(across),
-                        spacing_error_along=cat(along_all),
+    return RibbonLayout(points=cuts.points, grid=cat(cuts.grids).astype(np.int64), kappa1=cat(cuts.kappas),
+                        spacing=cat(cuts.spacings, (0, 2)), length=cat(cuts.lengths), dropped_short=cuts.dropped,
+                        trimmed_angle=cuts.trimmed, direction_deviation=cat(cuts.deviation),
+                        direction_weight=cat(cuts.deviation_weight), k1_deviation=cat(cuts.k1_deviation),
+                        k1_weight=cat(cuts.k1_weight), spacing_error_across=cat(across),
+                        spacing_error_along=cat(cuts.along),
                         centerlines=(centerlines[0], centerlines[1]))
