@@ -11,6 +11,7 @@ name in ``loc`` are cut to 64 characters and "…", a message to 2000.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -18,7 +19,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.routing import Match
+from starlette.routing import BaseRoute, Match
 
 from ribbond.daemon.config import ECHO_MAX, short
 from ribbond.daemon.jobs import IllegalTransition
@@ -202,8 +203,19 @@ def halted(exc: LinkError) -> bool:
 
 def _methods(app: FastAPI, request: Request) -> set[str]:
     methods: set[str] = set()
-    for route in app.router.routes:
+    for route in _leaves(app.router.routes):
         match, _ = route.matches(request.scope)
         if match is not Match.NONE:
             methods |= set(getattr(route, "methods", None) or ())
     return methods
+
+
+def _leaves(routes: Iterable[BaseRoute]) -> Iterator[BaseRoute]:
+    """The routes themselves: newer FastAPI keeps an included router whole (``original_router``,
+    which has no methods) where older ones copied its routes; the routers are mounted unprefixed."""
+    for route in routes:
+        included = getattr(route, "original_router", None)
+        if included is None:
+            yield route
+        else:
+            yield from _leaves(included.routes)
