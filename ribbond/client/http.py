@@ -24,7 +24,7 @@ import select
 import sys
 import time
 import urllib.parse
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -813,8 +813,12 @@ def add_global_options(parser: argparse.ArgumentParser, *, in_subcommand: bool) 
                         **({"default": False} | keep))
 
 
+#: Adds one command: ``cmd(name, help, func, description=None)`` -> its parser.
+Command = Callable[..., argparse.ArgumentParser]
+
+
 def add_commands(sub: Any) -> None:
-    """Add the daemon commands to ``ribbonctl``'s subparsers."""
+    """Add the daemon commands to ``ribbonctl``'s subparsers (in the order ``--help`` lists them)."""
     common = argparse.ArgumentParser(add_help=False)
     add_global_options(common, in_subcommand=True)
 
@@ -823,6 +827,12 @@ def add_commands(sub: Any) -> None:
         p.set_defaults(func=func)
         return p
 
+    for add in (_job_commands, _run_commands, _alignment_commands, _printer_commands, _table_commands):
+        add(cmd)
+
+
+def _job_commands(cmd: Command) -> None:
+    """submit, print, status, watch: a job in and what it is doing."""
     s = cmd("submit", "upload a mesh to the daemon and compile it", cmd_submit)
     s.add_argument("mesh", type=Path)
     s.add_argument("--size", type=float, metavar="MM", help="bounding-box diagonal of the target, mm")
@@ -844,6 +854,10 @@ def add_commands(sub: Any) -> None:
     st.add_argument("--limit", type=int, metavar="N", help="at most N jobs (newest first)")
     w = cmd("watch", "follow a job (progress bar) until it waits for you or ends", cmd_watch)
     w.add_argument("job")
+
+
+def _run_commands(cmd: Command) -> None:
+    """start, pause, cancel, flip-done, accept, re-seat, resume, frame-ok, delete: a job's run."""
     for name, text in (("start", "print a job (again: a new run of the same design)"), ("pause", "pause a print"),
                        ("cancel", "cancel a job"),
                        ("flip-done", "the frame is turned over: go on to the alignment"),
@@ -865,6 +879,10 @@ def add_commands(sub: Any) -> None:
                         "instead of measuring the marks again")
     d = cmd("delete", "remove jobs and their files (not while they print)", cmd_delete)
     d.add_argument("job", nargs="+")
+
+
+def _alignment_commands(cmd: Command) -> None:
+    """align: the registration marks after the flip."""
     a = cmd("align", "the alignment check after the flip: jog onto each mark, then --here", cmd_align,
             "Without options: interactive (type jogs, Enter when the nozzle is on the mark). --here: the "
             "nozzle is over the mark now. --mark N --jog DX DY: report a jog made another way.")
@@ -875,6 +893,10 @@ def add_commands(sub: Any) -> None:
                    "head was sent, mm")
     a.add_argument("--review", action="store_true", help="after the last mark, show the fit and wait for "
                    "ribbonctl accept or re-seat (default: an accepted fit prints the back at once)")
+
+
+def _printer_commands(cmd: Command) -> None:
+    """The printer and its frame, and manual control."""
     cmd("printer", "the printer's state, temperatures, head position and frame (fresh or used)", cmd_printer)
     cmd("frame-ready", "a fresh stretched frame is loaded: the job waiting for it goes on", cmd_frame_ready)
     cmd("home", "home the axes (G28)", cmd_home)
@@ -897,6 +919,10 @@ def add_commands(sub: Any) -> None:
     cmd("cool", "heaters off", cmd_cool)
     cmd("stop", "emergency stop (M112)", cmd_stop)
     cmd("recover", "after an emergency stop or a halt: restart the firmware (M999)", cmd_recover)
+
+
+def _table_commands(cmd: Command) -> None:
+    """tables: the daemon's curvature tables."""
     t = cmd("tables", "the daemon's curvature tables: list, show NAME, add FILE, remove NAME", cmd_tables)
     t.add_argument("action", choices=("list", "show", "add", "remove"))
     t.add_argument("arg", nargs="?", help="NAME (show, remove) or FILE (add)")

@@ -71,33 +71,25 @@ async def _keep_connected(link: PrinterLink, notifier: Notifier, stop: asyncio.E
             await asyncio.wait_for(stop.wait(), RECONNECT_S)
 
 
-async def run(config: DaemonConfig) -> int:
-    state_dir = Path(config.state_dir)
-    try:
-        lock = _lock_state_dir(state_dir)
-    except OSError as exc:
-        raise ValueError(f"cannot use the state directory {state_dir}: {exc.strerror or exc}") from None
-    notifier = Notifier()
+def _open_service(config: DaemonConfig, state_dir: Path, lock: int) -> tuple[JobStore, PrinterLink, RibbonService]:
+    """The job store, the printer link (not connected yet) and the service over them."""
     profile = load_profile(config.printer_profile)
     try:
         store = JobStore(state_dir / "jobs.sqlite3")
         link = PrinterLink(config.serial.port, config.serial.baud,
                            capabilities=Capabilities(rx_buffer_bytes=config.serial.rx_buffer))
-        service = RibbonService(config, profile, store, link)
+        return store, link, RibbonService(config, profile, store, link)
     except OSError as exc:
         os.close(lock)
         raise ValueError(f"cannot use the state directory {state_dir}: {exc.strerror or exc}"
                          + (f" ({exc.filename})" if exc.filename else "")) from None
-    token = resolve_token(config)
-    app = create_app(service, token)
-    # a short graceful shutdown: event streams (ribbonctl watch) never end on their own
-    server = uvicorn.Server(uvicorn.Config(app, host=config.api.host, port=config.api.port,
-                                           log_level=config.log_level, lifespan="off", access_log=False,
-                                           timeout_graceful_shutdown=2))
-    server.install_signal_handlers = lambda: None        # type: ignore[method-assign]  # ours below
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
 
+
+def _stop_on_signals(service: RibbonService, server: uvicorn.Server, notifier: Notifier,
+                     stop: asyncio.Event) -> list[asyncio.Task[None]]:
+    """SIGTERM and SIGINT stop a job on the printer safely, then the server; a second one stops at
+    once. The list returned holds the safe stop once it has begun."""
+    loop = asyncio.get_running_loop()
     stopping: list[asyncio.Task[None]] = []
 
     async def stop_safely(name: str) -> None:
@@ -117,27 +109,52 @@ async def run(config: DaemonConfig) -> int:
 
     for sig in (signal.SIGTERM, signal.SIGINT):
         loop.add_signal_handler(sig, shutdown, sig)
+    return stopping
 
-    async def announce() -> None:
-        while not server.started:
-            await asyncio.sleep(0.05)
-        host, port = server.servers[0].sockets[0].getsockname()[:2]
-        url = f"http://{host if ':' not in host else f'[{host}]'}:{port}"
-        (state_dir / "api.url").write_text(url + "\n", encoding="utf-8")
-        log.info("%s", protection(config, token, url))
-        notifier.ready(f"API on {url}")
 
-    async def watchdog() -> None:
-        interval = notifier.watchdog_interval()
-        if not interval:
-            return
-        while not stop.is_set():
-            notifier.watchdog()
-            with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(stop.wait(), interval)
+async def _announce(server: uvicorn.Server, config: DaemonConfig, token: str | None, notifier: Notifier) -> None:
+    """Once the API listens: its address into ``<state_dir>/api.url``, the log and systemd."""
+    while not server.started:
+        await asyncio.sleep(0.05)
+    host, port = server.servers[0].sockets[0].getsockname()[:2]
+    url = f"http://{host if ':' not in host else f'[{host}]'}:{port}"
+    (Path(config.state_dir) / "api.url").write_text(url + "\n", encoding="utf-8")
+    log.info("%s", protection(config, token, url))
+    notifier.ready(f"API on {url}")
 
+
+async def _watchdog(notifier: Notifier, stop: asyncio.Event) -> None:
+    """Ping systemd's watchdog from the event loop (a stalled loop misses the pings)."""
+    interval = notifier.watchdog_interval()
+    if not interval:
+        return
+    while not stop.is_set():
+        notifier.watchdog()
+        with contextlib.suppress(asyncio.TimeoutError):
+            await asyncio.wait_for(stop.wait(), interval)
+
+
+async def run(config: DaemonConfig) -> int:
+    """Serve until stopped: the printer link, the job service and the API on this event loop."""
+    state_dir = Path(config.state_dir)
+    try:
+        lock = _lock_state_dir(state_dir)
+    except OSError as exc:
+        raise ValueError(f"cannot use the state directory {state_dir}: {exc.strerror or exc}") from None
+    notifier = Notifier()
+    store, link, service = _open_service(config, state_dir, lock)
+    token = resolve_token(config)
+    app = create_app(service, token)
+    # a short graceful shutdown: event streams (ribbonctl watch) never end on their own
+    server = uvicorn.Server(uvicorn.Config(app, host=config.api.host, port=config.api.port,
+                                           log_level=config.log_level, lifespan="off", access_log=False,
+                                           timeout_graceful_shutdown=2))
+    server.install_signal_handlers = lambda: None        # type: ignore[method-assign]  # ours below
+    stop = asyncio.Event()
+    stopping = _stop_on_signals(service, server, notifier, stop)
     service.start()
-    tasks = [asyncio.create_task(announce()), asyncio.create_task(watchdog()),
+    tasks = [asyncio.create_task(_announce(server, config, token, notifier)),
+             asyncio.create_task(_watchdog(notifier, stop)),
              asyncio.create_task(_keep_connected(link, notifier, stop))]
     try:
         await server.serve()
@@ -148,14 +165,19 @@ async def run(config: DaemonConfig) -> int:
             await (stopping[0] if stopping else service.shutdown("the daemon stopped"))
         for task in tasks:
             task.cancel()
-        await service.close()
-        with contextlib.suppress(Exception):
-            await link.close()
-        store.close()
-        with contextlib.suppress(OSError):
-            (state_dir / "api.url").unlink()
-        os.close(lock)
+        await _close(service, link, store, state_dir, lock)
     return 0
+
+
+async def _close(service: RibbonService, link: PrinterLink, store: JobStore, state_dir: Path, lock: int) -> None:
+    """The service, the link and the store closed; the address file removed, the lock released."""
+    await service.close()
+    with contextlib.suppress(Exception):
+        await link.close()
+    store.close()
+    with contextlib.suppress(OSError):
+        (state_dir / "api.url").unlink()
+    os.close(lock)
 
 
 def main(argv: list[str] | None = None) -> int:
