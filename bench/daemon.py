@@ -1,7 +1,7 @@
 """Streaming while a design compiles beside it, as the daemon does (a benchmark, not a test).
 
 The daemon streams to the printer from one asyncio event loop while a compile runs in a worker
-process (``python -m ribbond.worker``, at a lower CPU priority) whose JSON progress lines that same
+process (``python -m ribbond.design.worker``, at a lower CPU priority) whose JSON progress lines that same
 loop reads. This benchmark measures what that design guarantees, against the simulated printer run
 as its own process in real time (``--time-scale 1``) at 250000 baud:
 
@@ -55,12 +55,12 @@ sys.path.insert(0, str(ROOT / "examples" / "meshes"))
 
 from stream import BALANCED_LOAD, FEED, mean_encoded_length, program  # noqa: E402  (bench/stream.py)
 
-from ribbond.compiler import worker_command, worker_environment  # noqa: E402
-from ribbond.events import EventBus  # noqa: E402
+from ribbond.daemon.components.compiler import worker_command, worker_environment  # noqa: E402
+from ribbond.daemon.components.printing import ACK_INTERVAL_S  # noqa: E402
+from ribbond.daemon.events import EventBus  # noqa: E402
+from ribbond.daemon.store import JobStore  # noqa: E402
 from ribbond.printer import PrinterLink, Timeouts  # noqa: E402
 from ribbond.printer.sender import StreamProgress  # noqa: E402
-from ribbond.printing import ACK_INTERVAL_S  # noqa: E402
-from ribbond.store import JobStore  # noqa: E402
 from sim.process import SimProcess  # noqa: E402
 
 BAUD = 250000
@@ -349,7 +349,7 @@ def client_timing(runs: int = 10) -> bool:
             times = []
             for _ in range(runs):
                 t0 = time.perf_counter()
-                subprocess.run([sys.executable, "-m", "ribbond.cli", "status", "--url", url], cwd=root,
+                subprocess.run([sys.executable, "-m", "ribbond.client.cli", "status", "--url", url], cwd=root,
                                stdout=subprocess.DEVNULL, check=True)
                 times.append(time.perf_counter() - t0)
         finally:

@@ -45,7 +45,7 @@ CENTER = (110.0, 110.0)                # the profile's frame centre; flip about 
 
 
 def ribbonctl(url: str, *args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", url],
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", url],
                           cwd=ROOT, text=True, stdout=subprocess.PIPE)
     if check and proc.returncode != 0:
         raise SystemExit(f"demo: ribbonctl {' '.join(args)} failed ({proc.returncode})")

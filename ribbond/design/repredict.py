@@ -11,7 +11,7 @@ What ``table`` changes: only the prediction. The ribbons, their thicknesses (cho
 design's table), ``parameters.curvature_table`` and the print programs stay as they are;
 ``report.deployed.table`` records the table the prediction was made with, so the report says which
 material it describes. Used by ``ribbonctl predict`` and by the daemon's ``POST /jobs/{id}/predict``
-(through ``python -m ribbond.predict_worker``, which prints JSON lines as the compile worker does).
+(through ``python -m ribbond.deploy.worker``, which prints JSON lines as the compile worker does).
 """
 
 from __future__ import annotations

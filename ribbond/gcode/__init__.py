@@ -1,4 +1,3 @@
-"""The G-code stage: design folder → front, back and combined print programs, printer profiles.
-
-Built by issue 5; nothing is here yet.
-"""
+"""The G-code stage: design folder → front, back and combined print programs, printer profiles;
+the safety checker of any program (``checker``) and the rigid fit of the back side's registration
+marks (``alignment``)."""

@@ -15,7 +15,7 @@ Conventions of every program: millimetres, absolute positioning (G90), **relativ
 Every part (a ribbon, a registration mark) is a section that begins with its ``;TYPE:`` comment and
 ends retracted with an ``M400``: the daemon records a part as printed when that ``M400`` is
 acknowledged (Marlin answers it once the planner has drained), and resumes an interrupted print
-after the last part so proven (issue 16; ``ribbond.programs.program_parts``).
+after the last part so proven (issue 16; ``ribbond.daemon.components.programs.program_parts``).
 
 Before anything is returned every XY is checked against the frame rectangle and every feed rate and
 temperature against the profile's maxima; a violation raises ``GcodeError`` naming it.

@@ -167,7 +167,7 @@ def test_residuals_show_the_pooled_points_and_the_noise():
 
 
 def test_ribbonctl_calibrate_locally(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
-    from ribbond.cli import main
+    from ribbond.client.cli import main
 
     out = tmp_path / "cal"
     assert main(["calibrate", "plan", "-o", str(out), "--thicknesses", "0.3,0.6,0.9", "--spacings", "5,10",

@@ -183,7 +183,7 @@ def submit(client: httpx.Client, mesh: Path, *, start: bool, parameters: dict[st
     return str(r.json()["id"])
 
 
-#: The stage of a queued job waiting for the operator to confirm a fresh frame (``ribbond.frame``).
+#: The stage of a queued job waiting for the operator to confirm a fresh frame (``ribbond.daemon.components.frame``).
 FRESH_FRAME_STAGE = "waiting for a fresh frame"
 
 

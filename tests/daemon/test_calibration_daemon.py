@@ -61,7 +61,7 @@ def test_calibration_loop(api: httpx.Client, shared_sim: Sim, shared_daemon: Dae
                 "spacing_mm": float(c["spacing_mm"]), "width_mm": float(c["width_mm"])} for c in rows]
     text, _ = measurement_rows(coupons, NOISE, seed=11, failed=(24,))
     (tmp_path / "measurements.csv").write_text(text)
-    out = subprocess.run([sys.executable, "-m", "ribbond.cli", "calibrate", "record", cal["calibration"],
+    out = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "calibrate", "record", cal["calibration"],
                           str(tmp_path / "measurements.csv"), "-o", str(tmp_path / "law-fabric.toml"), "--add",
                           "--url", shared_daemon.url], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
@@ -119,7 +119,7 @@ def test_tables_are_names_not_paths(api: httpx.Client, meshes: dict[str, Path], 
     assert api.delete("/tables/tpu95a-lycra-default").status_code == 409
     mine = shipped.replace('name = "tpu95a-lycra-default"', 'name = "mine"')
     assert api.post("/tables", json={"toml": mine}).status_code == 201
-    out = subprocess.run([sys.executable, "-m", "ribbond.cli", "tables", "list", "--url", str(api.base_url)],
+    out = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "tables", "list", "--url", str(api.base_url)],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0 and "mine" in out.stdout and "daemon" in out.stdout, out.stderr
     assert api.delete("/tables/mine").status_code == 204

@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-import ribbond.config as config_mod
-from ribbond.config import (
+import ribbond.daemon.config as config_mod
+from ribbond.daemon.config import (
     CONFIG_ENV,
     ApiSettings,
     DaemonConfig,

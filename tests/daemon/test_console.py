@@ -14,7 +14,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from ribbond.config import load_config
+from ribbond.daemon.config import load_config
 from ribbond.gcode.profiles import load_profile
 from tests.daemon.conftest import ROOT, Daemon, Sim, own_printer
 
@@ -130,7 +130,7 @@ def test_after_motors_off_a_move_needs_homing_first(at_centre: httpx.Client, sha
 
 
 def test_ribbonctl_gcode_prints_the_refusal_and_exits_2(shared_daemon: Daemon, at_centre: httpx.Client) -> None:
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", "gcode", "G1 Z-2 F600", "G1 X500 Y-50 F9000",
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "gcode", "G1 Z-2 F600", "G1 X500 Y-50 F9000",
                            "M400", "--url", shared_daemon.url], cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert proc.returncode == 2 and "command 1 (G1 Z-2 F600)" in proc.stderr and "below the fabric" in proc.stderr, \
         (proc.stdout, proc.stderr)

@@ -50,7 +50,7 @@ def quirky_printer(state_dir: Path, *options: str) -> Iterator[tuple[QuirkySim, 
 
 
 def ribbonctl(daemon: Daemon, *args: str) -> dict[str, Any]:
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url, "--json"],
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", daemon.url, "--json"],
                           cwd=ROOT, text=True, capture_output=True, timeout=120)
     assert proc.returncode == 0, f"ribbonctl {' '.join(args)} exited {proc.returncode}: {proc.stderr}"
     return dict(json.loads(proc.stdout))

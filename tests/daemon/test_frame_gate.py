@@ -53,7 +53,7 @@ def queue(api: httpx.Client, path: Path, *, same_frame: bool = False) -> str:
 
 
 def ribbonctl(daemon: Daemon, *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "ribbond.cli", "--url", daemon.url, *args], cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "ribbond.client.cli", "--url", daemon.url, *args], cwd=ROOT,
                           text=True, capture_output=True, timeout=120)
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from ribbond.jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState, check_transition
-from ribbond.service import modal_state
+from ribbond.daemon.jobs import COMMANDS, TRANSITIONS, IllegalTransition, JobState, check_transition
+from ribbond.daemon.service import modal_state
 
 J = JobState
 HAPPY_PATH = [J.SUBMITTED, J.COMPILING, J.READY, J.HEATING, J.PRINTING_FRONT, J.AWAITING_FLIP,
@@ -70,7 +70,7 @@ def test_every_command_names_a_possible_move() -> None:
                 assert target[command] & TRANSITIONS[state], (state, command)
 
 
-#: The job life cycle of ``ribbond/jobs.py``'s docstring, written out by hand (not read from
+#: The job life cycle of ``ribbond/daemon/jobs.py``'s docstring, written out by hand (not read from
 #: ``TRANSITIONS``): for every state, every state it may go to next. Every other target is refused.
 _STOPS = {J.CANCELLED, J.FAILED}                 # the operator cancels; the print task fails it
 _ON_PRINTER = _STOPS | {J.INTERRUPTED}           # ... or the daemon stops while it holds the printer

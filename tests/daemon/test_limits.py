@@ -16,7 +16,7 @@ from typing import Any
 import httpx
 import pytest
 
-from ribbond.guard import Guard, HostRule, Policy
+from ribbond.api.guard import Guard, HostRule, Policy
 from ribbond.printer.link import prepare_program
 from tests.daemon.conftest import ROOT, Daemon, Sim, wait_for
 from tests.daemon.test_console import (BED_MAX, CX, CY, FABRIC, NOZZLE_MAX, PROFILE, SAFE_Z, X0, X1, Y0, Y1,  # noqa: F401
@@ -117,7 +117,7 @@ def test_a_slicers_file_is_clamped_where_firmware_would_clamp(api: httpx.Client,
         for axis, speed in move.axis_speeds().items():
             assert speed <= LIMITS[axis] + 1e-3, (move, axis, speed)
     # ribbonctl status shows the notes
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", "status", job["id"], "--url", shared_daemon.url],
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "status", job["id"], "--url", shared_daemon.url],
                           cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert proc.returncode == 0 and "note: 6 moves' feed rates clamped" in proc.stdout, (proc.stdout, proc.stderr)
 

@@ -23,12 +23,12 @@ from pathlib import Path
 import httpx
 import pytest
 
+from ribbond.daemon.components.temperatures import TemperatureHistory
 from ribbond.design.mesh_io import write_obj
 from ribbond.design.surfaces import plane_disk, sphere_cap
 from ribbond.design.thickness import load_curvature_table
 from ribbond.design.verdict import BADLY_BROKEN_PCT, verdict_lines
 from ribbond.gcode.profiles import load_profile
-from ribbond.temperatures import TemperatureHistory
 from sim.process import SimProcess
 
 from .conftest import BAUD, PREDICT, ROOT, Daemon, Sim, frame_ready, running, wait_for
@@ -44,7 +44,7 @@ HEATING_TIME_SCALE = 0.15
 
 
 def ctl(daemon: Daemon, *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url], cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", daemon.url], cwd=ROOT,
                           text=True, capture_output=True, timeout=200)
 
 
@@ -69,7 +69,7 @@ def test_the_verdict_is_the_same_everywhere(shared_daemon: Daemon, api: httpx.Cl
     # a plane: κ1 = 0 everywhere, below the smallest curvature of the table's ribbons
     table = load_curvature_table("tpu95a-lycra-default")
     assert min(float(table.grid("front").min()), float(table.grid("back").min())) > 0
-    local = subprocess.run([sys.executable, "-m", "ribbond.cli", "design", str(surfaces["plane"]), "-o",
+    local = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "design", str(surfaces["plane"]), "-o",
                             str(tmp_path / "plane"), "--size", "70", "-q"], cwd=ROOT, text=True,
                            capture_output=True, timeout=200)
     assert local.returncode == 0, local.stderr
@@ -152,7 +152,7 @@ def test_temperatures_while_heating_in_status_watch_and_the_history(
     frame_ready(api)                    # a fresh frame loaded (this daemon's first start knows none)
     job = json.loads(ctl(daemon, "submit", str(meshes["one_sided"]), "--size", "70", "--start", "--no-wait",
                          "--json").stdout)["id"]
-    watch = subprocess.Popen([sys.executable, "-m", "ribbond.cli", "watch", job, "--url", daemon.url], cwd=ROOT,
+    watch = subprocess.Popen([sys.executable, "-m", "ribbond.client.cli", "watch", job, "--url", daemon.url], cwd=ROOT,
                              text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         wait_for(api, job, "heating", timeout=120)
@@ -230,8 +230,8 @@ def test_a_halted_printer_refuses_manual_control_with_409(shared_daemon: Daemon,
 def test_a_design_is_read_once_for_its_verdict(tmp_path: Path) -> None:
     """A job list's statuses must not read every design.json (tens of MB with a fine mesh) each time:
     the verdict is kept in memory and beside the job, and read again only for another design folder."""
-    from ribbond.store import JobRecord
-    from ribbond.verdicts import Verdicts
+    from ribbond.daemon.components.verdicts import Verdicts
+    from ribbond.daemon.store import JobRecord
 
     design_dir = tmp_path / "jobs" / "0123456789ab" / "design"
     design_dir.mkdir(parents=True)

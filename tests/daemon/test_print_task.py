@@ -12,13 +12,13 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from ribbond import printing
-from ribbond.config import DaemonConfig
+from ribbond.daemon.components import printing
+from ribbond.daemon.config import DaemonConfig
+from ribbond.daemon.jobs import JobState
+from ribbond.daemon.service import RibbonService
+from ribbond.daemon.store import JobStore
 from ribbond.gcode.profiles import load_profile
-from ribbond.jobs import JobState
 from ribbond.printer.link import PrinterLink
-from ribbond.service import RibbonService
-from ribbond.store import JobStore
 
 from ..conftest import executed_program
 

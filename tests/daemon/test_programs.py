@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import pytest
 
+from ribbond.daemon.components.programs import check_plain_program, check_program, program_timeline
 from ribbond.gcode.profiles import load_profile
-from ribbond.programs import check_plain_program, check_program, program_timeline
 from tests.gcode.reader import read_gcode
 
 PROFILE = load_profile("ultimaker2-tpu")

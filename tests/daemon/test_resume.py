@@ -19,9 +19,9 @@ from typing import Any
 import httpx
 import pytest
 
-from ribbond.jobs import JobState
+from ribbond.daemon.jobs import JobState
+from ribbond.daemon.store import SCHEMA_VERSION, JobStore
 from ribbond.printer import Capabilities, PrinterLink, Timeouts
-from ribbond.store import SCHEMA_VERSION, JobStore
 from sim import FaultConfig
 
 from ..conftest import HOST_COMMANDS as LINK_COMMANDS
@@ -62,7 +62,7 @@ def restart(daemon: Daemon, sim: Sim) -> httpx.Client:
 
 
 def ribbonctl(daemon: Daemon, *args: str) -> dict[str, Any]:
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url, "--json"], cwd=ROOT,
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", daemon.url, "--json"], cwd=ROOT,
                           text=True, capture_output=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     return dict(json.loads(proc.stdout))
@@ -161,7 +161,7 @@ def test_progress_never_goes_back_through_pause_interruption_and_resume(tmp_path
 
 
 def ribbonctl_text(daemon: Daemon, *args: str) -> str:
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url], cwd=ROOT,
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", daemon.url], cwd=ROOT,
                           text=True, capture_output=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     return proc.stdout

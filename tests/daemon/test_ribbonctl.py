@@ -18,7 +18,7 @@ pytestmark = pytest.mark.timeout(180)
 
 
 def ctl(daemon: Daemon, *args: str, stdin: str | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url], cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", daemon.url], cwd=ROOT,
                           text=True, capture_output=True, input=stdin, timeout=150)
 
 
@@ -56,7 +56,7 @@ def test_exit_statuses_and_one_line_errors(shared_daemon: Daemon, api: httpx.Cli
     bad.write_text("not a mesh")
     rejected = ctl(shared_daemon, "submit", str(bad))
     assert rejected.returncode == 2 and "not a mesh file" in rejected.stderr
-    unreachable = subprocess.run([sys.executable, "-m", "ribbond.cli", "status", "--url", "http://127.0.0.1:9"],
+    unreachable = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "status", "--url", "http://127.0.0.1:9"],
                                  cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert unreachable.returncode == 3 and "cannot reach ribbond" in unreachable.stderr
 
@@ -118,7 +118,7 @@ def test_watch_shows_progress_and_stops_at_the_flip_with_the_command_to_run(
     percentage; flip-done prints the new state; global options go before the command too."""
     job = json.loads(ctl(shared_daemon, "submit", str(meshes["two_sided"]), "--size", "70", "--start",
                          "--no-wait", "--json").stdout)["id"]
-    watched = subprocess.run([sys.executable, "-m", "ribbond.cli", "--url", shared_daemon.url, "watch", job],
+    watched = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "--url", shared_daemon.url, "watch", job],
                              cwd=ROOT, text=True, capture_output=True, timeout=150)
     assert watched.returncode == 0, watched.stderr
     out = watched.stdout
@@ -138,7 +138,7 @@ def test_watch_shows_progress_and_stops_at_the_flip_with_the_command_to_run(
     flipped = ctl(shared_daemon, "flip-done", job)
     assert flipped.returncode == 0 and flipped.stdout.split()[1] == "aligning", flipped.stdout
     wait_for(api, job, "aligning", until=lambda j: j["waits_for_operator"])
-    prompt = subprocess.run([sys.executable, "-m", "ribbond.cli", "--json", "--url", shared_daemon.url, "status", job],
+    prompt = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "--json", "--url", shared_daemon.url, "status", job],
                             cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert json.loads(prompt.stdout)["next"]["instruction"].startswith("mark 1 of ")
     bad = ctl(shared_daemon, "align", job, "--mark", "0", "--jog", "0", "0")
@@ -190,7 +190,7 @@ def test_manual_control_plain_gcode_and_delete(shared_daemon: Daemon, api: httpx
 
 
 def test_client_errors_version_help_and_a_fast_start(shared_daemon: Daemon, tmp_path: Path) -> None:
-    run = [sys.executable, "-m", "ribbond.cli"]
+    run = [sys.executable, "-m", "ribbond.client.cli"]
     version = subprocess.run([*run, "--version"], cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert version.returncode == 0 and version.stdout.startswith("ribbonctl ")
     helped = subprocess.run([*run, "--help"], cwd=ROOT, text=True, capture_output=True, timeout=60)
@@ -210,7 +210,7 @@ def test_client_errors_version_help_and_a_fast_start(shared_daemon: Daemon, tmp_
     _, err = proc.communicate(timeout=60)
     assert proc.returncode in (0, 141) and "Traceback" not in err, err
     # the daemon commands load nothing of the design engine, nor a heavy HTTP library
-    probe = subprocess.run([sys.executable, "-c", "import sys, ribbond.cli, ribbond.client; "
+    probe = subprocess.run([sys.executable, "-c", "import sys, ribbond.client.cli, ribbond.client.http; "
                             "print(sorted(m for m in ('numpy', 'scipy', 'matplotlib', 'httpx', 'tqdm', 'igl') "
                             "if m in sys.modules))"], cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert probe.stdout.strip() == "[]", probe.stdout + probe.stderr

@@ -26,7 +26,7 @@ from .conftest import PARAMETERS, ROOT, Daemon
 pytestmark = pytest.mark.timeout(240)
 
 TOKEN = "gate-test-token"
-#: The cut of a reflected value (ribbond.guard.ECHO_MAX) and the bound a reply must stay under.
+#: The cut of a reflected value (ribbond.daemon.config.ECHO_MAX) and the bound a reply must stay under.
 ECHO_MAX = 64
 SMALL_REPLY = 4096
 
@@ -272,7 +272,7 @@ def test_reflected_values_are_cut(gated: Daemon) -> None:
 
 def ctl(daemon: Daemon, *args: str, token: str | None = None) -> subprocess.CompletedProcess[str]:
     extra = ["--token", token] if token else []
-    return subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url, *extra],
+    return subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", daemon.url, *extra],
                           cwd=ROOT, text=True, capture_output=True, timeout=120)
 
 
@@ -302,7 +302,7 @@ def test_an_upload_over_the_limit_is_413_through_ribbonctl(gated: Daemon, tmp_pa
 
 
 def test_allowed_hosts_entries_are_checked_when_the_file_is_read(tmp_path: Path) -> None:
-    from ribbond.config import load_config
+    from ribbond.daemon.config import load_config
 
     good = tmp_path / "good.toml"
     good.write_text('[api]\nallowed_hosts = ["printer.local", "printer.local:8080", "[fe80::1]:7125", "10.0.0.5"]\n')
@@ -358,7 +358,7 @@ def test_a_token_file_is_enforced_on_loopback_too(tmp_path: Path) -> None:
         assert f"API on {daemon.url}: protected by the token in {token_file}" in daemon.log_tail()
 
         def ctl(*args: str) -> subprocess.CompletedProcess[str]:
-            return subprocess.run([sys.executable, "-m", "ribbond.cli", *args, "--url", daemon.url], cwd=ROOT,
+            return subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args, "--url", daemon.url], cwd=ROOT,
                                   text=True, capture_output=True, timeout=60)
 
         refused = ctl("status", "--token", "not-the-token")
@@ -401,7 +401,7 @@ def test_messages_are_not_cut_between_two_quoted_values(gated: Daemon) -> None:
 
 
 def test_a_long_message_is_cut_after_a_whole_word() -> None:
-    from ribbond.apierrors import DETAIL_MAX, bounded
+    from ribbond.api.errors import DETAIL_MAX, bounded
 
     words = " ".join(["flattening"] * 1000)          # 10 999 characters; 2000 is not between two words
     cut = bounded(words)

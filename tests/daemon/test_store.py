@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from ribbond.jobs import TRANSITIONS, IllegalTransition, JobState
-from ribbond.store import SCHEMA_VERSION, JobNotFound, JobRecord, JobStore
+from ribbond.daemon.jobs import TRANSITIONS, IllegalTransition, JobState
+from ribbond.daemon.store import SCHEMA_VERSION, JobNotFound, JobRecord, JobStore
 
 J = JobState
 REPO = Path(__file__).resolve().parents[2]
@@ -400,8 +400,8 @@ def test_killed_process_loses_nothing_committed(db: Path) -> None:
     script = textwrap.dedent(f"""
         import os, sys
         from pathlib import Path
-        from ribbond.jobs import JobState as J
-        from ribbond.store import JobStore
+        from ribbond.daemon.jobs import JobState as J
+        from ribbond.daemon.store import JobStore
         s = JobStore(Path({str(db)!r}))
         job = s.create(mesh_name="a.obj", mesh_path="/a", parameters={{"k": [1, 2]}}, start_when_ready=True)
         for state in (J.COMPILING, J.READY, J.HEATING, J.PRINTING_FRONT):

@@ -19,12 +19,12 @@ from typing import Any
 import httpx
 import pytest
 
-from ribbond.config import DaemonConfig
+from ribbond.daemon.config import DaemonConfig
+from ribbond.daemon.service import MAX_NAME_BYTES, RibbonService, mesh_file_name
+from ribbond.daemon.store import JobStore
 from ribbond.design.mesh_io import write_obj
 from ribbond.design.surfaces import saddle
 from ribbond.gcode.profiles import load_profile
-from ribbond.service import MAX_NAME_BYTES, RibbonService, mesh_file_name
-from ribbond.store import JobStore
 
 from .conftest import ROOT, Daemon, Sim, cancel_leftovers, wait_for
 
@@ -189,7 +189,7 @@ def test_ribbonctl_forwards_the_solver_table(daemon: Daemon, client: httpx.Clien
     params = tmp_path / "params.toml"
     params.write_text("ribbon_length = 15.0\n[size]\nbbox_diagonal = 70\n[solver]\nmax_iterations = 1\n",
                       encoding="utf-8")
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", "submit", str(small),
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "submit", str(small),
                            "--params", str(params), "--no-wait", "--json", "--url", daemon.url],
                           cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
@@ -197,7 +197,7 @@ def test_ribbonctl_forwards_the_solver_table(daemon: Daemon, client: httpx.Clien
     assert job["parameters"]["solver"] == {"max_iterations": 1}
     assert design_report(wait_for(client, job["id"], "ready", timeout=120))["iterations"] == 1
     params.write_text("[solver]\nmax_iterations = 1\nmax_iteration = 2\n", encoding="utf-8")
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", "submit", str(small),
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "submit", str(small),
                            "--params", str(params), "--no-wait", "--url", daemon.url],
                           cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert proc.returncode != 0 and "solver.max_iteration" in proc.stderr

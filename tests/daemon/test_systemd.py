@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from ribbond import sdnotify
-from ribbond.sdnotify import Notifier, notify
+from ribbond.daemon import sdnotify
+from ribbond.daemon.sdnotify import Notifier, notify
 
 ROOT = Path(__file__).resolve().parents[2]
 UNIT = ROOT / "systemd" / "ribbond.service"
@@ -324,7 +324,7 @@ def _fields(model: type, prefix: str = "") -> Iterator[str]:
 
 def test_example_config_documents_every_setting() -> None:
     """Every key of ``DaemonConfig`` appears in the example, set or commented out, in its section."""
-    config = pytest.importorskip("ribbond.config")
+    config = pytest.importorskip("ribbond.daemon.config")
     text = EXAMPLE_CONFIG.read_text(encoding="utf-8")
     section = ""
     present: set[str] = set()
@@ -341,5 +341,5 @@ def test_example_config_documents_every_setting() -> None:
 
 
 def test_example_config_shows_the_defaults() -> None:
-    config = pytest.importorskip("ribbond.config")
+    config = pytest.importorskip("ribbond.daemon.config")
     assert config.load_config(EXAMPLE_CONFIG, environ={}) == config.DaemonConfig()

@@ -40,10 +40,10 @@ CYL_RADIUS, CYL_ANGLE, CYL_HEIGHT = 40.0, 120.0, 60.0
 
 
 def run_design(mesh: Path, out: Path, *args: str, predict: bool = False) -> subprocess.CompletedProcess[str]:
-    """``python -m ribbond.cli design MESH -o OUT ARGS`` with captured text output (without the
+    """``python -m ribbond.client.cli design MESH -o OUT ARGS`` with captured text output (without the
     prediction of the deployed shape unless ``predict``: the cylinder's shared run has it)."""
     return subprocess.run(
-        [sys.executable, "-m", "ribbond.cli", "design", str(mesh), "-o", str(out), *args,
+        [sys.executable, "-m", "ribbond.client.cli", "design", str(mesh), "-o", str(out), *args,
          *(() if predict else ("--no-predict",))],
         cwd=ROOT, capture_output=True, text=True, timeout=180)
 

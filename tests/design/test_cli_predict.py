@@ -35,7 +35,7 @@ KEPT = ("target.obj", "flat.obj", "front.gcode", "back.gcode", "combined.gcode",
 
 
 def ribbonctl(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "ribbond.cli", *args], cwd=ROOT, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "ribbond.client.cli", *args], cwd=ROOT, capture_output=True,
                           text=True, timeout=300)
 
 

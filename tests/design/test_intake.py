@@ -331,7 +331,7 @@ def test_ribbonctl_design_refuses_one_triangle_before_any_stage(tmp_path: Path) 
     mesh = tmp_path / "one.obj"
     mesh.write_text("v 0 0 0\nv 40 0 0\nv 0 40 5\nf 1 2 3\n")
     root = Path(__file__).resolve().parents[2]
-    proc = subprocess.run([sys.executable, "-m", "ribbond.cli", "design", str(mesh), "-o", str(tmp_path / "d"), "-q"],
+    proc = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "design", str(mesh), "-o", str(tmp_path / "d"), "-q"],
                           cwd=root, text=True, capture_output=True, timeout=300)
     assert proc.returncode == 2, proc.stderr                 # bad input, not "cannot make this design"
     assert "at least 2 faces" in proc.stderr and "F must have shape" not in proc.stderr, proc.stderr

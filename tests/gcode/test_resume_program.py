@@ -12,9 +12,9 @@ import math
 
 import pytest
 
+from ribbond.daemon.components.programs import program_parts, resumed_program
+from ribbond.daemon.service import modal_state
 from ribbond.printer.link import prepare_program
-from ribbond.programs import program_parts, resumed_program
-from ribbond.service import modal_state
 
 from .conftest import SaddleDesign
 from .reader import read_gcode

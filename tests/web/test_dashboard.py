@@ -16,7 +16,7 @@ import httpx
 import numpy as np
 import pytest
 
-from ribbond.alignment import expected_marks
+from ribbond.gcode.alignment import expected_marks
 from ribbond.gcode.profiles import load_profile
 from tests.daemon.conftest import CENTER, Daemon, Sim, wait_for
 from tests.daemon.test_daemon_e2e import TOLERANCE, deposit_points, distance_to_polylines, program_deposits

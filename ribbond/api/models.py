@@ -1,0 +1,156 @@
+"""The API's bodies in and out (pydantic models) and the names its paths accept.
+
+The upper bounds of ``HeatRequest`` and ``GotoRequest`` are the printer profile's: the document
+states them (``ribbond.api.openapi``), the manual control checks them.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Annotated, Any, Literal
+
+from fastapi import Path as PathParam
+from pydantic import BaseModel, Field
+
+from ribbond.daemon.components.manual import MAX_MANUAL_COMMANDS
+from ribbond.daemon.store import JobRecord
+from ribbond.design.thickness import TABLE_DIR
+
+#: Files of a job that can be fetched.
+JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "design",
+             "front.gcode": "design", "back.gcode": "design", "combined.gcode": "design",
+             "target.obj": "design", "flat.obj": "design", "deployed.obj": "design", "deployed.png": "design",
+             "back-corrected.gcode": "job",
+             "program.gcode": "job"}
+#: The media type of each kind of file served (named, so the OpenAPI document can list them).
+MEDIA_TYPES = {".png": "image/png", ".svg": "image/svg+xml", ".json": "application/json",
+               ".gcode": "text/x.gcode", ".obj": "model/obj", ".csv": "text/csv"}
+#: A job file's name in a path: one of ``JOB_FILES`` (the document lists them).
+JobFile = Enum("JobFile", {name: name for name in JOB_FILES}, type=str)  # type: ignore[misc]
+#: A calibration's files (``Calibrations.calibration_file``).
+CalibrationFileName = Annotated[str, PathParam(pattern=r"^(plan\.json|coupons\.csv|sheet-[0-9]{1,3}\.(png|svg))$")]
+#: Ids and names in paths: longer ones cannot exist (job ids are 12 hex digits, table names at most
+#: 64 characters), and are refused without being echoed.
+Ident = Annotated[str, PathParam(max_length=64)]
+
+
+class NextStep(BaseModel):
+    """What the operator does next."""
+
+    instruction: str
+    commands: list[str] = Field(description="the exact commands possible now")
+
+
+class JobStatus(JobRecord):
+    """A job as the API shows it: the stored record, its progress and what to do next."""
+
+    progress: float = Field(0.0, ge=0.0, le=1.0, description="0–1: of the compile while compiling, else of "
+                                                              "the print (both sides)")
+    compile_progress: float | None = Field(None, description="the stored progress within a compile stage")
+    eta_s: float | None = Field(None, description="seconds left of the print (the programs' time estimate "
+                                                  "scaled by the measured rate); 0 when done")
+    elapsed_s: float | None = Field(None, description="seconds since this run started (while it runs)")
+    ribbon: int | None = Field(None, description="the ribbon being printed, from 1")
+    ribbons: int | None = Field(None, description="ribbons on the side being printed")
+    print_side: str | None = Field(None, description="the side printed now or next")
+    waits_for_operator: bool = Field(False, description="nothing happens until the operator acts")
+    fit: dict[str, Any] | None = Field(None, description="in state fitted: the alignment's fit under review "
+                                                         "(rotation_deg, offset, rms_mm, max_residual_mm)")
+    alignment: dict[str, Any] | None = Field(None, description="in state aligning: the registration marks "
+                                               "(marks), those measured and kept (kept) and those to measure "
+                                               "again after a refused fit or a re-seat (remeasure), from 1")
+    verdict: list[str] | None = Field(None, description="a design's verdict, one sentence per line: the "
+                                                        "stretch bounds, clamped thicknesses, ribbons dropped "
+                                                        "or trimmed, the prediction (ribbond.design.verdict)")
+    prediction: dict[str, Any] | None = Field(
+        None, description="the design's last prediction asked for (POST /jobs/{id}/predict) in this daemon's "
+        "life: state (running, done, failed), fraction 0–1, message, table, fine; when done the new "
+        "report.deployed (deployed) and verdict; when failed the error")
+    next: NextStep
+
+
+class PredictRequest(BaseModel):
+    """``POST /jobs/{id}/predict``: the prediction's curvature table and model."""
+
+    table: str | None = Field(None, min_length=1, max_length=64,
+                              description="a curvature table's name (GET /tables); default the design's")
+    fine: bool = Field(False, description="the ribbon-resolved model (minutes) instead of the homogenized one")
+
+
+class JogRequest(BaseModel):
+    dx: float = Field(description="mm")
+    dy: float = Field(description="mm")
+    dz: float = Field(0.0, description="mm")
+
+
+class GotoRequest(BaseModel):
+    x: float = Field(description="mm, machine coordinates")
+    y: float = Field(description="mm, machine coordinates")
+
+
+class GcodeRequest(BaseModel):
+    commands: list[Annotated[str, Field(pattern=r"\S")]] = Field(
+        min_length=1, max_length=MAX_MANUAL_COMMANDS, description="one G-code command or a short list")
+
+
+class HeatRequest(BaseModel):
+    # the upper bounds are the profile's: written into the document by ribbond.api.openapi
+    nozzle: float | None = Field(None, ge=0, description="°C; default the profile's print temperature")
+    bed: float | None = Field(None, ge=0, description="°C")
+
+
+class CalibrationRequest(BaseModel):
+    """``POST /calibrations``: the plan's grid and ribbons (``ribbond.calibration.spec``), all optional."""
+
+    # the spec's own bounds, so the document states them; its cross-field rules (increasing grids,
+    # mu1 > ribbon_length) are the spec's to check (422)
+    # at most 16 of each: one request's plan stays bounded (16 x 16 x 2 coupons)
+    thicknesses: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, max_length=16,
+                                                                     description="mm, increasing")
+    spacings: list[Annotated[float, Field(gt=0)]] | None = Field(None, min_length=2, max_length=16,
+                                                                  description="mm, increasing")
+    sides: list[Literal["front", "back"]] | None = Field(None, min_length=1, max_length=2)
+    ribbon_length: float | None = Field(None, gt=0)
+    ribbon_width: float | None = Field(None, gt=0)
+    mu1: float | None = Field(None, gt=0)
+    prestretch: float | None = Field(None, gt=1.0)
+    base_table: str | None = Field(None, min_length=1, max_length=64)
+    fabric: str | None = None
+    material: str | None = None
+    min_coupon_width: float | None = Field(None, gt=0)
+    printer_profile: str | None = Field(None, min_length=1)
+    start: bool = False
+
+
+def _example_table() -> str:
+    """The shipped table's TOML as a daemon table named ``example``: the document's example body."""
+    text = (TABLE_DIR / "tpu95a-lycra-default.toml").read_text(encoding="utf-8")
+    return text.replace('name = "tpu95a-lycra-default"', 'name = "example"', 1)
+
+
+class TableRequest(BaseModel):
+    toml: str = Field(description="the text of a curvature table's TOML file", examples=[_example_table()])
+
+
+class ResumeRequest(BaseModel):
+    """Resuming: for an interrupted print, what to do with the part begun and not proven printed."""
+
+    partial: Literal["skip", "reprint"] | None = Field(None, description="skip it (default) or print it again")
+
+
+class FrameOkRequest(BaseModel):
+    """The frame of a resumed print is checked; for the back, whether the stored alignment holds."""
+
+    keep_alignment: bool = Field(False, description="the frame was not moved: keep the stored correction")
+
+
+class AlignRequest(BaseModel):
+    """One registration mark: the head is on it (``here``), or the jog from where the head was sent
+    to the mark (no jog: it was on the mark)."""
+
+    mark: int | None = Field(None, description="the mark, numbered from 1 (design.json's "
+                                                     "registration_marks[mark - 1]); default: the one the head was sent to")
+    jog: tuple[float, float] | None = Field(None, description="(dx, dy) mm from where the head was sent to the mark")
+    here: bool = Field(False, description="the nozzle is over the mark now (after jogging it there)")
+    review: bool = Field(False, description="after the last mark, wait in 'fitted' for accept or re-seat "
+                                            "instead of printing the back at once")
