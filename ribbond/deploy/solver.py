@@ -316,7 +316,7 @@ def _backtrack(energy: ShellEnergy, state: _State, d: np.ndarray, free: np.ndarr
         Xn = Xn.reshape(-1, 3)
         En = energy.energy(Xn)
         if np.isfinite(En) and En <= state.E + 1e-4 * alpha * slope:
-            return _Step(move=alpha * float(np.abs(d).max()), X=Xn, E=En)
+            return _Step(move=alpha * dmax, X=Xn, E=En)
         alpha *= 0.5
     return None
 
