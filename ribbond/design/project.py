@@ -28,7 +28,7 @@ from .frames import face_frames
 from .intake import TargetMesh, load_target
 from .line_field import ANISOTROPY_THRESHOLD, curvature_line_field
 from .mesh_io import write_obj
-from .panels import (bisect, boundary_loops, interior_edges, longest_axis, panel_submesh, partition, seam_weights,
+from .panels import (bisect, boundary_loops, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
                      spectral_embedding)
 from .params import DesignParameters, SizeSpec, SolverSettings
 from .pipeline import DesignProgress, DesignResult, NoProgress, design_mesh
@@ -75,11 +75,13 @@ class Cut:
 
     Attributes
     ----------
-    labels : (m,) panel of each face (0-based, by decreasing area); checks : per panel;
+    labels : (m,) panel of each face (0-based, by decreasing area); V : (n, 3) the target with its seams
+    straightened (``panels.straighten_seams``: the same surface); checks : per panel;
     tried : per panel count tried, the worst bad_pct and whether all fit; feasible : every panel is.
     """
 
     labels: np.ndarray
+    V: np.ndarray
     checks: list[PanelCheck]
     tried: list[dict] = field(default_factory=list)
 
@@ -130,19 +132,20 @@ class _Checker:
         self.V, self.F, self.params, self.solver, self.frame, self.margin = V, F, params, solver, frame, margin
         self.seen: dict[bytes, PanelCheck] = {}
 
-    def __call__(self, labels: np.ndarray, j: int) -> PanelCheck:
+    def __call__(self, X: np.ndarray, labels: np.ndarray, j: int) -> PanelCheck:
         key = np.flatnonzero(labels == j).tobytes()
         if key not in self.seen:
-            Vp, Fp, _, _ = panel_submesh(self.V, self.F, labels, j)
+            Vp, Fp, _, _ = panel_submesh(X, self.F, labels, j)
             self.seen[key] = (check_panel(Vp, Fp, self.params, self.solver, self.frame, self.margin)
                               if _is_disk(Fp, len(Vp)) else PanelCheck(100.0, (np.inf, np.inf), False))
         return self.seen[key]
 
-    def all(self, labels: np.ndarray, stop_early: bool) -> list[PanelCheck]:
-        """Each panel's check in order; with ``stop_early``, up to the first that is not feasible."""
+    def all(self, X: np.ndarray, labels: np.ndarray, stop_early: bool) -> list[PanelCheck]:
+        """Each panel's check in order (X (n, 3): the target as cut); with ``stop_early``, up to the first
+        that is not feasible."""
         checks = []
         for j in range(int(labels.max()) + 1):
-            checks.append(self(labels, j))
+            checks.append(self(X, labels, j))
             if stop_early and not checks[-1].feasible:
                 break
         return checks
@@ -176,7 +179,7 @@ def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: S
     cut = None
     for k in counts:
         if k > 1 and panels == "auto":
-            checks = check.all(halves, stop_early=False)
+            checks = check.all(straighten_seams(V, F, halves), halves, stop_early=False)
             sizes = np.bincount(halves, weights=area) * np.array([not c.feasible for c in checks])
             j = int(np.argmax(sizes))                                                 # the largest that failed
             across = None if checks[j].fits else longest_axis(V[F].mean(axis=1), area, np.flatnonzero(halves == j))
@@ -185,10 +188,11 @@ def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: S
                             ("bisection", halves)):
             if how == "bisection" and (k == 1 or panels != "auto"):
                 continue
-            checks = check.all(labels, stop_early=panels == "auto")
+            X = straighten_seams(V, F, labels) if k > 1 else V
+            checks = check.all(X, labels, stop_early=panels == "auto")
             tried.append({"panels": k, "cut": how, "worst_bad_pct": round(max(c.bad_pct for c in checks), 3),
                           "fit": all(c.fits for c in checks), "checked": len(checks)})
-            cut = Cut(labels=labels, checks=checks, tried=list(tried))
+            cut = Cut(labels=labels, V=X, checks=checks, tried=list(tried))
             if cut.feasible and len(checks) == k:
                 break
         if progress is not None:
@@ -423,13 +427,13 @@ def design_project(mesh_path: str | Path, parameters: DesignParameters | None = 
     panel_solver = solver.model_copy(update={"refine_below_faces": 0, "layout_margin": margin})
     t = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="ribbond-panels-") as tmp:
-        designs = [_design_panel(V, target.F, cut.labels, j, cut.count, target.name, params, panel_solver, frame,
+        designs = [_design_panel(cut.V, target.F, cut.labels, j, cut.count, target.name, params, panel_solver, frame,
                                  progress, predict, tables_dir, Path(tmp)) for j in range(cut.count)]
     timings["panels"] = time.perf_counter() - t
     t = time.perf_counter()
-    seams = project_seams(V, target.F, designs)
+    seams = project_seams(cut.V, target.F, designs)
     timings["seams"] = time.perf_counter() - t
-    return ProjectResult(target=target, V=V, F=target.F, cut=cut, panels=designs, seams=seams,
+    return ProjectResult(target=target, V=cut.V, F=target.F, cut=cut, panels=designs, seams=seams,
                          seam_allowance=seam_allowance, size=size, timings=timings)
 
 

@@ -8,7 +8,7 @@ import pytest
 from ribbond.design import surfaces
 from ribbond.design.frames import face_frames
 from ribbond.design.panels import (bisect, boundary_loops, cut_weight, interior_edges, longest_axis,
-                                   panel_submesh, partition, seam_weights, spectral_embedding)
+                                   panel_submesh, partition, seam_weights, spectral_embedding, straighten_seams)
 from ribbond.design.seams import (mark_count, outward_normals, points_at_fractions, polyline_length,
                                   seam_chains, seam_label)
 
@@ -106,3 +106,23 @@ def test_outward_normals_of_a_square_point_out():
 def test_marks_and_labels():
     assert mark_count(5.0, 20.0) == 2 and mark_count(80.0, 20.0) == 5
     assert [seam_label(i) for i in (0, 25, 26, 27)] == ["A", "Z", "AA", "AB"]
+
+
+def test_straightened_gore_seams_are_meridians_on_the_sphere():
+    V, F = surfaces.sphere_cap(50.0, 90.0, rings=16)
+    pairs, verts, weights, area = _graph(V, F)
+    labels = partition(spectral_embedding(pairs, weights, area, 2), 3, pairs, weights, area)
+    X = straighten_seams(V, F, labels)
+    sagitta = np.abs(np.linalg.norm(V[F].mean(axis=1), axis=1) - 50.0).max()   # the mesh's own distance
+    assert np.abs(np.linalg.norm(X, axis=1) - 50.0).max() <= sagitta            # still on the (meshed) sphere
+    loops = []
+    for k in range(3):
+        _, Fp, vi, _ = panel_submesh(X, F, labels, k)
+        loops.append(vi[boundary_loops(Fp)[0]])
+    for chain in seam_chains(loops):
+        P = X[chain.vertices]
+        before = polyline_length(V[chain.vertices])
+        assert polyline_length(P) == pytest.approx(np.pi * 25.0, rel=0.01)     # a meridian: π r / 2
+        assert before > 1.05 * polyline_length(P)                                # the zigzag it was
+        normal = np.cross(P[0], P[-1])                                          # a meridian lies in a plane
+        assert np.abs(P @ (normal / np.linalg.norm(normal))).max() < 1.0        # through the axis

@@ -11,23 +11,24 @@ from ribbond.design import surfaces
 from ribbond.design.errors import DesignError
 from ribbond.design.folder import read_design_folder
 from ribbond.design.mesh_io import write_obj
-from ribbond.design.params import DesignParameters
+from ribbond.design.params import DesignParameters, SolverSettings
 from ribbond.design.project import MAX_BAD_PCT, PROJECT_FILE, design_project, write_project
 from ribbond.gcode.profiles import load_profile
 
 RADIUS = 50.0
+SOLVER = SolverSettings(refine_below_faces=0)           # 2,400 faces as they are: a quicker test
 
 
 @pytest.fixture(scope="module")
 def hemisphere(tmp_path_factory):
     path = tmp_path_factory.mktemp("hemi") / "hemisphere.obj"
-    write_obj(path, *surfaces.sphere_cap(RADIUS, 90.0, rings=30))
+    write_obj(path, *surfaces.sphere_cap(RADIUS, 90.0, rings=20))
     return path
 
 
 @pytest.fixture(scope="module")
 def project(hemisphere):
-    return design_project(hemisphere, DesignParameters(), predict=False)
+    return design_project(hemisphere, DesignParameters(), SOLVER, predict=False)
 
 
 def test_a_hemisphere_needs_panels_and_each_is_within_the_bounds_and_the_frame(project):
@@ -51,19 +52,26 @@ def test_the_panels_keep_the_target_whole_and_at_its_scale(project):
         assert np.allclose(p.result.V[p.local] + p.offset, project.V[p.vertex_index], atol=1e-6)
 
 
-def test_gore_seams_run_from_the_pole_to_the_rim(project):
-    assert len(project.seams) == project.cut.count                         # gores: one seam between neighbours
-    meridian = np.pi * RADIUS / 2
+def test_seams_are_great_circle_arcs_joining_all_panels(project):
+    """Gores of a sphere meet along great circles: each seam (straightened, not the mesh's zigzag) is
+    as long as the arc between its ends, and the seams join every panel into one piece to sew."""
+    joined = {0}
+    for _ in project.seams:
+        joined |= {p for s in project.seams if set(s.panels) & joined for p in s.panels}
+    assert joined == set(range(project.cut.count))
+    centre = project.V[:, :2].mean(axis=0)
+    base = project.V[:, 2].min()
     for seam in project.seams:
-        ends = project.V[seam.vertices[[0, -1]]]
-        z = np.sort(ends[:, 2] - project.V[:, 2].min())
-        assert z[0] < 3.0 and z[1] > RADIUS - 3.0                          # rim to pole
-        assert meridian <= seam.target_length <= 1.2 * meridian            # on mesh edges: a little jagged
+        P = project.V[seam.vertices] - np.r_[centre, base]                 # the sphere's centre at the rim plane
+        ends = P[[0, -1]] / np.linalg.norm(P[[0, -1]], axis=1)[:, None]
+        arc = RADIUS * np.arccos(np.clip(ends[0] @ ends[1], -1, 1))
+        if arc > 20.0:
+            assert seam.target_length == pytest.approx(arc, rel=0.01)
         for side, flat in zip(seam.panels, seam.flat):                     # on each panel's flat outline
             outline = project.panels[side].outline()
             d = np.linalg.norm(flat[:, None] - outline[None], axis=2).min(axis=1)
             assert d.max() < 1e-9
-        assert len(seam.marks[0]) == len(seam.marks[1]) >= 4
+        assert len(seam.marks[0]) == len(seam.marks[1]) >= 2
 
 
 def test_the_project_folder(project, tmp_path):
@@ -92,4 +100,4 @@ def test_bad_requests_are_refused_naming_the_setting(hemisphere):
     with pytest.raises(DesignError, match="seam_allowance"):
         design_project(hemisphere, seam_allowance=-1.0)
     with pytest.raises(DesignError, match="2 panels leave"):
-        design_project(hemisphere, panels=2, predict=False)
+        design_project(hemisphere, solver=SOLVER, panels=2, predict=False)
