@@ -183,3 +183,19 @@ def _seam_angles(X, panels, seam_pts):
         nrm = np.cross(X[k][c[:, 1]] - X[k][c[:, 0]], X[k][c[:, 2]] - X[k][c[:, 0]])
         normals.append(nrm / np.linalg.norm(nrm, axis=1, keepdims=True))
     return np.arccos(np.clip(np.sum(normals[0] * normals[1], axis=1), -1.0, 1.0))
+
+
+def test_bad_seams_are_refused_with_their_name():
+    uv, F = _rect(4, 4, (20.0, 20.0))
+    sheet, _ = sheet_for_layout(uv, F, [], prestretch=S, ribbon_width=W, table=TABLE)
+    panel = ReleasedPanel(sheet=sheet, X=np.column_stack([uv, np.zeros(len(uv))]), target=np.zeros((len(uv), 3)))
+    edge = np.column_stack([np.full(5, 20.0), np.linspace(0.0, 20.0, 5)])
+    other = edge - [20.0, 0.0]
+    cases = [([panel, panel], [], "panel 1 is not connected"),
+             ([panel, panel], [SeamPairing(0, edge, 2, other)], "seam 0: panel_b = 2"),
+             ([panel, panel], [SeamPairing(0, edge, 1, other[:3])], "seam 0: points_a and points_b"),
+             ([panel, panel], [SeamPairing(0, edge + [30.0, 0.0], 1, other)], "seam 0: point 0 lies"),
+             ([panel, panel], [SeamPairing(1, edge, 1, other)], "sews panel 1 to itself")]
+    for panels, seams, message in cases:
+        with pytest.raises(ValueError, match=message):
+            place_panels(panels, seams)
