@@ -41,7 +41,7 @@ from .rest_forms import Coverage, face_coverage, rest_forms
 from .solver import newton
 
 __all__ = ["Material", "Prediction", "ReferenceMesh", "reference_mesh", "sheet_for_layout", "RELEASES",
-           "predict_deployed"]
+           "predict_deployed", "barycentric", "interpolate"]
 
 #: Default face count of the reference mesh.
 DEFAULT_FACES = 3000
@@ -118,9 +118,10 @@ def reference_mesh(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray,
     return ReferenceMesh(uv=rm.uv, F=rm.F, target=rm.vertex_values(target_V), coarsened=True)
 
 
-def interpolate(points: np.ndarray, uv: np.ndarray, F: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``values`` (n, k) given at the vertices of the flat mesh (uv (n, 2), F), interpolated
-    (piecewise linearly) at ``points`` (p, 2) (the nearest point of the mesh for points outside)."""
+def barycentric(points: np.ndarray, uv: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where ``points`` (p, 2) lie on the flat mesh (uv (n, 2), F (m, 3)): per point its face (p,),
+    that face's vertices (p, 3) and their barycentric weights (p, 3) (≥ 0, summing to 1), of the
+    nearest point of the mesh for points outside it."""
     P3 = np.column_stack([points, np.zeros(len(points))])
     V3 = np.column_stack([uv, np.zeros(len(uv))])
     _, face, closest = igl.point_mesh_squared_distance(P3, V3, np.asarray(F, dtype=np.int64))
@@ -129,6 +130,13 @@ def interpolate(points: np.ndarray, uv: np.ndarray, F: np.ndarray, values: np.nd
                                        np.ascontiguousarray(V3[c[:, 1]]), np.ascontiguousarray(V3[c[:, 2]]))
     bary = np.clip(np.asarray(bary), 0.0, None)
     bary /= bary.sum(axis=1, keepdims=True)
+    return np.asarray(face, dtype=np.int64), c, bary
+
+
+def interpolate(points: np.ndarray, uv: np.ndarray, F: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` (n, k) given at the vertices of the flat mesh (uv (n, 2), F), interpolated
+    (piecewise linearly) at ``points`` (p, 2) (the nearest point of the mesh for points outside)."""
+    _, c, bary = barycentric(points, uv, F)
     return np.einsum("pc,pck->pk", bary, values[c])
 
 
@@ -149,6 +157,9 @@ class Prediction:
     iterations : Newton iterations of all releases; converged : every release reached equilibrium.
     steps : release steps of each path; time_s : wall time of the whole prediction, s; faces : len(F).
     coverage : what the layout puts on each face of the reference mesh (None for the fine model).
+    sheet : the printed sheet the nominal release was finished on (its uv and F are ``uv`` and ``F``).
+    X_released : (k, 3) the nominal release's equilibrium in the flat sheet's frame, before the
+        registration (what ``assembly.assemble`` places and sews).
     """
 
     V: np.ndarray
@@ -166,6 +177,8 @@ class Prediction:
     time_s: float
     faces: int
     coverage: Coverage | None = field(repr=False, default=None)
+    sheet: Sheet | None = field(repr=False, default=None)
+    X_released: np.ndarray | None = field(repr=False, default=None)
 
     @property
     def reached(self) -> bool:
@@ -348,4 +361,5 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
                       deviation_pct=nominal.as_dict(), agreement=a,
                       releases=[{"name": p.name, "deviation_pct": d.as_dict()} for (p, _), d in zip(results, devs)],
                       model=model, iterations=iterations, converged=bool(converged), steps=steps,
-                      time_s=time.perf_counter() - t0, faces=len(ref.F), coverage=cov)
+                      time_s=time.perf_counter() - t0, faces=len(ref.F), coverage=cov, sheet=sheet,
+                      X_released=results[0][1])
