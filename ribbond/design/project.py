@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..deploy.assembly import Assembly, ReleasedPanel, SeamPairing, assemble
 from ..gcode.profiles import FrameSpec, load_profile
 from .curvature import face_curvature
 from .errors import DesignError
@@ -367,7 +368,7 @@ class ProjectResult:
     target : the cleaned (refined) target as read; V : (n, 3) it centred at its physical size, mm; F : (m, 3).
     cut : the partition and its checks; panels : each panel's design (panel K is ``panels[K − 1]``);
     seams : the seams; seam_allowance : mm on the released fabric; size : the target's bbox diagonal, mm;
-    timings : seconds per step.
+    timings : seconds per step; assembly : the panels' predictions sewn together (None without predictions).
     """
 
     target: TargetMesh
@@ -379,6 +380,7 @@ class ProjectResult:
     seam_allowance: float
     size: float
     timings: dict[str, float]
+    assembly: Assembly | None = None
 
 
 def _check_request(panels: int | str, seam_allowance: float) -> None:
@@ -433,8 +435,48 @@ def design_project(mesh_path: str | Path, parameters: DesignParameters | None = 
     t = time.perf_counter()
     seams = project_seams(cut.V, target.F, designs)
     timings["seams"] = time.perf_counter() - t
+    assembly = None
+    if predict:
+        t = time.perf_counter()
+        progress.stage_started("assemble", f"sewing the {cut.count} predicted panels together")
+        assembly = assemble_prediction(cut.V, target.F, designs, seams)
+        timings["assemble"] = time.perf_counter() - t
+        progress.stage_finished("assemble", timings["assemble"], _assembly_summary(assembly))
     return ProjectResult(target=target, V=cut.V, F=target.F, cut=cut, panels=designs, seams=seams,
-                         seam_allowance=seam_allowance, size=size, timings=timings)
+                         seam_allowance=seam_allowance, size=size, timings=timings, assembly=assembly)
+
+
+#: Matched points along a seam for the sewing, about this far apart (deployed), mm.
+SEWING_SPACING = 2.0
+
+
+def assemble_prediction(V: np.ndarray, F: np.ndarray, panels: list[PanelDesign], seams: list[Seam]) -> Assembly:
+    """The panels as released, sewn along their seams (``ribbond.deploy.assembly``): each seam's two
+    sides paired at matched fractions of their deployed lengths, as the stitch marks pin them. The whole
+    target (V (n, 3), F (m, 3)) only registers and measures the result."""
+    released = []
+    for panel in panels:
+        p = panel.result.prediction
+        assert p is not None
+        released.append(ReleasedPanel(sheet=p.sheet, X=p.X_released, target=p.target + panel.offset))
+    pairings = []
+    for seam in seams:
+        a, b = (panels[k] for k in seam.panels)
+        fractions = np.linspace(0.0, 1.0, mark_count(seam.target_length, SEWING_SPACING))
+        points = [points_at_fractions(flat, _deployed_polyline(side, flat), fractions)
+                  for side, flat in zip((a, b), seam.flat)]
+        pairings.append(SeamPairing(panel_a=seam.panels[0], points_a=points[0], panel_b=seam.panels[1],
+                                    points_b=points[1]))
+    try:
+        return assemble(released, pairings, V, F)
+    except ValueError as exc:
+        raise DesignError(f"the panels cannot be sewn together: {exc}") from None
+
+
+def _assembly_summary(a: Assembly) -> str:
+    d = a.deviation_pct
+    return (f"deviation mean {d['mean']:.2f} %, p99 {d['p99']:.2f} %, max {d['max']:.2f} % of the diagonal; "
+            f"seams closed to {a.seam_gap_mm['max']:.3f} mm; {a.iterations} Newton iterations")
 
 
 def _panel_entry(k: int, panel: PanelDesign, check: PanelCheck, V: np.ndarray) -> dict:
@@ -476,7 +518,7 @@ def project_document(result: ProjectResult) -> dict:
                        "seam_mismatch_pct_max": max((s.length_mismatch_pct or 0.0 for s in result.seams),
                                                     default=0.0) if result.seams and
                        result.seams[0].deployed_length is not None else None,
-                       "deployed": None,
+                       "deployed": None if result.assembly is None else result.assembly.report(),
                        "timings_s": {k: round(v, 3) for k, v in result.timings.items()},
                        "time_s": round(sum(result.timings.values()), 3)}}
 
@@ -516,6 +558,12 @@ def write_project(result: ProjectResult, out_dir: str | Path, progress: DesignPr
             write_design(panel.result, tmp / f"panel-{k}")
         write_obj(tmp / "target.obj", result.V, result.F, header="ribbond project: the whole target, mm")
         (tmp / "panels.png").write_bytes(render_project_png(result))
+        if result.assembly is not None:
+            a = result.assembly
+            write_obj(tmp / "deployed.obj", a.V, a.F, header=f"ribbond project: the {result.cut.count} panels "
+                      "predicted, sewn and registered to target.obj, mm")
+            (tmp / "deployed.png").write_bytes(a.render_png(result.V, result.F, title=(
+                f"{result.target.name}: {result.cut.count} panels sewn, predicted")))
         (tmp / PROJECT_FILE).write_text(json.dumps(project_document(result), indent=1) + "\n")
         old = None
         if out_dir.exists():
