@@ -298,6 +298,9 @@ class Report(_Updatable):
         "centerline pulled back through the flattening), length-weighted (format 2)")
     umbilic_pct: float | None = Field(None, ge=0, le=100,
                                       description="% of faces with anisotropy ≤ 0.3 (format 2)")
+    panels_suggested: int | None = Field(
+        None, ge=0, description="when more than 1 % of faces break the stretch bounds: how many panels "
+        "`--panels auto` would cut the target into (0: not even the most it tries) (issue 26)")
     ribbons: RibbonsReport | None = None
     print_: PrintReport | None = Field(None, alias="print")
     deployed: DeployedReport | None = None

@@ -324,7 +324,17 @@ def _fit_in_frame(run: _Run) -> None:
         raise DesignError(
             f"at size {run.size:.1f} mm (bounding-box diagonal) the flat layout is {w:.0f} × {h:.0f} mm, "
             f"larger than the frame's {frame.size[0]:.0f} × {frame.size[1]:.0f} mm less a "
-            f"{margin:.0f} mm margin; the largest size that fits is {run.size * fits:.1f} mm")
+            f"{margin:.0f} mm margin; the largest size that fits is {run.size * fits:.1f} mm"
+            + _panels_hint(run))
+
+
+def _panels_hint(run: _Run) -> str:
+    """How many panels ``--panels auto`` would cut a design too large for one sheet into (issue 26)."""
+    from .project import SEAM_ALLOWANCE, cut_target, panel_margin
+    margin = panel_margin(run.solver, SEAM_ALLOWANCE, run.params.prestretch)
+    cut = cut_target(run.V, run.F, run.params, run.solver, run.frame, "auto", margin)
+    return (f", or --panels auto would cut it into {cut.count} panels that fit" if cut.feasible
+            else "; not even the most panels --panels auto tries would fit")
 
 
 def _in_print_coordinates(run: _Run) -> None:
@@ -342,6 +352,18 @@ def _in_print_coordinates(run: _Run) -> None:
     run.kappa1 = run.curvature.normal_curvature(run.line_field.local) / run.scale
     run.report = flattening_report(run.flat, run.frames.area, run.params.bounds, run.timings,
                                    total_time=time.perf_counter() - run.t_start)
+    _suggest_panels(run)
+
+
+def _suggest_panels(run: _Run) -> None:
+    """A surface one sheet cannot make: how many panels ``--panels auto`` would make (issue 26)."""
+    from .project import MAX_BAD_PCT, SEAM_ALLOWANCE, cut_target, panel_margin
+    bad = max(run.report["sigma1_bad_pct"], run.report["sigma2_bad_pct"])
+    if bad <= MAX_BAD_PCT:
+        return
+    margin = panel_margin(run.solver, SEAM_ALLOWANCE, run.params.prestretch)
+    cut = cut_target(run.V, run.F, run.params, run.solver, run.frame, "auto", margin)
+    run.report["panels_suggested"] = cut.count if cut.feasible else 0
 
 
 def _stripes(run: _Run) -> str:

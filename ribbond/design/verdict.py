@@ -122,13 +122,25 @@ def deployed_figures(deployed: dict[str, Any]) -> str:
     return "; ".join(f"{label} {text}" for label, text in deployed_parts(deployed))
 
 
+def _panels_line(report: dict[str, Any]) -> list[str]:
+    """What ``--panels auto`` would make of a surface one sheet cannot (issue 26)."""
+    n = report.get("panels_suggested")
+    if n is None:
+        return []
+    if n == 0:
+        return ["not even the most panels --panels auto tries would each keep to the bounds: make the "
+                "surface smaller or smoother"]
+    return [f"one sheet cannot make it: --panels auto would cut it into {n} panels, each within the "
+            "stretch bounds and the frame, to be sewn together"]
+
+
 def verdict_lines(design: dict[str, Any]) -> list[str]:
     """The verdict of a design (``design.json`` as a dict: its ``report`` and ``parameters``), one
     sentence per line: the stretch bounds, clamped thicknesses, ribbons dropped or trimmed, the
     prediction."""
     report = design.get("report") or {}
     parameters = design.get("parameters") or {}
-    lines = [bounds_line(report)]
+    lines = [bounds_line(report)] + _panels_line(report)
     ribbons = report.get("ribbons")
     if ribbons:
         lines += _ribbon_lines(ribbons, parameters)

@@ -1,0 +1,95 @@
+"""A project of panels (ribbond.design.project): a hemisphere one sheet cannot make, cut, designed, written."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ribbond.design import surfaces
+from ribbond.design.errors import DesignError
+from ribbond.design.folder import read_design_folder
+from ribbond.design.mesh_io import write_obj
+from ribbond.design.params import DesignParameters
+from ribbond.design.project import MAX_BAD_PCT, PROJECT_FILE, design_project, write_project
+from ribbond.gcode.profiles import load_profile
+
+RADIUS = 50.0
+
+
+@pytest.fixture(scope="module")
+def hemisphere(tmp_path_factory):
+    path = tmp_path_factory.mktemp("hemi") / "hemisphere.obj"
+    write_obj(path, *surfaces.sphere_cap(RADIUS, 90.0, rings=30))
+    return path
+
+
+@pytest.fixture(scope="module")
+def project(hemisphere):
+    return design_project(hemisphere, DesignParameters(), predict=False)
+
+
+def test_a_hemisphere_needs_panels_and_each_is_within_the_bounds_and_the_frame(project):
+    assert project.cut.tried[0]["worst_bad_pct"] > 50            # one sheet: most faces out of bounds
+    assert project.cut.count >= 2 and project.cut.feasible
+    frame = load_profile(DesignParameters().printer_profile).frame
+    x0, y0, x1, y1 = frame.bounds
+    for panel in project.panels:
+        r = panel.result.design.report
+        bad = np.maximum(r.sigma1_bad_pct, r.sigma2_bad_pct)
+        assert bad <= MAX_BAD_PCT + 1e-9
+        lo, hi = panel.result.flat_uv.min(axis=0), panel.result.flat_uv.max(axis=0)
+        room = project.seam_allowance * 1.6                         # the allowance on the stretched fabric
+        assert lo[0] - room >= x0 and lo[1] - room >= y0 and hi[0] + room <= x1 and hi[1] + room <= y1
+
+
+def test_the_panels_keep_the_target_whole_and_at_its_scale(project):
+    faces = np.concatenate([p.face_index for p in project.panels])
+    assert np.array_equal(np.sort(faces), np.arange(len(project.F)))       # every face in one panel
+    for p in project.panels:                                               # at the target's scale, not refit
+        assert np.allclose(p.result.V[p.local] + p.offset, project.V[p.vertex_index], atol=1e-6)
+
+
+def test_gore_seams_run_from_the_pole_to_the_rim(project):
+    assert len(project.seams) == project.cut.count                         # gores: one seam between neighbours
+    meridian = np.pi * RADIUS / 2
+    for seam in project.seams:
+        ends = project.V[seam.vertices[[0, -1]]]
+        z = np.sort(ends[:, 2] - project.V[:, 2].min())
+        assert z[0] < 3.0 and z[1] > RADIUS - 3.0                          # rim to pole
+        assert meridian <= seam.target_length <= 1.2 * meridian            # on mesh edges: a little jagged
+        for side, flat in zip(seam.panels, seam.flat):                     # on each panel's flat outline
+            outline = project.panels[side].outline()
+            d = np.linalg.norm(flat[:, None] - outline[None], axis=2).min(axis=1)
+            assert d.max() < 1e-9
+        assert len(seam.marks[0]) == len(seam.marks[1]) >= 4
+
+
+def test_the_project_folder(project, tmp_path):
+    out = write_project(project, tmp_path / "bowl")
+    doc = json.loads((out / PROJECT_FILE).read_text())
+    assert doc["format"] == "ribbond-project/1" and doc["report"]["panels"] == project.cut.count
+    assert [p["folder"] for p in doc["panels"]] == [f"panel-{k}" for k in range(1, project.cut.count + 1)]
+    for entry in doc["panels"]:
+        folder = read_design_folder(out / entry["folder"])
+        assert len(folder.design.ribbons) == entry["ribbons"] > 0
+        assert (out / entry["folder"] / "front.gcode").stat().st_size > 0
+    assert {tuple(s["panels"]) for s in doc["seams"]} == {tuple(sorted((a + 1, b + 1))) for a, b in
+                                                         (s.panels for s in project.seams)}
+    assert (out / "panels.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    write_project(project, out)                                            # a project folder is replaced
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match="not a project folder"):
+        write_project(project, tmp_path / "other")
+    assert (tmp_path / "other" / "notes.txt").read_text() == "mine"
+
+
+def test_bad_requests_are_refused_naming_the_setting(hemisphere):
+    with pytest.raises(DesignError, match="panels = 0"):
+        design_project(hemisphere, panels=0)
+    with pytest.raises(DesignError, match="seam_allowance"):
+        design_project(hemisphere, seam_allowance=-1.0)
+    with pytest.raises(DesignError, match="2 panels leave"):
+        design_project(hemisphere, panels=2, predict=False)
