@@ -257,7 +257,7 @@ class RibbonService:
 
     def submit_project(self, upload: Path, name: str, parameters: dict[str, Any], panels: str,
                        seam_allowance: float, start: bool) -> dict[str, Any]:
-        """Take an uploaded mesh to print in panels (``panels``: ``auto`` or 2 to 20): checked as a
+        """Take an uploaded mesh to print in panels (``panels``: ``auto`` or 2 to 16): checked as a
         job's mesh is, then compiled once; its panels become one job each (``Projects``). Its view."""
         panels = check_panels(panels)
         safe = mesh_file_name(name)

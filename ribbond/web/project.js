@@ -67,7 +67,7 @@ export function panelListHTML(p) {
   return `<ol class="panel-list">${(p.panels || []).map((q) => {
     const cls = panelClass(q);
     const size = (q.flat_size_mm || []).length === 2 ? `${q.flat_size_mm[0].toFixed(0)} × ${q.flat_size_mm[1].toFixed(0)} mm` : "";
-    const pct = ["printing", "waiting"].includes(cls) ? ` ${Math.round((q.progress || 0) * 100)} %` : "";
+    const pct = cls === "printing" || (cls === "waiting" && !q.at_gate) ? ` ${Math.round((q.progress || 0) * 100)} %` : "";
     const job = q.job_id ? `<a href="#/job/${esc(q.job_id)}">job ${esc(q.job_id)}</a>` : "no job";
     const label = q.at_gate ? "waits for a fresh fabric" : q.state.replace("_", " ");
     return `<li class="${cls}"><i class="sw ${cls}"></i><b>Panel ${q.index}</b> <span class="state ${esc(q.at_gate ? "awaiting_flip" : q.state)}">${esc(label)}${pct}</span>

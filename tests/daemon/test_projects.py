@@ -109,7 +109,7 @@ def print_panel(api: httpx.Client, sim: Sim, job: str) -> dict[str, Any]:
 
 
 def test_panels_are_refused_clearly(api: httpx.Client, meshes: dict[str, Path]) -> None:
-    for bad in ("1", "0", "21", "many", "2.5"):
+    for bad in ("1", "0", "17", "many", "2.5"):
         with meshes["two_sided"].open("rb") as handle:
             r = api.post("/projects", files={"mesh": ("m.obj", handle)}, data={"panels": bad})
         assert r.status_code == 422, r.text
@@ -147,6 +147,10 @@ def test_a_three_panel_project_end_to_end(api: httpx.Client, shared_sim: Sim, sh
     later = [api.get(f"/jobs/{j}/transitions").json() for j in jobs]
     starts = [next(t["at"] for t in ts if t["to_state"] == "heating") for ts in later]
     assert starts == sorted(starts)                                  # printed in order
+    for ts in later:                                                 # each: front, flip and alignment, back
+        flow = [t["to_state"] for t in ts]
+        assert flow.index("printing_front") < flow.index("awaiting_flip") < flow.index("aligning") \
+            < flow.index("printing_back") < flow.index("done"), flow
     assert api.get(f"/projects/{pid}/files/project.json").json()["format"] == "ribbond-project/1"
     assert api.get(f"/projects/{pid}/files/panels.png").content[:4] == b"\x89PNG"
 

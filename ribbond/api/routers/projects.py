@@ -22,7 +22,7 @@ router = APIRouter()
 PROJECT_LINKS = {"GetProject": "project", "StartProject": "start_project", "CancelProject": "cancel_project",
                  "GetProjectFile": "project_file"}
 #: The panels field: documented as the pattern the service checks (with a message naming the field).
-PANELS = "^(auto|[2-9]|1[0-9]|20)$"
+PANELS = "^(auto|[2-9]|1[0-6])$"
 
 
 @router.post("/projects", status_code=201, response_model=ProjectStatus,
@@ -31,9 +31,9 @@ PANELS = "^(auto|[2-9]|1[0-9]|20)$"
 async def submit_project(service: Service,
                          mesh: Annotated[UploadFile, File(description="OBJ, PLY, STL or OFF: the target")],
                          parameters: Annotated[str, Form(description="design parameters, JSON")] = "{}",
-                         panels: Annotated[str, Form(description="'auto' or the number of panels, 2 to 20",
+                         panels: Annotated[str, Form(description="'auto' or the number of panels, 2 to 16",
                                                      json_schema_extra={"pattern": PANELS})] = "auto",
-                         seam_allowance: Annotated[float, Form(ge=0.0, le=50.0, description="fabric left around "
+                         seam_allowance: Annotated[float, Form(ge=0.0, le=30.0, description="fabric left around "
                                                                "each panel for its seams, mm")] = 6.0,
                          start: Annotated[bool, Form(description="print the panels, in order, once compiled")] = False,
                          ) -> ProjectStatus:

@@ -37,8 +37,8 @@ def panels_arg(text: str) -> int | str:
 
 
 def save_plans(result: Any, project_dir: Path, plans: Path, printer_profile: str) -> None:
-    """Each panel's front and back plans in ``plans``: the engine's own (``result.panels[k].programs``)
-    when the result carries them, else planned again from the panel's design folder."""
+    """Each panel's front and back plans in ``plans``: the engine's own (``result.panels[k].result.programs``,
+    those its programs were written from), else planned again from the panel's design folder."""
     from ribbond.design.folder import read_design_folder
     from ribbond.gcode.profiles import load_profile
     from ribbond.gcode.program import plan_side
@@ -47,7 +47,8 @@ def save_plans(result: Any, project_dir: Path, plans: Path, printer_profile: str
     project = json.loads((project_dir / "project.json").read_text(encoding="utf-8"))
     results = list(getattr(result, "panels", None) or [])
     for k, panel in enumerate(project["panels"]):
-        programs = getattr(results[k], "programs", None) if k < len(results) else None
+        design_result = getattr(results[k], "result", None) if k < len(results) else None
+        programs = getattr(design_result, "programs", None)
         if programs is not None:
             front, back = programs.front_plan, programs.back_plan
         else:

@@ -41,12 +41,16 @@ def panel_instruction(job: JobRecord) -> str:
     return f"panel {job.panel} of {job.panels}: {FRESH_FABRIC}"
 
 
+#: The most panels a project may ask for (the engine's ``ribbond.design.project.MAX_PANELS``).
+MAX_PANELS = 16
+
+
 def check_panels(panels: str) -> str:
-    """``auto`` or a whole number of panels from 2 to 20 (ValueError naming the field otherwise)."""
+    """``auto`` or a whole number of panels from 2 to 16 (ValueError naming the field otherwise)."""
     text = panels.strip()
-    if text == "auto" or (text.isdigit() and 2 <= int(text) <= 20):
+    if text == "auto" or (text.isdigit() and 2 <= int(text) <= MAX_PANELS):
         return text
-    raise ValueError(f"panels = {panels!r}: 'auto' or a whole number of panels from 2 to 20 "
+    raise ValueError(f"panels = {panels!r}: 'auto' or a whole number of panels from 2 to {MAX_PANELS} "
                      "(one panel is an ordinary job: leave panels out)")
 
 
