@@ -13,7 +13,8 @@ from fastapi import Path as PathParam
 from pydantic import BaseModel, Field
 
 from ribbond.daemon.components.manual import MAX_MANUAL_COMMANDS
-from ribbond.daemon.store import JobRecord
+from ribbond.daemon.components.projects import PROJECT_FILES
+from ribbond.daemon.store import JobRecord, ProjectRecord
 from ribbond.design.thickness import TABLE_DIR
 
 #: Files of a job that can be fetched.
@@ -66,6 +67,53 @@ class JobStatus(JobRecord):
         None, description="the design's last prediction asked for (POST /jobs/{id}/predict) in this daemon's "
         "life: state (running, done, failed), fraction 0–1, message, table, fine; when done the new "
         "report.deployed (deployed) and verdict; when failed the error")
+    next: NextStep
+
+
+#: A project file's name in a path (``GET /projects/{id}/files/{name}``).
+ProjectFile = Enum("ProjectFile", {name: name for name in PROJECT_FILES}, type=str)  # type: ignore[misc]
+
+
+class ProjectPanel(BaseModel):
+    """One panel of a project: its place in the panel map and the job that prints it."""
+
+    index: int = Field(ge=1, description="the panel's number, from 1 (panel-K/ in the project folder)")
+    job_id: str | None = Field(description="the job printing it (None: the job was deleted)")
+    state: str = Field(description="the job's state (deleted: no job)")
+    stage: str | None = None
+    progress: float = Field(0.0, ge=0.0, le=1.0, description="of the panel's print, both sides")
+    print_side: str | None = None
+    waits_for_operator: bool = False
+    at_gate: bool = Field(False, description="queued and waiting for a fresh stretched fabric (frame-ready)")
+    queued: bool = Field(False, description="ready and queued to print")
+    next: NextStep | None = Field(None, description="what the operator does next for this panel's job")
+    faces: int | None = None
+    flat_size_mm: list[float] | None = Field(None, description="the flat panel's width and height, mm")
+    bad_pct: float | None = Field(None, description="faces outside the stretch bounds, %")
+    outline: list[tuple[float, float]] = Field(default_factory=list, description="the flat outline in the "
+                                                                                "panel's front print coordinates, mm")
+
+
+class ProjectSeam(BaseModel):
+    """A seam between two panels (project.json's seams)."""
+
+    label: str
+    panels: list[int]
+    length_mm: dict[str, Any] = Field(default_factory=dict, description="target and deployed lengths, mm")
+    marks: int | None = Field(None, description="matching marks along the seam")
+
+
+class ProjectStatus(ProjectRecord):
+    """A project as the API shows it: the record, its panel map, the panel on the printer, what to do next."""
+
+    state: Literal["submitted", "compiling", "ready", "printing", "waiting", "done", "failed",  # type: ignore[assignment]
+                   "cancelled"] = Field(description="compiling, then ready (not started), printing or waiting "
+                                                    "(for the operator: a fresh fabric, the flip, a mark), done")
+    current_panel: int | None = Field(None, description="the panel on the printer, or next to go on it")
+    panels_done: int = Field(0, ge=0)
+    panels: list[ProjectPanel] = Field(default_factory=list, description="the panel map, by panel")
+    seams: list[ProjectSeam] = Field(default_factory=list)
+    report: dict[str, Any] | None = Field(None, description="project.json's report")
     next: NextStep
 
 

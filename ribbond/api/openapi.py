@@ -88,6 +88,12 @@ def _describe_upload(schema: dict[str, Any], components: dict[str, Any]) -> None
     body["oneOf"] = [{"required": ["mesh"], "not": {"required": ["gcode"]}},
                      {"required": ["gcode"], "not": {"required": ["mesh"]},
                       "properties": {"parameters": {"maxProperties": 0}}}]
+    project = components["Body_submit_project"]["properties"]
+    project["parameters"] = dict(props["parameters"])
+    schema["paths"]["/projects"]["post"]["requestBody"]["content"]["multipart/form-data"]["encoding"] = {
+        "parameters": {"contentType": "application/json"},
+        "mesh": {"headers": {"Content-Disposition": {"schema": {
+            "type": "string", "example": 'form-data; name="mesh"; filename="mesh.obj"'}}}}}
     content = schema["paths"]["/jobs"]["post"]["requestBody"]["content"]["multipart/form-data"]
     content["encoding"] = {
         "parameters": {"contentType": "application/json"},

@@ -1,7 +1,8 @@
 """``ribbonctl``: the command-line client.
 
 ``ribbonctl design MESH -o DIR [--size MM] [--params FILE] [--profile NAME]`` runs the design
-engine locally (no daemon) and writes the design folder. The daemon commands (``submit``,
+engine locally (no daemon) and writes the design folder; with ``--panels auto|N [--seam-allowance MM]``
+it cuts the target into panels and writes the project folder (``ribbond.design.project``). The daemon commands (``submit``,
 ``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``frame-ok``, ``align``,
 ``printer``, ``stop``) are in ``ribbond.client.http``.
 ``ribbonctl predict DESIGN_DIR [--table NAME] [--fine]`` predicts again the deployed shape of a
@@ -181,6 +182,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if updates:
         params = params.model_validate({**params.model_dump(), **updates})
     frame = load_profile(params.printer_profile).frame
+    if args.panels is not None:
+        return _design_project(args, params, settings.solver)
     progress = TerminalProgress(quiet=args.quiet)
     try:
         result = design_mesh(args.mesh, params, settings.solver, frame=frame, progress=progress,
@@ -190,6 +193,53 @@ def _cmd_design(args: argparse.Namespace) -> int:
         progress.close()
     print(summary(result, out))
     return 0
+
+
+def _design_project(args: argparse.Namespace, params: Any, solver: Any) -> int:
+    """``ribbonctl design MESH --panels auto|N``: the project folder (project.json, panels.png,
+    panel-K/ design folders) and its summary."""
+    import json
+
+    from ribbond.design.project import design_project, write_project
+
+    panels: int | str = args.panels
+    if panels != "auto":
+        if not str(panels).isdigit() or int(panels) < 2:
+            raise ValueError(f"--panels {panels}: 'auto' or a whole number of panels, at least 2")
+        panels = int(panels)
+    progress = TerminalProgress(quiet=args.quiet)
+    try:
+        result = design_project(args.mesh, params, solver, panels=panels, seam_allowance=args.seam_allowance,
+                                progress=progress, predict=not args.no_predict)
+        out = Path(write_project(result, args.output, progress))
+    finally:
+        progress.close()
+    project = json.loads((out / "project.json").read_text(encoding="utf-8"))
+    print(project_summary(project, out))
+    return 0
+
+
+def project_summary(project: dict[str, Any], out: Path) -> str:
+    """The project's summary: its panels (size, faces, outside the bounds), seams and files."""
+    report = project.get("report") or {}
+    lines = [f"project     {out}  ({len(project['panels'])} panels, {report.get('method', '')}, "
+             f"{report.get('time_s', 0):.1f} s)"]
+    for q in project["panels"]:
+        w, h = q.get("flat_size_mm") or (0.0, 0.0)
+        lines.append(f"panel {q['index']:<5} {out / q['folder']}: {q.get('faces')} faces, flat {w:.0f} × {h:.0f} mm, "
+                     f"{q.get('bad_pct', 0):.1f} % outside the bounds")
+    for s in project.get("seams") or []:
+        target = (s.get("length_mm") or {}).get("target")
+        lines.append(f"seam {s['label']:<6} panels {' and '.join(map(str, s['panels']))}"
+                     + (f", {target:.0f} mm" if isinstance(target, (int, float)) else "")
+                     + (f", {s['marks']} marks" if s.get("marks") else ""))
+    deployed = report.get("deployed")
+    if deployed:
+        dev = deployed.get("deviation_pct") or {}
+        lines.append(f"deployed    deviation mean {dev.get('mean', 0):.2f} %, p99 {dev.get('p99', 0):.2f} %, "
+                     f"max {dev.get('max', 0):.2f} % of the diagonal")
+    lines.append(f"panel map   {out / 'panels.png'}; seam allowance {project.get('seam_allowance_mm', 0):g} mm")
+    return "\n".join(lines)
 
 
 class PredictProgress:
@@ -424,6 +474,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--no-predict", action="store_true",
                    help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
+    d.add_argument("--panels", metavar="auto|N", help="cut the target into panels and write a project folder "
+                   "(project.json, panels.png, panel-1/ ...: each an ordinary design folder)")
+    d.add_argument("--seam-allowance", type=float, default=6.0, metavar="MM",
+                   help="with --panels: fabric left around each panel for its seams (default 6 mm)")
     d.set_defaults(func=_cmd_design)
     predict_common = argparse.ArgumentParser(add_help=False)
     add_global_options(predict_common, in_subcommand=True)

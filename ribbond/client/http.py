@@ -121,8 +121,8 @@ class Client:
             return _json.loads(data)
         return data
 
-    def upload(self, field: str, path: Path, data: dict[str, str], show: bool) -> dict[str, Any]:
-        """POST /jobs with the file ``path`` as ``field`` (``mesh`` or ``gcode``), streamed."""
+    def upload(self, field: str, path: Path, data: dict[str, str], show: bool, to: str = "/jobs") -> dict[str, Any]:
+        """POST ``to`` (/jobs, /projects) with the file ``path`` as ``field`` (``mesh`` or ``gcode``), streamed."""
         try:
             size = path.stat().st_size
             handle = path.open("rb")
@@ -144,7 +144,7 @@ class Client:
             yield f"\r\n--{boundary}--\r\n".encode()
 
         try:
-            return self.request("POST", "/jobs", body=parts(), timeout=600,  # type: ignore[no-any-return]
+            return self.request("POST", to, body=parts(), timeout=600,  # type: ignore[no-any-return]
                                 headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
         finally:
             handle.close()
@@ -262,6 +262,8 @@ def _line(job: dict[str, Any]) -> str:
     err = f"  ({job['error']})" if job.get("error") else ""
     runs = f"  run {len(job.get('runs') or []) + 1}" if job.get("runs") else ""
     kind = "  (G-code)" if job.get("kind") == "gcode" else ""
+    if job.get("project"):
+        kind = f"  panel {job['panel']} of {job['panels']} ({job['project']})"
     state = job["state"]
     if job.get("kind") == "gcode" and state == "printing_front":
         state = "printing"                  # a plain program has no front (--json keeps the state's name)
@@ -375,6 +377,9 @@ def cmd_submit(args: argparse.Namespace) -> int:
             params["solver"] = solver
     if args.size is not None:
         params["size"] = {"bbox_diagonal": args.size}
+    if args.panels is not None:                          # a project: one job per panel (issue 26)
+        from .projects import submit_project
+        return submit_project(c, args, params)
     job = c.upload("mesh", args.mesh, {"parameters": json.dumps(params), "start": str(args.start).lower()},
                    show=not args.json)
     if args.no_wait:
@@ -446,7 +451,9 @@ def cmd_status(args: argparse.Namespace) -> int:
         if args.limit is not None:
             params["limit"] = args.limit
         jobs = c.request("GET", "/jobs", params=params)
-        _out(args, jobs, "\n".join(_line(j) for j in jobs) or "no jobs")
+        from .projects import active_projects_text
+        projects = [] if args.json else active_projects_text(c)
+        _out(args, jobs, "\n".join(projects + [_line(j) for j in jobs]) or "no jobs")
     return 0
 
 
@@ -829,6 +836,8 @@ def add_commands(sub: Any) -> None:
 
     for add in (_job_commands, _run_commands, _alignment_commands, _printer_commands, _table_commands):
         add(cmd)
+    from .projects import add_project_commands
+    add_project_commands(sub, common)
 
 
 def _job_commands(cmd: Command) -> None:
@@ -839,6 +848,10 @@ def _job_commands(cmd: Command) -> None:
     s.add_argument("--params", type=Path, metavar="FILE",
                    help="TOML or JSON design parameters (and an optional [solver] table, applied by the daemon)")
     s.add_argument("--start", action="store_true", help="print as soon as it is compiled")
+    s.add_argument("--panels", metavar="auto|N", help="print it in panels: a project, compiled once, one "
+                   "two-sided job per panel in order (auto: as few as flatten within bounds and fit the frame)")
+    s.add_argument("--seam-allowance", type=float, default=6.0, metavar="MM",
+                   help="with --panels: fabric left around each panel for its seams (default 6 mm)")
     s.add_argument("--no-wait", action="store_true", help="print the job id and return at once")
     p = cmd("print", "print a plain G-code file through the daemon", cmd_print,
             "Upload a G-code program, checked line by line against the printer profile (frame, feeds, "

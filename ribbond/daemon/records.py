@@ -16,7 +16,7 @@ from typing import Any
 
 from .events import EventBus
 from .jobs import JobState
-from .store import JobRecord, JobStore
+from .store import JobRecord, JobStore, ProjectRecord
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +44,13 @@ class JobRecords:
             return self.store.get(job_id)
         except KeyError:
             raise NotFound(f"no job {job_id!r}") from None
+
+    def project(self, project_id: str) -> ProjectRecord:
+        """The project, or ``NotFound``."""
+        try:
+            return self.store.project(project_id)
+        except KeyError:
+            raise NotFound(f"no project {project_id!r}") from None
 
     def exists(self, job_id: str) -> bool:
         try:

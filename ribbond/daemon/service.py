@@ -51,6 +51,7 @@ from .components.heaters import Heaters
 from .components.manual import MAX_MANUAL_COMMANDS, ManualControl
 from .components.predictor import Predictor
 from .components.printing import PrintTask
+from .components.projects import Projects, check_panels, panel_instruction
 from .components.programs import Timeline, check_plain_program, program_timeline
 from .components.resume import Resumer, modal_state
 from .components.run import PrintState, Stream, stream_rate
@@ -157,6 +158,9 @@ class RibbonService:
         self.predictor = Predictor(self.records, self.library.tables_dir, python, self.library.check_table_name,
                                    lambda job_id: self.verdicts.forget(job_id, self.job(job_id).design_dir))
         self.temperatures = TemperatureHistory()         # the last 30 minutes, for the chart (issue 22)
+        self.projects = Projects(config, self.records, self.library.tables_dir, python, self.state.queue_print,
+                                 self.status, self.cancel, self.start_job)          # a mesh in panels (issue 26)
+        self.compiler.project_compile = self.projects.compile
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
@@ -169,6 +173,8 @@ class RibbonService:
         self._remove_orphan_folders()
         if any(j.state is JobState.INTERRUPTED and j.side is not None for j in interrupted):
             self.heaters.cool_after_interruption()
+        for project_id in self.projects.pending():
+            self.compiler.queue(project_id)
         for job in self.store.active():
             if job.state is JobState.SUBMITTED:
                 self.compiler.queue(job.id)
@@ -201,6 +207,7 @@ class RibbonService:
 
     async def close(self) -> None:
         self.compiler.stop_all()
+        self.projects.stop_all()
         self.predictor.stop_all()
         for task in self._tasks:
             task.cancel()
@@ -247,6 +254,29 @@ class RibbonService:
         self.records.publish(job)
         self.compiler.queue(job.id)
         return job
+
+    def submit_project(self, upload: Path, name: str, parameters: dict[str, Any], panels: str,
+                       seam_allowance: float, start: bool) -> dict[str, Any]:
+        """Take an uploaded mesh to print in panels (``panels``: ``auto`` or 2 to 16): checked as a
+        job's mesh is, then compiled once; its panels become one job each (``Projects``). Its view."""
+        panels = check_panels(panels)
+        safe = mesh_file_name(name)
+        if Path(safe).suffix.lower() not in MESH_SUFFIXES:
+            raise ValueError(f"{name!r}: not a mesh file the engine reads ({', '.join(MESH_SUFFIXES)})")
+        self._check_settings(parameters)
+        self.records.check_queue()
+        project_id = self.projects.new_id()
+        folder = self.projects.dir(project_id)
+        try:
+            folder.mkdir(parents=True)
+            mesh = folder / safe
+            shutil.move(str(upload), mesh)
+            project = self.projects.create(project_id, mesh, parameters, panels, seam_allowance, start)
+        except BaseException:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
+        self.compiler.queue(project_id)
+        return self.projects.view(project)
 
     def _check_settings(self, parameters: dict[str, Any]) -> None:
         """Refuse (ValueError naming the field sent) what the compile could not take: the engine's
@@ -493,6 +523,8 @@ class RibbonService:
         j = job.id
         if not job.start_when_ready:
             return f"ready to print: ribbonctl start {j}", None
+        if waits_at_gate(job) and job.panel is not None:
+            return panel_instruction(job), ["ribbonctl frame-ready", f"ribbonctl cancel {j}"]
         if waits_at_gate(job):
             return f"waiting for a fresh frame: {FRESH_FRAME_INSTRUCTION}", ["ribbonctl frame-ready",
                                                                             f"ribbonctl cancel {j}"]

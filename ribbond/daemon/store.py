@@ -28,7 +28,7 @@ from .jobs import JobState, check_transition
 
 #: The layout this code reads and writes (PRAGMA user_version). Bump it with a migration in
 #: ``_MIGRATIONS`` whenever the tables change.
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 #: The frame on the printer (schema 5): fresh (confirmed by the operator, nothing printed on it since) or used.
 FRAME_FRESH, FRAME_USED = "fresh", "used"
@@ -73,6 +73,9 @@ class JobRecord(BaseModel):
                                 "back, 'front (resumed at part N)', ...")
     print_progress: float | None = Field(None, ge=0.0, le=1.0, description="the most of this run's print "
                                          "(both sides, 0..1) reported so far: progress never goes back")
+    project: str | None = Field(None, description="the project this job prints a panel of (GET /projects/{id})")
+    panel: int | None = Field(None, ge=1, description="the panel this job prints, from 1")
+    panels: int | None = Field(None, ge=1, description="the project's number of panels")
 
     @field_validator("mesh_name")
     @classmethod
@@ -81,6 +84,42 @@ class JobRecord(BaseModel):
         if value in (".", "..") or any(c in value for c in "/\\\0"):
             raise ValueError(f"{value!r} is not a plain file name")
         return value
+
+
+#: A project's stored states: queued to compile, compiling, compiled (its panel jobs exist), failed, cancelled.
+ProjectState = Literal["submitted", "compiling", "compiled", "failed", "cancelled"]
+
+
+class ProjectRecord(BaseModel):
+    """One project as stored (schema 6): a mesh compiled once into panels, one two-sided job per panel."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    id: str = Field(min_length=1)
+    state: ProjectState
+    created: float = Field(description="unix time")
+    updated: float = Field(description="unix time of the last change")
+    mesh_name: str = Field(min_length=1, description="the uploaded file's name (a sanitized basename)")
+    mesh_path: str = Field(min_length=1, description="where the upload is stored")
+    parameters: dict[str, Any] = Field(description="design parameters as given")
+    panels_requested: str = Field(description="'auto' or the number of panels asked for")
+    seam_allowance_mm: float = Field(ge=0.0, description="fabric left around each panel for its seams, mm")
+    start_when_ready: bool = Field(description="print the panels, in order, as soon as compiled")
+    folder: str | None = Field(None, description="the project folder (project.json, panel-1/, ...) once compiled")
+    panel_count: int | None = Field(None, ge=1, description="the number of panels, once compiled")
+    error: str | None = Field(None, description="why the compile failed")
+    stage: str | None = Field(None, description="the compile's stage")
+
+
+class ProjectNotFound(KeyError):
+    """No project has this id."""
+
+    def __init__(self, project_id: str) -> None:
+        self.project_id = project_id
+        super().__init__(project_id)
+
+    def __str__(self) -> str:
+        return f"no project with id {self.project_id!r}"
 
 
 class Transition(BaseModel):
@@ -110,6 +149,9 @@ class JobNotFound(KeyError):
 MUTABLE_FIELDS = frozenset(JobRecord.model_fields) - {"id", "state", "created", "updated"}
 _JSON_FIELDS = frozenset({"parameters", "correction", "runs", "estimate_s", "notes"})
 _COLUMNS = tuple(JobRecord.model_fields)
+_PROJECT_COLUMNS = tuple(ProjectRecord.model_fields)
+#: Project fields ``update_project`` may set.
+PROJECT_MUTABLE = frozenset({"state", "folder", "panel_count", "error", "stage", "start_when_ready"})
 
 #: The parts of a print proven printed (schema 3), for resuming an interrupted one.
 _PART_EVENTS = """CREATE TABLE part_events (
@@ -130,6 +172,25 @@ _FRAME = """CREATE TABLE frame (
     state  TEXT NOT NULL CHECK (state IN ('fresh', 'used')),
     job_id TEXT,                                            -- the job that used it
     at     REAL NOT NULL
+)"""
+
+#: Projects (schema 6): a mesh compiled once into panels; their jobs name them (jobs.project, jobs.panel).
+_PROJECTS = """CREATE TABLE projects (
+    seq               INTEGER PRIMARY KEY AUTOINCREMENT,
+    id                TEXT NOT NULL UNIQUE,
+    state             TEXT NOT NULL,
+    created           REAL NOT NULL,
+    updated           REAL NOT NULL,
+    mesh_name         TEXT NOT NULL,
+    mesh_path         TEXT NOT NULL,
+    parameters        TEXT NOT NULL,                     -- JSON
+    panels_requested  TEXT NOT NULL,
+    seam_allowance_mm REAL NOT NULL,
+    start_when_ready  INTEGER NOT NULL CHECK (start_when_ready IN (0, 1)),
+    folder            TEXT,
+    panel_count       INTEGER,
+    error             TEXT,
+    stage             TEXT
 )"""
 
 _SCHEMA = """
@@ -160,9 +221,13 @@ CREATE TABLE jobs (
     notes            TEXT,                               -- JSON list, NULL: none
     same_frame       INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)),
     program          TEXT,
-    print_progress   REAL
+    print_progress   REAL,
+    project          TEXT,
+    panel            INTEGER,
+    panels           INTEGER
 );
 CREATE INDEX jobs_state ON jobs (state);
+CREATE INDEX jobs_project ON jobs (project, panel);
 CREATE TABLE transitions (
     seq        INTEGER PRIMARY KEY AUTOINCREMENT,
     job_id     TEXT NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
@@ -172,7 +237,7 @@ CREATE TABLE transitions (
     reason     TEXT
 );
 CREATE INDEX transitions_job ON transitions (job_id, seq);
-""" + _PART_EVENTS + ";\n" + _FRAME + ";\n"
+""" + _PART_EVENTS + ";\n" + _FRAME + ";\n" + _PROJECTS + ";\n"
 
 #: ``_MIGRATIONS[v]`` brings a database from version v to v + 1.
 _MIGRATIONS: dict[int, str] = {
@@ -187,6 +252,9 @@ _MIGRATIONS: dict[int, str] = {
     # and the program the lines count, the most of the print reported (progress never goes back)
     4: "ALTER TABLE jobs ADD COLUMN same_frame INTEGER NOT NULL DEFAULT 0 CHECK (same_frame IN (0, 1)); "
        "ALTER TABLE jobs ADD COLUMN program TEXT; ALTER TABLE jobs ADD COLUMN print_progress REAL; " + _FRAME,
+    # 6: projects, a mesh in panels, and the panel each job prints (issue 26)
+    5: "ALTER TABLE jobs ADD COLUMN project TEXT; ALTER TABLE jobs ADD COLUMN panel INTEGER; "
+       "ALTER TABLE jobs ADD COLUMN panels INTEGER; CREATE INDEX jobs_project ON jobs (project, panel); " + _PROJECTS,
 }
 
 #: What a part's events make of it (its last event decides).
@@ -408,24 +476,28 @@ class JobStore:
 
     def create(self, *, mesh_name: str, mesh_path: str, parameters: dict[str, Any],
                start_when_ready: bool, kind: Literal["design", "gcode"] = "design",
-               job_id: str | None = None, same_frame: bool = False) -> JobRecord:
+               job_id: str | None = None, same_frame: bool = False,
+               panel: tuple[str, int, int] | None = None) -> JobRecord:
         """A new job in state ``submitted`` (with its first ``transitions`` row), committed.
 
         ``job_id`` (from ``new_id``): the caller chose the id so that the job's files are in place
-        before its row exists."""
+        before its row exists. ``panel``: (project id, panel index from 1, the project's panels)."""
         now = self._clock()
+        project, index, count = panel if panel is not None else (None, None, None)
         try:
             record = JobRecord(id=job_id or new_id(), state=JobState.SUBMITTED, created=now, updated=now,
                                mesh_name=mesh_name, mesh_path=mesh_path, parameters=parameters,
-                               start_when_ready=start_when_ready, kind=kind, same_frame=same_frame)
+                               start_when_ready=start_when_ready, kind=kind, same_frame=same_frame,
+                               project=project, panel=index, panels=count)
         except ValidationError as exc:
             raise ValueError(f"new job: {_format_errors(exc)}") from None
         parameters_json = _json(record.parameters, "new job: parameters")
         with self._transaction() as db:
             db.execute("INSERT INTO jobs (id, state, created, updated, mesh_name, mesh_path, parameters, "
-                       "start_when_ready, kind, same_frame) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                       "start_when_ready, kind, same_frame, project, panel, panels) "
+                       "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                        (record.id, record.state.value, now, now, mesh_name, mesh_path, parameters_json,
-                        int(start_when_ready), kind, int(record.same_frame)))
+                        int(start_when_ready), kind, int(record.same_frame), project, index, count))
             self._log(record.id, None, record.state, now, None)
         return record
 
@@ -578,6 +650,68 @@ class JobStore:
             db.execute("INSERT INTO frame (id, state, job_id, at) VALUES (1, ?, ?, ?) ON CONFLICT (id) DO UPDATE "
                        "SET state = excluded.state, job_id = excluded.job_id, at = excluded.at",
                        (state, job_id, self._clock()))
+
+    # -- projects (schema 6) --------------------------------------------------------------------
+
+    @staticmethod
+    def _project(row: sqlite3.Row) -> ProjectRecord:
+        data = {name: row[name] for name in _PROJECT_COLUMNS}
+        data["parameters"] = json.loads(data["parameters"])
+        data["start_when_ready"] = bool(data["start_when_ready"])
+        return ProjectRecord.model_validate(data)
+
+    def create_project(self, *, project_id: str, mesh_name: str, mesh_path: str, parameters: dict[str, Any],
+                       panels_requested: str, seam_allowance_mm: float, start_when_ready: bool) -> ProjectRecord:
+        """A new project in state ``submitted``, committed."""
+        now = self._clock()
+        try:
+            record = ProjectRecord(id=project_id, state="submitted", created=now, updated=now, mesh_name=mesh_name,
+                                   mesh_path=mesh_path, parameters=parameters, panels_requested=panels_requested,
+                                   seam_allowance_mm=seam_allowance_mm, start_when_ready=start_when_ready)
+        except ValidationError as exc:
+            raise ValueError(f"new project: {_format_errors(exc)}") from None
+        with self._transaction() as db:
+            db.execute("INSERT INTO projects (id, state, created, updated, mesh_name, mesh_path, parameters, "
+                       "panels_requested, seam_allowance_mm, start_when_ready) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                       (record.id, record.state, now, now, mesh_name, mesh_path,
+                        _json(parameters, "new project: parameters"), panels_requested, seam_allowance_mm,
+                        int(start_when_ready)))
+        return record
+
+    def project(self, project_id: str) -> ProjectRecord:
+        """The project ``project_id``; raises ``ProjectNotFound``."""
+        row = self._db.execute("SELECT * FROM projects WHERE id = ?", (project_id,)).fetchone()
+        if row is None:
+            raise ProjectNotFound(project_id)
+        return self._project(row)
+
+    def projects(self, limit: int | None = None) -> builtins.list[ProjectRecord]:
+        """Projects, newest first (at most ``limit``)."""
+        rows = self._db.execute("SELECT * FROM projects ORDER BY seq DESC LIMIT ?", (-1 if limit is None else limit,))
+        return [self._project(row) for row in rows]
+
+    def update_project(self, project_id: str, **fields: Any) -> ProjectRecord:
+        """Set ``fields`` of the project (``PROJECT_MUTABLE``), committed."""
+        unknown = sorted(set(fields) - PROJECT_MUTABLE)
+        if unknown:
+            raise ValueError(f"project {project_id}: cannot set {', '.join(unknown)}")
+        with self._transaction() as db:
+            current = self.project(project_id)
+            try:
+                record = ProjectRecord.model_validate({**current.model_dump(), **fields,
+                                                       "updated": max(self._clock(), current.updated)})
+            except ValidationError as exc:
+                raise ValueError(f"project {project_id}: {_format_errors(exc)}") from None
+            names = sorted(fields) + ["updated"]
+            values = [int(v) if isinstance(v, bool) else v for v in (getattr(record, n) for n in names)]
+            db.execute(f"UPDATE projects SET {', '.join(f'{n} = ?' for n in names)} WHERE id = ?",
+                       (*values, project_id))
+        return record
+
+    def project_jobs(self, project_id: str) -> builtins.list[JobRecord]:
+        """The project's panel jobs, by panel."""
+        rows = self._db.execute("SELECT * FROM jobs WHERE project = ? ORDER BY panel, seq", (project_id,))
+        return [self._record(row) for row in rows]
 
     def integrity(self) -> str:
         """``PRAGMA integrity_check``'s answer (``ok`` for a sound database)."""

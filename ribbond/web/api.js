@@ -43,8 +43,8 @@ export const get = (p) => call("GET", p);
 export const post = (p, b) => call("POST", p, b === undefined ? undefined : b);
 
 /** A job file as an object URL (images need the header too), or null when it is not there. */
-export async function fileURL(jobId, name) {
-  const r = await fetch(`/jobs/${encodeURIComponent(jobId)}/files/${name}`, { headers: headers() });
+export async function fileURL(jobId, name, kind = "jobs") {
+  const r = await fetch(`/${kind}/${encodeURIComponent(jobId)}/files/${name}`, { headers: headers() });
   if (!r.ok) return null;
   return URL.createObjectURL(await r.blob());
 }

@@ -4,6 +4,7 @@
 import * as api from "./api.js";
 import { drawChart } from "./chart.js";
 import { layoutSVG, flipSVG, backSVG } from "./draw.js";
+import { panelMapSVG, legendHTML, projectCardHTML, panelListHTML, seamsHTML } from "./project.js";
 
 const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
@@ -18,7 +19,7 @@ const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", 
 const state = {
   printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [], live: false,
   designs: new Map(), files: new Map(), busy: new Set(), align: new Map(), alignMark: new Map(), compileInfo: new Map(),
-  predicted: new Map(),
+  predicted: new Map(), projects: new Map(),
 };
 
 // ------------------------------------------------------------------ small helpers
@@ -264,19 +265,103 @@ function renderJobs() {
       const dur = ended ? j.updated - j.created : (j.elapsed_s ?? null);
       const st = STREAMS.has(j.state) || j.state === "compiling" ? `${labelOf(j)} ${percent(j)}` : labelOf(j);
       return `<tr data-job="${esc(j.id)}" class="${j.waits_for_operator ? "waits" : ""}">
-        <td><a href="#/job/${esc(j.id)}">${esc(j.mesh_name)}</a></td>
+        <td><a href="#/job/${esc(j.id)}">${esc(j.mesh_name)}</a>${j.project ? ` <span class="muted">panel ${j.panel}/${j.panels}</span>` : ""}</td>
         <td><span class="state ${esc(j.state)}">${esc(st)}</span></td><td>${esc(sizeOf(j))}</td>
         <td>${when(j.created)}</td><td>${ended ? when(j.updated) : "–"}</td><td>${duration(dur)}</td></tr>`;
     }).join("")}</tbody></table>`;
   const waiting = [...state.jobs.values()].find((j) => (["awaiting_flip", "aligning", "fitted"].includes(j.state) || atGate(j)) && j.waits_for_operator);
   const banner = $("needs-you");
-  const here = state.route.page === "job" && waiting && state.route.id === waiting.id;
+  const panelGate = waiting && waiting.project && atGate(waiting);       // between panels: the project's page says it
+  const here = waiting && ((state.route.page === "job" && state.route.id === waiting.id)
+    || (panelGate && state.route.page === "project" && state.route.id === waiting.project));
   banner.hidden = !waiting || here;
   if (waiting && !here) {
-    banner.href = `#/job/${waiting.id}`;
-    const what = atGate(waiting) ? "load a fresh frame" : { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
-    banner.textContent = `${waiting.mesh_name}: ${what} →`;
+    banner.href = panelGate ? `#/project/${waiting.project}` : `#/job/${waiting.id}`;
+    const what = atGate(waiting) ? (waiting.project ? "load a fresh stretched fabric" : "load a fresh frame")
+      : { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
+    const who = waiting.project ? `${waiting.mesh_name}, panel ${waiting.panel} of ${waiting.panels}` : waiting.mesh_name;
+    banner.textContent = `${who}: ${what} →`;
   }
+}
+
+// ------------------------------------------------------------------ projects (a mesh in panels)
+
+const PROJECT_OVER = new Set(["done", "failed", "cancelled"]);
+function renderProjects() {
+  const live = [...state.projects.values()].filter((p) => !PROJECT_OVER.has(p.state)).sort((a, b) => b.created - a.created);
+  $("projects").hidden = !live.length;
+  $("project-cards").innerHTML = live.map((p) => `<div class="project" data-project="${esc(p.id)}">${projectCardHTML(p)}</div>`).join("");
+}
+
+function projectActions(p) {
+  const cur = (p.panels || []).find((q) => q.index === p.current_panel);
+  const out = [];
+  if (cur && cur.at_gate) out.push(`<button class="primary huge" data-pact="frame-ready">Fresh fabric loaded (panel ${cur.index})</button>`);
+  else if (cur && cur.job_id) out.push(`<a class="button primary" href="#/job/${esc(cur.job_id)}">Panel ${cur.index}: open its job (flip, alignment, pause)</a>`);
+  if (["ready", "cancelled"].includes(p.state)) out.push(`<button data-pact="start">Print the panels left</button>`);
+  if (!PROJECT_OVER.has(p.state)) out.push(`<button class="warn" data-pact="cancel">Cancel the project</button>`);
+  return out.join("");
+}
+
+function renderProjectPage() {
+  if (state.route.page !== "project") return;
+  const p = state.projects.get(state.route.id);
+  if (!p) { $("pj-title").textContent = "No such project"; return; }
+  const n = p.panel_count;
+  $("pj-title").textContent = `${p.mesh_name}: ${n ? `${n} panels` : "panels"}`;
+  $("pj-state").textContent = p.current_panel && n ? `${p.state}: panel ${p.current_panel} of ${n}` : p.state;
+  $("pj-state").className = `state ${p.state === "waiting" ? "awaiting_flip" : p.state === "printing" ? "printing_front" : p.state}`;
+  $("pj-stage").textContent = n ? `${p.panels_done} of ${n} done` : (p.stage || "");
+  $("pj-next").textContent = p.next.instruction;
+  $("pj-next").classList.toggle("waits", p.state === "waiting");
+  $("pj-error").hidden = !p.error;
+  $("pj-error").textContent = p.error || "";
+  $("pj-actions").innerHTML = projectActions(p);
+  $("pj-map").innerHTML = panelMapSVG(p);
+  $("pj-legend").innerHTML = (p.panels || []).length ? legendHTML() : "";
+  $("pj-panels").innerHTML = panelListHTML(p);
+  $("pj-seams").innerHTML = seamsHTML(p);
+  if (p.folder && !state.files.has(`project:${p.id}`)) {
+    state.files.set(`project:${p.id}`, null);
+    quiet(api.fileURL(p.id, "panels.png", "projects").then((u) => { state.files.set(`project:${p.id}`, u); renderProjectPage(); }));
+  }
+  const img = state.files.get(`project:${p.id}`);
+  $("pj-fig").hidden = !img;
+  if (img && $("pj-img").src !== img) $("pj-img").src = img;
+}
+
+$("pj-actions").addEventListener("click", async (e) => {
+  const b = e.target.closest("[data-pact]");
+  if (!b) return;
+  const id = state.route.id, what = b.dataset.pact;
+  if (what === "cancel" && !confirm("Cancel the project: the panel on the printer stops (heaters off, head up) and the panels left are cancelled?")) return;
+  b.disabled = true;
+  await act({ "frame-ready": "Fresh fabric loaded", start: "Print the panels left", cancel: "Cancel the project" }[what], async () => {
+    if (what === "frame-ready") await api.post("/printer/frame-ready");
+    else state.projects.set(id, await api.post(`/projects/${id}/${what}`));
+    await loadProject(id);
+  });
+  b.disabled = false;
+});
+
+async function loadProject(id) {
+  const p = await api.get(`/projects/${encodeURIComponent(id)}`);
+  state.projects.set(p.id, p);
+  renderProjects();
+  renderProjectPage();
+}
+
+async function loadProjects() {
+  const list = await api.get("/projects?limit=50");
+  state.projects = new Map(list.map((p) => [p.id, p]));
+  renderProjects();
+  renderProjectPage();
+}
+
+const projectReload = new Map();
+function reloadProjectSoon(id) {
+  if (projectReload.has(id)) return;
+  projectReload.set(id, setTimeout(() => { projectReload.delete(id); quiet(loadProject(id)); }, 250));
 }
 
 async function loadJobs() {
@@ -298,6 +383,7 @@ function choose(file) {
   $("submit-btn").textContent = gcode ? "Upload G-code" : "Upload mesh";
 }
 $("file").addEventListener("change", () => choose($("file").files[0] || null));
+$("panels").addEventListener("change", () => { $("seam-row").hidden = !$("panels").value; });
 const drop = $("drop");
 drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
 drop.addEventListener("dragleave", () => drop.classList.remove("over"));
@@ -309,6 +395,7 @@ $("submit-form").addEventListener("submit", async (e) => {
   err.hidden = true;
   if (!chosen) { err.textContent = "Choose a file first."; err.hidden = false; return; }
   const gcode = /\.(gcode|gco|g|nc)$/i.test(chosen.name);
+  const panels = gcode ? "" : $("panels").value;
   const form = new FormData();
   form.append(gcode ? "gcode" : "mesh", chosen, chosen.name);
   if (!gcode) {
@@ -321,14 +408,21 @@ $("submit-form").addEventListener("submit", async (e) => {
     form.append("parameters", JSON.stringify(params));
   }
   form.append("start", $("start-now").checked ? "true" : "false");
+  if (panels) { form.append("panels", panels); form.append("seam_allowance", $("seam_allowance").value || "6"); }
   const bar = $("upload-progress");
   bar.hidden = false; bar.value = 0;
   $("submit-btn").disabled = true;
   try {
-    const job = await api.upload("/jobs", form, (f) => { bar.value = f; });
-    state.jobs.set(job.id, job);
-    renderJobs();
-    location.hash = `#/job/${job.id}`;
+    const made = await api.upload(panels ? "/projects" : "/jobs", form, (f) => { bar.value = f; });
+    if (panels) {
+      state.projects.set(made.id, made);
+      renderProjects();
+      location.hash = `#/project/${made.id}`;
+    } else {
+      state.jobs.set(made.id, made);
+      renderJobs();
+      location.hash = `#/job/${made.id}`;
+    }
     $("file").value = ""; choose(null);
   } catch (x) {
     err.textContent = x.status === 413 || x.status === 422 || x.status === 409 ? `Refused: ${x.message}` : x.message;
@@ -520,12 +614,14 @@ function nextText(j) {
 }
 
 function renderJobPage() {
-  const home = state.route.page !== "job";
+  const home = state.route.page === "home";
   $("home").hidden = !home;
-  $("jobpage").hidden = home;
+  $("jobpage").hidden = state.route.page !== "job";
+  $("projectpage").hidden = state.route.page !== "project";
+  renderProjectPage();
   renderJobs();
   renderTitle();
-  if (home) return;
+  if (state.route.page !== "job") return;
   const j = state.jobs.get(state.route.id);
   if (!j) { $("j-title").textContent = "No such job"; return; }
   loadDesign(j);
@@ -866,8 +962,12 @@ function renderOperatorView(j) {
 // ------------------------------------------------------------------ live events
 
 function onEvent(type, ev) {
-  if (type === "job" && ev.job) {
+  if (type === "project" && ev.project) {
+    state.projects.set(ev.project.id, ev.project);
+    renderProjects();
+  } else if (type === "job" && ev.job) {
     state.jobs.set(ev.job.id, ev.job);
+    if (ev.job.project) reloadProjectSoon(ev.job.project);
     if (ev.progress_event) state.compileInfo.set(ev.job.id, ev.progress_event);
   } else if (type === "progress" && state.jobs.has(ev.job_id)) {
     const j = state.jobs.get(ev.job_id);
@@ -875,6 +975,7 @@ function onEvent(type, ev) {
     state.jobs.set(ev.job_id, { ...j, ...info, last_acked_line: line, lines_total: lines, print_side: info.print_side ?? side });
   } else if (type === "deleted") {
     state.jobs.delete(ev.job_id);
+    for (const p of state.projects.values()) if ((p.panels || []).some((q) => q.job_id === ev.job_id)) reloadProjectSoon(p.id);
   } else if (type === "alignment") {
     state.alignMark.set(ev.job_id, ev);
   } else if (type === "notice") {
@@ -899,7 +1000,7 @@ function restartEvents() {
     while (!signal.aborted) {
       try {
         await api.events(onEvent, () => {
-          state.live = true; $("live").textContent = "live"; $("live").className = "pill ready"; quiet(loadJobs());
+          state.live = true; $("live").textContent = "live"; $("live").className = "pill ready"; quiet(loadJobs()); quiet(loadProjects());
         }, signal);
       } catch (e) {
         if (signal.aborted) return;
@@ -915,6 +1016,14 @@ function restartEvents() {
 // ------------------------------------------------------------------ routing and start
 
 function route() {
+  const pm = /^#\/project\/(.+)$/.exec(location.hash);
+  if (pm) {
+    state.route = { page: "project", id: decodeURIComponent(pm[1]) };
+    quiet(loadProject(state.route.id));
+    renderJobPage();
+    window.scrollTo(0, 0);
+    return;
+  }
   const m = /^#\/job\/(.+)$/.exec(location.hash);
   state.route = m ? { page: "job", id: decodeURIComponent(m[1]) } : { page: "home" };
   if (m && !state.jobs.has(state.route.id)) quiet(api.get(`/jobs/${state.route.id}`).then((j) => { state.jobs.set(j.id, j); renderJobPage(); }));
@@ -923,7 +1032,7 @@ function route() {
 }
 window.addEventListener("hashchange", () => { $("toast").hidden = true; route(); });
 
-function refreshAll() { quiet(loadJobs()); quiet(loadTemperatures()); pollPrinter(); }
+function refreshAll() { quiet(loadJobs()); quiet(loadProjects()); quiet(loadTemperatures()); pollPrinter(); }
 
 async function main() {
   try {

@@ -32,7 +32,7 @@ JOB_LINKS = {"GetJob": "job", "GetTransitions": "transitions", "GetJobFile": "jo
 JOB_ACTION = responses(404, 409, 422, 503, mutating=True)
 
 
-def _parameters(text: str, mesh: bool, gcode: bool, same_frame: bool) -> dict[str, Any]:
+def parse_parameters(text: str, mesh: bool, gcode: bool, same_frame: bool) -> dict[str, Any]:
     """The form's ``parameters`` as a JSON object, and the form's fields consistent with each other."""
     if mesh == gcode:
         raise ValueError("upload either a mesh (field 'mesh') or a G-code program (field 'gcode')")
@@ -50,7 +50,7 @@ def _parameters(text: str, mesh: bool, gcode: bool, same_frame: bool) -> dict[st
     return params
 
 
-async def _spool(upload: UploadFile, out: Any, limit: int) -> None:
+async def spool(upload: UploadFile, out: Any, limit: int) -> None:
     """Copy the upload into ``out`` by chunks: 413 as soon as it passes ``limit`` bytes."""
     size = 0
     while chunk := await upload.read(_CHUNK):
@@ -72,7 +72,7 @@ async def submit(service: Service,
                                                   "is: no fresh frame is asked for before it")] = False,
                  ) -> JobStatus:
     """Upload a mesh (a design is compiled from it) or a G-code program (checked against the profile)."""
-    params = _parameters(parameters, mesh is not None, gcode is not None, same_frame)
+    params = parse_parameters(parameters, mesh is not None, gcode is not None, same_frame)
     upload = mesh if mesh is not None else gcode
     assert upload is not None
     uploads = Path(service.config.state_dir) / "uploads"
@@ -81,7 +81,7 @@ async def submit(service: Service,
     tmp = Path(tmp_name)
     try:
         with open(fd, "wb") as out:
-            await _spool(upload, out, int(service.config.limits.max_upload_mb * 1024 * 1024))
+            await spool(upload, out, int(service.config.limits.max_upload_mb * 1024 * 1024))
         if mesh is not None:
             return job_status(service, service.submit(tmp, mesh.filename or "mesh.obj", params, start))
         return job_status(service, await service.submit_gcode(tmp, upload.filename or "program.gcode", start,

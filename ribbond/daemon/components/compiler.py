@@ -10,7 +10,7 @@ import contextlib
 import json
 import logging
 import os
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
@@ -77,9 +77,12 @@ class Compiler:
         self.queue_print, self.python = queue_print, python
         self._queue: asyncio.Queue[str] = asyncio.Queue()
         self._compiling: dict[str, asyncio.subprocess.Process] = {}
+        #: A project's compile (``projects.Projects.compile``), queued here by its id (``prj-…``) so
+        #: that one compile runs at a time.
+        self.project_compile: Callable[[str], Awaitable[None]] | None = None
 
     def queue(self, job_id: str) -> None:
-        """Compile the (submitted) job after those queued before it."""
+        """Compile the (submitted) job, or project, after those queued before it."""
         self._queue.put_nowait(job_id)
 
     def stop(self, job_id: str) -> bool:
@@ -101,6 +104,9 @@ class Compiler:
         while True:
             job_id = await self._queue.get()
             try:
+                if job_id.startswith("prj-") and self.project_compile is not None:
+                    await self.project_compile(job_id)
+                    continue
                 await self._compile(job_id)
             except NotFound:
                 continue
