@@ -5,6 +5,9 @@ that exists is a consistent one: per-face arrays of one length, finite, σ > 0, 
 directions, ``report.faces`` equal to the face count, and each ribbon on the side its curvature asks
 for (``front`` exactly when ``kappa1 > 0``).
 
+``stitch_marks`` (issue 26, a panel's seam marks) is an addition to the shared text, absent unless a
+panel has them, so files without it read and write as before (the format stays ``ribbond-design/3``).
+
 ``design_to_json`` writes the file (optional sections that are ``None`` are left out, the report's
 ``print_`` is written as ``"print"``), ``design_from_json`` reads it back and reports problems as
 ``ValueError`` naming the file and the field path. Floats are written losslessly (shortest repr), so
@@ -151,6 +154,40 @@ class Ribbon(BaseModel):
         if not (v[0] > 0 and v[1] > 0):
             raise ValueError(f"spacing = {list(v)}: both spacings must be > 0")
         return v
+
+
+class StitchMark(BaseModel):
+    """A stitch mark on a panel's seam allowance (issue 26): a tick from the seam line to the cutting
+    line and its label, printed on the front as one-layer lines (``ribbond.design.stitch``)."""
+
+    model_config = _CONFIG
+    label: str = Field(pattern=r"^[A-Z0-9]+$", description="the mark's label, A-Z and 0-9 (\"A1\")")
+    seam: str = Field(min_length=1, description="the seam's letter")
+    at: Point = Field(description="the mark's point on the seam line, front-side print coordinates, mm")
+    outward: Point = Field(description="unit normal of the seam line there, out of the panel")
+    strokes: list[list[Point]] = Field(min_length=1, description="polylines printed (the tick first), mm, "
+                                       "front-side print coordinates")
+
+    @field_validator("outward")
+    @classmethod
+    def _unit(cls, v: Point) -> Point:
+        length = float(np.hypot(*v))
+        if abs(length - 1.0) > UNIT_TOLERANCE:
+            raise ValueError(f"outward = {list(v)} has length {length:.9g}: must be a unit vector "
+                             f"(within {UNIT_TOLERANCE:g})")
+        return v
+
+    @field_validator("strokes")
+    @classmethod
+    def _polylines(cls, v: list[list[Point]]) -> list[list[Point]]:
+        short = [i for i, s in enumerate(v) if len(s) < 2]
+        if short:
+            raise ValueError(f"strokes[{short[0]}] has {len(v[short[0]])} point(s): a stroke needs at least 2")
+        return v
+
+    def arrays(self) -> list[np.ndarray]:
+        """The strokes as (k, 2) float arrays."""
+        return [np.asarray(s, dtype=float).reshape(-1, 2) for s in self.strokes]
 
 
 class Quantiles(BaseModel):
@@ -318,6 +355,8 @@ class Design(_Updatable):
     faces: Faces
     ribbons: list[Ribbon] | None = None
     registration_marks: list[Point] | None = Field(None, description="front-side print coordinates, mm")
+    stitch_marks: list[StitchMark] | None = Field(None, description="a panel's seam marks, printed on the "
+                                                  "front (issue 26); absent for a design that is no panel")
     report: Report
 
     @field_validator("format")

@@ -3,7 +3,8 @@
 The flat (pre-stretched) surface in front-side print coordinates, as in Fig. 2 (c–d) of the paper:
 the stretch σ2 across the ribbons as a colour map underneath, the outline of the flat surface,
 front ribbons in red and back ribbons in blue at their real width, the registration marks numbered
-from 1 (as the daemon's alignment step counts them), the printable frame and the flip axis the frame
+from 1 (as the daemon's alignment step counts them), a panel's stitch marks (their ticks and labels as
+thin dark lines, SVG id ``stitch-marks``; issue 26), the printable frame and the flip axis the frame
 is turned over about for the back side.
 
 ``render_preview`` is a pure function: it returns the bytes of both files and writes nothing (the
@@ -37,7 +38,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, PathPatch, Rectangle
 from matplotlib.path import Path as MplPath
 
-__all__ = ["RibbonLike", "render_preview", "boundary_edges", "SIDE_COLORS"]
+__all__ = ["RibbonLike", "StitchMarkLike", "render_preview", "boundary_edges", "SIDE_COLORS"]
 
 #: Ribbon colours per side (as in the paper's figures: front red, back blue).
 SIDE_COLORS = {"front": "#d62728", "back": "#1f4fd6"}
@@ -45,6 +46,8 @@ SIDE_COLORS = {"front": "#d62728", "back": "#1f4fd6"}
 OUTLINE_COLOR = "#1a1a1a"
 #: The printable frame.
 FRAME_COLOR = "#808080"
+#: A panel's stitch marks, and their line width in points.
+STITCH_COLOR, STITCH_LINEWIDTH = "#262626", 0.6
 #: Salt of the SVG's element ids, so that the same design gives the same file.
 SVG_HASHSALT = "ribbond-preview"
 #: How far the colour map is mixed towards white, so the ribbons stand out on it.
@@ -65,6 +68,13 @@ class RibbonLike(Protocol):
 
     side: str
     points: Sequence[tuple[float, float]]
+
+
+@runtime_checkable
+class StitchMarkLike(Protocol):
+    """What the preview needs of a stitch mark (``ribbond.design.format.StitchMark`` is one)."""
+
+    strokes: Sequence[Sequence[tuple[float, float]]]
 
 
 def _light_colormap(name: str = "viridis", lighten: float = COLORMAP_LIGHTEN) -> ListedColormap:
@@ -170,6 +180,20 @@ def _ribbon_points(ribbons: Sequence[RibbonLike]) -> tuple[list[np.ndarray], lis
     return points, sides
 
 
+def _stitch_strokes(stitch_marks: Sequence[object] | None) -> list[np.ndarray]:
+    """Every stroke of the stitch marks, each (k, 2): a mark is a ``StitchMarkLike`` or a sequence of
+    polylines (``stitch.stitch_mark_strokes``' items)."""
+    out = []
+    for i, mark in enumerate(stitch_marks or []):
+        strokes = mark.strokes if isinstance(mark, StitchMarkLike) else mark
+        for k, stroke in enumerate(strokes):                       # type: ignore[arg-type]
+            p = _float_array(stroke, f"stitch_marks[{i}] stroke {k}", "(k, 2)", 2)
+            if len(p) < 2:
+                raise ValueError(f"stitch_marks[{i}] stroke {k} has {len(p)} point(s): a stroke needs at least 2")
+            out.append(p)
+    return out
+
+
 # ---------------------------------------------------------------------------------------------
 # Drawing
 
@@ -206,9 +230,13 @@ def _ribbon_path(points: list[np.ndarray], width: float) -> MplPath | None:
 
 
 def _extent(uv: np.ndarray, points: list[np.ndarray], width: float, marks: np.ndarray | None,
-            frame: tuple[float, float, float, float] | None) -> tuple[np.ndarray, np.ndarray]:
+            frame: tuple[float, float, float, float] | None,
+            stitches: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Lower-left and upper-right corner of everything drawn, with a margin."""
     lo, hi = uv.min(axis=0), uv.max(axis=0)
+    if stitches:
+        allp = np.concatenate(stitches)
+        lo, hi = np.minimum(lo, allp.min(axis=0)), np.maximum(hi, allp.max(axis=0))
     if points:
         allp = np.concatenate(points)
         lo = np.minimum(lo, allp.min(axis=0) - 0.5 * width)
@@ -248,11 +276,13 @@ class _Checked:
     frame: tuple[float, float, float, float] | None
     vmin: float
     vmax: float
+    stitches: list[np.ndarray]
 
 
 def _checked(flat_uv: np.ndarray, F: np.ndarray, sigma2: np.ndarray, ribbons: Sequence[RibbonLike],
              ribbon_width: float, marks: np.ndarray | None, frame_bounds: tuple[float, float, float, float] | None,
-             sigma2_bounds: tuple[float, float] | None, dpi: int, flip_axis: str | None) -> _Checked:
+             sigma2_bounds: tuple[float, float] | None, dpi: int, flip_axis: str | None,
+             stitch_marks: Sequence[object] | None = None) -> _Checked:
     """Check ``render_preview``'s arguments in its documented order; the first problem raises."""
     uv = _float_array(flat_uv, "flat_uv", "(n, 2)", 2)
     if len(uv) < 3:
@@ -280,7 +310,7 @@ def _checked(flat_uv: np.ndarray, F: np.ndarray, sigma2: np.ndarray, ribbons: Se
     if not (isinstance(dpi, (int, np.integer)) and 10 <= dpi <= 1200):
         raise ValueError(f"dpi = {dpi!r}: must be an integer in 10..1200")
     return _Checked(uv=uv, faces=faces, s2=s2, width=width, points=points, sides=sides, marks=mk, frame=frame,
-                    vmin=vmin, vmax=vmax)
+                    vmin=vmin, vmax=vmax, stitches=_stitch_strokes(stitch_marks))
 
 
 def render_preview(flat_uv: np.ndarray,
@@ -293,7 +323,9 @@ def render_preview(flat_uv: np.ndarray,
                    title: str = "",
                    sigma2_bounds: tuple[float, float] | None = None,
                    dpi: int = 150,
-                   flip_axis: str | None = "y") -> tuple[bytes, bytes]:
+                   flip_axis: str | None = "y",
+                   stitch_marks: Sequence[StitchMarkLike | Sequence[np.ndarray]] | None = None
+                   ) -> tuple[bytes, bytes]:
     """Render the layout preview of a design: ``(preview.svg, preview.png)`` as bytes.
 
     Parameters
@@ -324,6 +356,9 @@ def render_preview(flat_uv: np.ndarray,
         the frame's axis the fabric is turned over about for the back side (the printer profile's
         ``frame.flip_axis``; the shipped profiles use "y"), drawn through the frame's centre when
         ``frame_bounds`` is given (SVG id ``flip-axis``); None draws none.
+    stitch_marks : sequence, optional
+        a panel's stitch marks (issue 26), thin dark lines (SVG id ``stitch-marks``): each a
+        ``StitchMarkLike`` or a sequence of (k, 2) polylines (``stitch.stitch_mark_strokes``), mm.
 
     Returns
     -------
@@ -334,10 +369,12 @@ def render_preview(flat_uv: np.ndarray,
     ------
     ValueError
         naming the problem: a wrong shape, a non-finite value, a face index out of range, a ribbon
-        (by index) with an unknown side or fewer than two points, invalid bounds.
+        (by index) with an unknown side or fewer than two points, invalid bounds, a stitch mark's
+        stroke (by mark and stroke) of a wrong shape or fewer than two points.
     """
-    c = _checked(flat_uv, F, sigma2, ribbons, ribbon_width, marks, frame_bounds, sigma2_bounds, dpi, flip_axis)
-    lo, hi = _extent(c.uv, c.points, c.width, c.marks, c.frame)
+    c = _checked(flat_uv, F, sigma2, ribbons, ribbon_width, marks, frame_bounds, sigma2_bounds, dpi, flip_axis,
+                 stitch_marks)
+    lo, hi = _extent(c.uv, c.points, c.width, c.marks, c.frame, c.stitches)
     fig = Figure(figsize=_figure_size(lo, hi), dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
     ax = _axes(fig, lo, hi)
@@ -351,7 +388,8 @@ def render_preview(flat_uv: np.ndarray,
     ax.add_collection(outline, autolim=False)
     if c.marks is not None and len(c.marks):
         _draw_marks(ax, c.marks)
-    _legend(fig, counts, c.marks, c.frame, flip_axis)
+    _draw_stitches(ax, c.stitches)
+    _legend(fig, counts, c.marks, c.frame, flip_axis, len(stitch_marks or []))
     if title:
         fig.suptitle(title, fontsize=11, parse_math=False)  # a file name may hold "$"
     return _saved(fig, dpi)
@@ -426,8 +464,18 @@ def _draw_marks(ax: Axes, mk: np.ndarray) -> None:
         label.set_gid(f"registration-mark-{number}")
 
 
+def _draw_stitches(ax: Axes, strokes: list[np.ndarray]) -> None:
+    """A panel's stitch marks: every stroke a thin dark line, one collection (SVG id ``stitch-marks``)."""
+    if not strokes:
+        return
+    lines = LineCollection(strokes, colors=STITCH_COLOR, linewidths=STITCH_LINEWIDTH, capstyle="round",
+                           joinstyle="round", zorder=4)
+    lines.set_gid("stitch-marks")
+    ax.add_collection(lines, autolim=False)
+
+
 def _legend(fig: Figure, counts: dict[str, int], mk: np.ndarray | None,
-            frame: tuple[float, float, float, float] | None, flip_axis: str | None) -> None:
+            frame: tuple[float, float, float, float] | None, flip_axis: str | None, stitches: int = 0) -> None:
     """The legend under the axes: the ribbons per side, the outline, the marks, the frame and flip axis."""
     handles: list[object] = [
         Patch(facecolor=SIDE_COLORS["front"], label=f"front ribbons ({counts['front']})"),
@@ -440,6 +488,9 @@ def _legend(fig: Figure, counts: dict[str, int], mk: np.ndarray | None,
         cross = Line2D([], [], marker="+", **_MARK_STYLE)
         handles.append((circle, cross))
         labels.append(f"registration marks 1–{len(mk)}" if len(mk) else "registration marks (0)")
+    if stitches:
+        handles.append(Line2D([], [], color=STITCH_COLOR, linewidth=STITCH_LINEWIDTH))
+        labels.append(f"stitch marks ({stitches})")
     if frame is not None:
         handles.append(Line2D([], [], color=FRAME_COLOR, linestyle="--", linewidth=1.0))
         labels.append("printable frame")

@@ -16,6 +16,9 @@ would clamp them: Marlin scales a move's speed so that no axis exceeds its maxim
 ``max_z_speed``. The checked commands carry the clamped F word (and the asked-for feed is given
 again on the next move that relies on it), and the result says how many moves were clamped.
 
+``check_stitch_marks`` checks a design's front program against ``design.stitch_marks`` (issue 26):
+it follows the program as the check does and finds each stroke of each mark printed over its length.
+
 The modal state is followed as Marlin keeps it: G90/G91 (which set E's mode too), M82/M83,
 G92 E, the feed (shared by G0 and G1), G28 (the axes homed to machine 0, as the programs ribbond
 writes assume), M18/M84 (motors off: the position is lost).
@@ -29,10 +32,14 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
+from ribbond.design.format import StitchMark
 from ribbond.printer import codec
 from .profiles import PrinterProfile
 
-__all__ = ["Checked", "GcodeChecker", "Modal", "parse_command"]
+__all__ = ["Checked", "GcodeChecker", "Modal", "check_stitch_marks", "extruded_segments", "parse_command",
+           "uncovered"]
 
 _NUMBER_PREFIX = re.compile(r"^N\d+\s*", re.IGNORECASE)
 _CODE = re.compile(r"^([GMT])0*(\d+)(\.\d+)?", re.IGNORECASE)
@@ -383,3 +390,78 @@ def _comment_of(raw: str) -> str:
     """A line's ``;`` comment, kept on a rewritten line."""
     at = raw.find(";")
     return "  " + raw[at:].rstrip("\r\n") if at >= 0 else ""
+
+
+# ---------------------------------------------------------------------------------------------
+# a design's marks in its program (issue 26)
+
+
+def extruded_segments(lines: Sequence[str], profile: PrinterProfile, source: str = "program") -> np.ndarray:
+    """The XY segments a program prints along: (s, 2, 2) start and end of every move that moves in XY
+    and feeds filament, followed as ``GcodeChecker`` follows the modal state (so the program is
+    checked too: a refusal raises ``ValueError`` naming the line)."""
+    checker = GcodeChecker(profile, source)
+    m = checker.modal
+    out = []
+    for number, raw in enumerate(lines, start=1):
+        command = _NUMBER_PREFIX.sub("", codec.strip_comment(raw)).split("*", 1)[0].strip()
+        if not command:
+            continue
+        start, e0, e_absolute = list(m.pos), m.e, m.e_absolute
+        checker.command(number, command)
+        if command[:1] not in "Gg":
+            continue
+        code, args = parse_command(command, checker.where(number, command))
+        e = args.get("E")
+        if code not in ("G0", "G1") or e is None or None in start[:2] or None in m.pos[:2]:
+            continue
+        fed = (e - e0 if e0 is not None else 0.0) if e_absolute else e
+        if fed > _EPS and (start[0], start[1]) != (m.pos[0], m.pos[1]):
+            out.append(((start[0], start[1]), (m.pos[0], m.pos[1])))
+    return np.asarray(out, dtype=float).reshape(-1, 2, 2)
+
+
+def _samples(stroke: np.ndarray, step: float) -> np.ndarray:
+    """Points along a polyline (k, 2) no farther apart than ``step``, its vertices included."""
+    a, b = stroke[:-1], stroke[1:]
+    counts = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=1) / step)).astype(int)
+    t = np.concatenate([np.arange(c) / c for c in counts])
+    seg = np.repeat(np.arange(len(a)), counts)
+    return np.vstack([a[seg] + t[:, None] * (b[seg] - a[seg]), stroke[-1:]])
+
+
+def uncovered(stroke: np.ndarray, segments: np.ndarray, reach: float) -> np.ndarray:
+    """The points along ``stroke`` (k, 2), sampled every ``reach``, farther than ``reach`` from every
+    segment of ``segments`` (s, 2, 2): (u, 2), empty when the stroke is printed over its whole length."""
+    pts = _samples(np.asarray(stroke, dtype=float), reach)
+    lo, hi = pts.min(axis=0) - reach, pts.max(axis=0) + reach
+    near = segments[(segments.max(axis=1) >= lo).all(axis=1) & (segments.min(axis=1) <= hi).all(axis=1)]
+    if not len(near):
+        return pts
+    a, d = near[:, 0], near[:, 1] - near[:, 0]                                # (s, 2)
+    rel = pts[:, None, :] - a[None]                                            # (n, s, 2)
+    t = np.clip((rel * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-18), 0.0, 1.0)
+    dist = np.linalg.norm(rel - t[..., None] * d, axis=-1).min(axis=1)
+    return pts[dist > reach]
+
+
+def check_stitch_marks(lines: Sequence[str], marks: Sequence[StitchMark], profile: PrinterProfile,
+                       source: str = "front.gcode") -> None:
+    """Check that a front program prints every stroke of a design's stitch marks (``design.stitch_marks``):
+    each point along each stroke within half the nozzle's width of a printing move.
+
+    Raises
+    ------
+    ValueError
+        naming the program, the mark's label and stroke, and the first point left unprinted.
+    """
+    segments = extruded_segments(lines, profile, source)
+    reach = 0.5 * profile.extruder.nozzle_diameter
+    for mark in marks:
+        for k, stroke in enumerate(mark.arrays()):
+            missing = uncovered(stroke, segments, reach)
+            if len(missing):
+                x, y = missing[0]
+                raise ValueError(f"{source} does not print stroke {k} of stitch mark {mark.label} "
+                                 f"({'the tick' if k == 0 else 'its label'}): nothing printed within "
+                                 f"{reach:g} mm of ({x:.3f}, {y:.3f})")

@@ -5,7 +5,9 @@ Conventions of every program: millimetres, absolute positioning (G90), **relativ
 ``G92 E``), G0 for travel and G1 for printing, feed rates in mm/min, coordinates to 1 µm.
 
 - ``front.gcode``: header, home, heat and wait, the registration marks (small crosses at the
-  design's positions), the front ribbons, footer (retract, lift, park, heaters off).
+  design's positions), the stitch marks of a panel (``design.stitch_marks``, issue 26: each a part
+  ``;TYPE:STITCH i``, its strokes one layer high and a nozzle wide), the front ribbons, footer
+  (retract, lift, park, heaters off); marks and ribbons are visited in one short tour.
 - ``back.gcode``: the back ribbons mirrored about the profile's flip axis into back-side print
   coordinates. ``SidePlan`` keeps the planned passes, so the daemon regenerates it with a measured
   rigid ``Correction`` (rotation about a point, then an offset) with one ``render_side`` call;
@@ -38,6 +40,8 @@ from .toolpath import RibbonPasses, mark_passes, ribbon_passes
 
 #: Size of a registration mark's cross, mm.
 MARK_SIZE = 4.0
+#: What a refusal calls a part of a kind other than "ribbon" and "mark" (default: the kind itself).
+_PART_NAMES = {"stitch": "stitch mark"}
 #: Coordinates may touch the frame rectangle's edge by this much (rounding to 1 µm).
 _EDGE = 1e-6
 
@@ -78,10 +82,10 @@ class SidePlan:
     Attributes
     ----------
     side : "front" or "back".
-    parts : the passes of each part (a ribbon, or a registration mark on the front), in print
-        order and direction.
-    kind : ("ribbon" or "mark") and index : (in ``design.ribbons`` or ``design.registration_marks``)
-        of each part.
+    parts : the passes of each part (a ribbon, or on the front a registration or stitch mark), in
+        print order and direction.
+    kind : ("ribbon", "mark" or "stitch") and index : (in ``design.ribbons``,
+        ``design.registration_marks`` or ``design.stitch_marks``) of each part.
     tour : the ordering's result (travel before and after, in mm).
     """
 
@@ -172,8 +176,17 @@ class Programs:
 # planning
 
 
+def _stroke_passes(strokes: list[np.ndarray], width: float, height: float) -> tuple[RibbonPasses, RibbonPasses]:
+    """One-layer passes of ``strokes`` (each (k, 2)) ``width`` wide, ``height`` high: in their order,
+    and the whole reversed (each stroke backwards, last first)."""
+    layer = np.zeros(len(strokes), dtype=np.int64)
+    return (RibbonPasses(list(strokes), layer, width, height),
+            RibbonPasses([q[::-1] for q in strokes[::-1]], layer, width, height))
+
+
 def plan_side(design: Design, profile: PrinterProfile, side: str, *, time_budget: float = 1.0) -> SidePlan:
-    """Passes of ``side``'s ribbons, ordered for short travel, in that side's print coordinates."""
+    """Passes of ``side``'s ribbons, ordered for short travel, in that side's print coordinates; on the
+    front the registration marks and the stitch marks (one layer, a nozzle wide) join the tour."""
     if side not in ("front", "back"):
         raise ValueError(f"side must be 'front' or 'back', not {side!r}")
     p = design.parameters
@@ -198,6 +211,10 @@ def plan_side(design: Design, profile: PrinterProfile, side: str, *, time_budget
             parts.append((RibbonPasses([a, b], np.zeros(2, dtype=np.int64), nozzle, h0),
                           RibbonPasses([b[::-1], a[::-1]], np.zeros(2, dtype=np.int64), nozzle, h0)))
             kind.append("mark")
+            indices.append(m)
+        for m, mark in enumerate(design.stitch_marks or []):
+            parts.append(_stroke_passes(mark.arrays(), nozzle, h0))
+            kind.append("stitch")
             indices.append(m)
     x0, y0, _, _ = profile.frame.bounds
     start = np.array([x0, y0])
@@ -339,9 +356,9 @@ def _body(w: _Writer, plan: SidePlan) -> None:
         if kind == "mark":
             w.raw(f";TYPE:REGISTRATION {int(index)}")
             what = f"registration mark {int(index)}"
-        elif kind != "ribbon":                      # calibration labels and cut marks
+        elif kind != "ribbon":                      # stitch marks, calibration labels and cut marks
             w.raw(f";TYPE:{kind.upper()} {int(index)}")
-            what = f"{kind} {int(index)}"
+            what = f"{_PART_NAMES.get(kind, kind)} {int(index)}"
         else:
             done += 1
             w.raw(f";TYPE:RIBBON {int(index)} ({done} of {count})")
