@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
@@ -30,7 +30,7 @@ from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
 from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, RefinedReport,
-                     Report, Ribbon, RibbonsReport, SidePrintReport, Source)
+                     Report, Ribbon, RibbonsReport, SidePrintReport, Source, StitchMark)
 from .frames import FaceFrames, face_frames
 from .intake import TargetMesh, load_target
 from .mesh_io import obj_bytes
@@ -133,6 +133,7 @@ class _Run:
     predict: bool
     t_start: float
     timings: dict[str, float] = field(default_factory=dict)
+    flat_start: np.ndarray | None = None
     # load
     target: TargetMesh = field(init=False)
     coarse_faces: int = field(init=False)
@@ -198,7 +199,7 @@ class _Stage(NamedTuple):
 def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = None,
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
                 progress: DesignProgress | None = None, predict: bool = True,
-                tables_dir: Path | None = None) -> DesignResult:
+                tables_dir: Path | None = None, flat_start: np.ndarray | None = None) -> DesignResult:
     """Run the engine's ``STAGES`` on a mesh file: load, curvature and line field, flattening, stripes,
     ribbons, G-code, the predicted deployed shape and the preview.
 
@@ -210,6 +211,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     frame : the printable rectangle; default: that of ``parameters.printer_profile``.
     predict : predict the deployed shape of the layout (stage ``deploy``, ``ribbond.deploy``).
     tables_dir : where named curvature tables are looked up before the shipped ones (the daemon's).
+    flat_start : (n, 2) a converged flattening of the same mesh at its physical size, in the file's vertex
+        order (a panel's, from the cut's check): the flattening then only runs its last phase from it.
+        Used when the file's vertices reach the engine unchanged (no merge, no refinement).
 
     Raises
     ------
@@ -220,6 +224,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     """
     run = _prepare(mesh_path, parameters or DesignParameters(), solver or SolverSettings(), frame,
                    progress or NoProgress(), predict, tables_dir)
+    run.flat_start = flat_start
     for stage in STAGES:
         if stage.applies(run):
             _run_stage(run, stage)
@@ -296,7 +301,7 @@ def _flatten(run: _Run) -> str:
     flattener = BoundedFlattener(run.V, run.F, lines.angle, params.bounds, run.solver, frames=run.frames,
                                  prestretch=params.prestretch,
                                  k1_defined=lines.anisotropy > ANISOTROPY_THRESHOLD)
-    run.flat = flat = flattener.solve(boundary=run.target.boundary,
+    run.flat = flat = flattener.solve(_flat_start(run), boundary=run.target.boundary,
                                       progress=lambda i, dsig, e: run.progress.iteration("flatten", i, dsig, e))
     if flat.folded.any():
         bad = np.flatnonzero(flat.folded)
@@ -307,6 +312,15 @@ def _flatten(run: _Run) -> str:
     return (f"{flat.iterations} iterations, "
             + ("converged" if flat.converged else "stopped at the iteration cap")
             + f"; sparse solver {linalg.BACKEND_DESCRIPTION}")
+
+
+def _flat_start(run: _Run) -> np.ndarray | None:
+    """The given start of the flattening, when the file's vertices reached the engine as they were."""
+    start, target = run.flat_start, run.target
+    if (start is None or run.refined is not None or target.merged or target.unreferenced
+            or np.shape(start) != (len(run.V), 2)):
+        return None
+    return np.asarray(start, dtype=float) * (run.size / _bbox_diagonal(target.V))
 
 
 def _fit_in_frame(run: _Run) -> None:
@@ -455,14 +469,39 @@ def _deployed_report(run: _Run) -> None:
 
 def _preview(run: _Run) -> str:
     """The picture of the predicted shape and the layout preview."""
-    name, n = run.target.name, len(run.ribbons)
+    name = run.target.name
     run.deployed_png = (run.prediction.render_png(run.V, run.F, title=f"{name}: predicted deployed shape")
                         if run.prediction is not None else None)
-    run.preview_svg, run.preview_png = render_preview(
-        run.uv, run.F, run.flat.sigma[:, 1], run.ribbons, run.params.ribbon_width, marks=run.marks,
-        frame_bounds=run.frame.bounds, sigma2_bounds=run.parameters.bounds[1], flip_axis=run.frame.flip_axis,
-        title=f"{name}: {n} ribbons ({run.front} front, {n - run.front} back), size {run.size:.0f} mm")
+    run.preview_svg, run.preview_png = _layout_preview(name, run.uv, run.F, run.flat.sigma[:, 1], run.design,
+                                                       run.frame)
     return f"{len(run.preview_png) // 1024} kB PNG, {len(run.preview_svg) // 1024} kB SVG"
+
+
+def _layout_preview(name: str, uv: np.ndarray, F: np.ndarray, sigma2: np.ndarray, design: Design,
+                    frame: FrameSpec) -> tuple[bytes, bytes]:
+    """``preview.svg`` and ``preview.png`` of a design's layout, its marks and stitch marks."""
+    ribbons = design.ribbons or []
+    n, front = len(ribbons), sum(r.side == "front" for r in ribbons)
+    marks = np.asarray(design.registration_marks) if design.registration_marks else None
+    return render_preview(
+        uv, F, sigma2, ribbons, design.parameters.ribbon_width, marks=marks, frame_bounds=frame.bounds,
+        sigma2_bounds=design.parameters.bounds[1], flip_axis=frame.flip_axis, stitch_marks=design.stitch_marks,
+        title=f"{name}: {n} ribbons ({front} front, {n - front} back), size {design.parameters.size.bbox_diagonal:.0f} mm")
+
+
+def with_stitch_marks(result: DesignResult, stitch_marks: list[StitchMark], name: str) -> DesignResult:
+    """The design with stitch marks printed on its front (issue 26): ``design.json``, the programs and
+    the preview made again; the layout, the prediction and the report's other figures unchanged."""
+    profile = load_profile(result.design.parameters.printer_profile)
+    design = result.design.updated(stitch_marks=stitch_marks or None)
+    programs = _programs(design, profile if result.frame == profile.frame
+                         else profile.model_copy(update={"frame": result.frame}))
+    fs, bs = programs.front.stats, programs.back.stats
+    report = design.report.updated(print_=PrintReport(front=SidePrintReport(**fs.report()),
+                                                      back=SidePrintReport(**bs.report())))
+    design = design.updated(report=report)
+    svg, png = _layout_preview(name, result.flat_uv, result.F, result.flattening.sigma[:, 1], design, result.frame)
+    return replace(result, design=design, programs=programs, preview_svg=svg, preview_png=png)
 
 
 #: The engine's stages in order: what the worker, the daemon and ``ribbonctl design`` show.

@@ -14,7 +14,7 @@ from __future__ import annotations
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from ..deploy.assembly import Assembly, ReleasedPanel, SeamPairing, assemble
 from ..gcode.profiles import FrameSpec, load_profile
+from ..gcode.program import GcodeError
 from .curvature import face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener
@@ -32,11 +33,12 @@ from .mesh_io import write_obj
 from .panels import (bisect, boundary_loops, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
                      spectral_embedding)
 from .params import DesignParameters, SizeSpec, SolverSettings
-from .pipeline import DesignProgress, DesignResult, NoProgress, design_mesh
+from .pipeline import DesignProgress, DesignResult, NoProgress, design_mesh, with_stitch_marks
+from .stitch import make_stitch_marks
 from .placement import fit_scale, place_in_frame
 from .refine import refine_target
 from .report import BAD_TOLERANCE, bounds_deviation
-from .seams import (SeamChain, mark_count, outward_normals, points_at_fractions, polyline_length, seam_chains,
+from .seams import (SeamChain, mark_fractions, outward_normals, points_at_fractions, polyline_length, seam_chains,
                     seam_label)
 
 #: A panel may have at most this share of its faces outside the stretch bounds, %.
@@ -64,6 +66,7 @@ class PanelCheck:
     bad_pct: float
     flat_size: tuple[float, float]
     fits: bool
+    uv: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def feasible(self) -> bool:
@@ -116,7 +119,7 @@ def check_panel(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: 
     placed, _ = place_in_frame(flat.uv, frame, margin)
     w, h = placed.max(axis=0) - placed.min(axis=0)
     return PanelCheck(bad_pct=float(100.0 * bad.mean()), flat_size=(float(w), float(h)),
-                      fits=fit_scale(placed, frame, margin) >= 1.0)
+                      fits=fit_scale(placed, frame, margin) >= 1.0, uv=flat.uv)
 
 
 def _is_disk(F: np.ndarray, n_vertices: int) -> bool:
@@ -162,14 +165,26 @@ def _face_graph(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: 
     return pairs, seam_weights(V, verts, pairs, lines.direction, lines.anisotropy, np.abs(curv.kappa1)), frames.area
 
 
+def _halve(halves: np.ndarray, V: np.ndarray, F: np.ndarray, check: _Checker, pairs: np.ndarray,
+           weights: np.ndarray, area: np.ndarray) -> np.ndarray:
+    """Recursive bisection's next step: the largest panel that fails is halved (across its longest extent
+    when it is too large for the frame, else along its Fiedler vector)."""
+    checks = check.all(straighten_seams(V, F, halves), halves, stop_early=False)
+    sizes = np.bincount(halves, weights=area) * np.array([not c.feasible for c in checks])
+    j = int(np.argmax(sizes))
+    across = None if checks[j].fits else longest_axis(V[F].mean(axis=1), area, np.flatnonzero(halves == j))
+    return bisect(halves, j, pairs, weights, area, across)
+
+
 def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: SolverSettings, frame: FrameSpec,
                panels: int | str, margin: float, progress: Callable[[int, str], None] | None = None) -> Cut:
     """Cut the target (V (n, 3) mm, F (m, 3)) into ``panels`` panels, or with ``"auto"`` into the fewest
     (up to ``MAX_PANELS``) that are each feasible.
 
-    For each count k two cuts are tried: the k-means cut of the spectral embedding (gores on a bowl)
-    and recursive bisection, which halves the first panel that failed at k − 1 (balanced pieces, for a
-    surface too large for the frame). Returns the first feasible cut, or the last tried."""
+    For each count k the k-means cut of the spectral embedding is tried (gores on a bowl); when one of
+    its panels is too large for the frame, recursive bisection is tried too, which halves the largest
+    panel that failed until there are k (balanced pieces). Each cut's seams are straightened before
+    its panels are flattened. Returns the first feasible cut, or the last tried."""
     pairs, weights, area = _face_graph(V, F, params, solver)
     counts = range(1, MAX_PANELS + 1) if panels == "auto" else [int(panels)]
     dims = min(max(counts) - 1, len(F) - 3)
@@ -177,18 +192,17 @@ def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: S
     check = _Checker(V, F, params, solver, frame, margin)
     halves = np.zeros(len(F), dtype=np.int64)
     tried: list[dict] = []
-    cut = None
+    cut: Cut | None = None
     for k in counts:
-        if k > 1 and panels == "auto":
-            checks = check.all(straighten_seams(V, F, halves), halves, stop_early=False)
-            sizes = np.bincount(halves, weights=area) * np.array([not c.feasible for c in checks])
-            j = int(np.argmax(sizes))                                                 # the largest that failed
-            across = None if checks[j].fits else longest_axis(V[F].mean(axis=1), area, np.flatnonzero(halves == j))
-            halves = bisect(halves, j, pairs, weights, area, across)
-        for how, labels in (("spectral", partition(embedding[:, :max(k - 1, 1)], k, pairs, weights, area)),
-                            ("bisection", halves)):
-            if how == "bisection" and (k == 1 or panels != "auto"):
-                continue
+        for how in ("spectral", "bisection"):
+            if how == "bisection":
+                if k == 1 or panels != "auto" or all(c.fits for c in cut.checks):
+                    continue             # halving is for a panel too large for the frame; more gores for the bounds
+                while halves.max() + 1 < k:
+                    halves = _halve(halves, V, F, check, pairs, weights, area)
+                labels = halves
+            else:
+                labels = partition(embedding[:, :max(k - 1, 1)], k, pairs, weights, area)
             X = straighten_seams(V, F, labels) if k > 1 else V
             checks = check.all(X, labels, stop_early=panels == "auto")
             tried.append({"panels": k, "cut": how, "worst_bad_pct": round(max(c.bad_pct for c in checks), 3),
@@ -276,17 +290,19 @@ def _infeasible_message(cut: Cut, panels: int | str) -> str:
     return f"{cut.count} panels leave {what}; try panels = auto"
 
 
-def _design_panel(V: np.ndarray, F: np.ndarray, labels: np.ndarray, j: int, n: int, name: str,
+def _design_panel(V: np.ndarray, F: np.ndarray, cut: Cut, j: int, name: str,
                   params: DesignParameters, solver: SolverSettings, frame: FrameSpec, progress: DesignProgress,
                   predict: bool, tables_dir: Path | None, workdir: Path) -> PanelDesign:
-    """Design panel j (0-based) of n with the engine's stages, at the target's scale."""
+    """Design panel j (0-based) of the cut with the engine's stages, at the target's scale (its flattening
+    starts from the cut's check of it, which ran the same flattening)."""
+    labels, n = cut.labels, cut.count
     Vp, Fp, vertex_index, face_index = panel_submesh(V, F, labels, j)
     path = workdir / f"{Path(name).stem}-panel-{j + 1}.obj"
     write_obj(path, Vp, Fp, header=f"ribbond project: panel {j + 1} of {n} of {name}, mm")
     diag = float(np.linalg.norm(Vp.max(axis=0) - Vp.min(axis=0)))
     result = design_mesh(path, params.model_copy(update={"size": SizeSpec(bbox_diagonal=diag)}), solver,
                          frame=frame, progress=_prefixed(progress, j + 1, n), predict=predict,
-                         tables_dir=tables_dir)
+                         tables_dir=tables_dir, flat_start=cut.checks[j].uv)
     offset = Vp.mean(axis=0)
     dist, local = cKDTree(result.V + offset).query(Vp)
     if dist.max() > 1e-6 * diag:
@@ -340,7 +356,7 @@ def _seam(i: int, chain: SeamChain, V: np.ndarray, panels: list[PanelDesign]) ->
     target_length = polyline_length(V[chain.vertices])
     deployed = [_deployed_polyline(side, f) for side, f in zip(sides, flat)]
     measures = deployed if all(d is not None for d in deployed) else [V[chain.vertices]] * 2
-    fractions = np.linspace(0.0, 1.0, mark_count(target_length, MARK_SPACING))
+    fractions = mark_fractions(target_length, MARK_SPACING)
     marks = tuple(points_at_fractions(f, m, fractions) for f, m in zip(flat, measures))
     outward = tuple(outward_normals(side.outline(), mk) for side, mk in zip(sides, marks))
     return Seam(label=seam_label(i), panels=chain.panels, vertices=chain.vertices, flat=flat,   # type: ignore[arg-type]
@@ -348,6 +364,30 @@ def _seam(i: int, chain: SeamChain, V: np.ndarray, panels: list[PanelDesign]) ->
                 deployed_length=(tuple(polyline_length(d) for d in deployed)                     # type: ignore[arg-type]
                                  if all(d is not None for d in deployed) else None),
                 marks=marks, outward=outward)                                                   # type: ignore[arg-type]
+
+
+def stitch_panels(panels: list[PanelDesign], seams: list[Seam], tick_length: float, name: str) -> list[PanelDesign]:
+    """Each panel with the stitch marks of its seams printed on its front: mark j of seam A is "A{j+1}"
+    on both sides, a tick across the allowance (``tick_length``, mm on the stretched fabric) and its label."""
+    out = []
+    for k, panel in enumerate(panels):
+        at, outward, labels = [], [], []
+        for seam in seams:
+            for side in (0, 1):
+                if seam.panels[side] == k:
+                    at.append(seam.marks[side])
+                    outward.append(seam.outward[side])
+                    labels += [f"{seam.label}{j + 1}" for j in range(len(seam.marks[side]))]
+        if not labels or tick_length <= 0:
+            out.append(panel)
+            continue
+        try:
+            marks = make_stitch_marks(np.vstack(at), np.vstack(outward), labels, tick_length)
+            result = with_stitch_marks(panel.result, marks, f"{Path(name).stem} panel {k + 1}")
+        except (ValueError, GcodeError) as exc:
+            raise DesignError(f"panel {k + 1}: the stitch marks cannot be printed: {exc}") from None
+        out.append(replace(panel, result=result))
+    return out
 
 
 def project_seams(V: np.ndarray, F: np.ndarray, panels: list[PanelDesign]) -> list[Seam]:
@@ -429,11 +469,12 @@ def design_project(mesh_path: str | Path, parameters: DesignParameters | None = 
     panel_solver = solver.model_copy(update={"refine_below_faces": 0, "layout_margin": margin})
     t = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="ribbond-panels-") as tmp:
-        designs = [_design_panel(cut.V, target.F, cut.labels, j, cut.count, target.name, params, panel_solver, frame,
+        designs = [_design_panel(cut.V, target.F, cut, j, target.name, params, panel_solver, frame,
                                  progress, predict, tables_dir, Path(tmp)) for j in range(cut.count)]
     timings["panels"] = time.perf_counter() - t
     t = time.perf_counter()
     seams = project_seams(cut.V, target.F, designs)
+    designs = stitch_panels(designs, seams, seam_allowance * params.prestretch, target.name)
     timings["seams"] = time.perf_counter() - t
     assembly = None
     if predict:
@@ -462,7 +503,7 @@ def assemble_prediction(V: np.ndarray, F: np.ndarray, panels: list[PanelDesign],
     pairings = []
     for seam in seams:
         a, b = (panels[k] for k in seam.panels)
-        fractions = np.linspace(0.0, 1.0, mark_count(seam.target_length, SEWING_SPACING))
+        fractions = np.linspace(0.0, 1.0, max(2, int(round(seam.target_length / SEWING_SPACING)) + 1))
         points = [points_at_fractions(flat, _deployed_polyline(side, flat), fractions)
                   for side, flat in zip((a, b), seam.flat)]
         pairings.append(SeamPairing(panel_a=seam.panels[0], points_a=points[0], panel_b=seam.panels[1],

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["SeamChain", "seam_chains", "polyline_length", "points_at_fractions", "outward_normals",
-           "mark_count", "seam_label"]
+           "mark_fractions", "seam_label"]
 
 
 @dataclass(frozen=True)
@@ -108,9 +108,12 @@ def outward_normals(outline: np.ndarray, points: np.ndarray) -> np.ndarray:
     return out / np.maximum(np.linalg.norm(out, axis=1), 1e-300)[:, None]
 
 
-def mark_count(length: float, spacing: float) -> int:
-    """Stitch marks on a seam of ``length`` mm at about ``spacing`` mm: both ends and between, ≥ 2."""
-    return max(2, int(round(length / spacing)) + 1)
+def mark_fractions(length: float, spacing: float) -> np.ndarray:
+    """Where the stitch marks go on a seam of ``length`` mm, about ``spacing`` mm apart: fractions of its
+    length strictly between its ends (the ends are the panels' corners, pinned as such; marks there would
+    crowd the corner), at least one."""
+    count = max(1, int(round(length / spacing)) - 1)
+    return (np.arange(count) + 1.0) / (count + 1.0)
 
 
 def seam_label(i: int) -> str:

@@ -9,7 +9,7 @@ from ribbond.design import surfaces
 from ribbond.design.frames import face_frames
 from ribbond.design.panels import (bisect, boundary_loops, cut_weight, interior_edges, longest_axis,
                                    panel_submesh, partition, seam_weights, spectral_embedding, straighten_seams)
-from ribbond.design.seams import (mark_count, outward_normals, points_at_fractions, polyline_length,
+from ribbond.design.seams import (mark_fractions, outward_normals, points_at_fractions, polyline_length,
                                   seam_chains, seam_label)
 
 
@@ -104,7 +104,8 @@ def test_outward_normals_of_a_square_point_out():
 
 
 def test_marks_and_labels():
-    assert mark_count(5.0, 20.0) == 2 and mark_count(80.0, 20.0) == 5
+    assert mark_fractions(5.0, 20.0) == pytest.approx([0.5])
+    assert mark_fractions(80.0, 20.0) == pytest.approx([0.25, 0.5, 0.75])     # every 20 mm, not at the ends
     assert [seam_label(i) for i in (0, 25, 26, 27)] == ["A", "Z", "AA", "AB"]
 
 

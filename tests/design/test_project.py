@@ -6,7 +6,9 @@ import json
 
 import numpy as np
 import pytest
+import shapely
 
+from ribbond.deploy.predict import interpolate
 from ribbond.design import surfaces
 from ribbond.design.errors import DesignError
 from ribbond.design.folder import read_design_folder
@@ -71,7 +73,7 @@ def test_seams_are_great_circle_arcs_joining_all_panels(project):
             outline = project.panels[side].outline()
             d = np.linalg.norm(flat[:, None] - outline[None], axis=2).min(axis=1)
             assert d.max() < 1e-9
-        assert len(seam.marks[0]) == len(seam.marks[1]) >= 2
+        assert len(seam.marks[0]) == len(seam.marks[1]) >= 1
 
 
 def test_the_project_folder(project, tmp_path):
@@ -101,3 +103,27 @@ def test_bad_requests_are_refused_naming_the_setting(hemisphere):
         design_project(hemisphere, seam_allowance=-1.0)
     with pytest.raises(DesignError, match="2 panels leave"):
         design_project(hemisphere, solver=SOLVER, panels=2, predict=False)
+
+
+def test_stitch_marks_pin_the_same_points_of_the_target_on_both_sides(project):
+    """Without a prediction the marks sit at matched fractions of the target's seam length: mapped back
+    through each panel's flattening, mark A3 of one side and A3 of the other are the same target point."""
+    tick = project.seam_allowance * 1.6
+    for seam in project.seams:
+        where = []
+        for side, marks in zip(seam.panels, seam.marks):
+            r = project.panels[side].result
+            where.append(interpolate(marks, r.flat_uv, r.F, r.V + project.panels[side].offset))
+        assert np.linalg.norm(where[0] - where[1], axis=1).max() < 0.05
+    for k, panel in enumerate(project.panels):
+        marks = panel.result.design.stitch_marks
+        mine = [s for s in project.seams if k in s.panels]
+        assert sorted(m.label for m in marks) == sorted(f"{s.label}{j + 1}" for s in mine for j in range(len(s.marks[0])))
+        outline = panel.outline()
+        for m in marks:
+            tick_end = np.asarray(m.strokes[0][-1])
+            assert np.linalg.norm(tick_end - np.asarray(m.at)) == pytest.approx(tick)
+            assert not shapely.Polygon(outline).contains(shapely.Point(*tick_end))                                      # the tick reaches out into the allowance
+        front = panel.result.programs.front.text
+        assert front.count(";TYPE:STITCH") == len(marks)
+        assert ";TYPE:STITCH" not in panel.result.programs.back.text
