@@ -107,7 +107,7 @@ class DesignResult:
     layout: RibbonLayout
     frame: FrameSpec
     design: Design
-    programs: Programs
+    programs: Programs | None
     preview_svg: bytes
     preview_png: bytes
     prediction: Prediction | None = None
@@ -166,11 +166,11 @@ class _Run:
     parameters: Parameters = field(init=False)
     design: Design = field(init=False)
     # gcode, deploy, preview
-    programs: Programs = field(init=False)
+    programs: Programs | None = None
     prediction: Prediction | None = None
     deployed_png: bytes | None = None
-    preview_svg: bytes = field(init=False)
-    preview_png: bytes = field(init=False)
+    preview_svg: bytes = b""
+    preview_png: bytes = b""
 
     @property
     def mesh_name(self) -> str:
@@ -199,7 +199,8 @@ class _Stage(NamedTuple):
 def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = None,
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
                 progress: DesignProgress | None = None, predict: bool = True,
-                tables_dir: Path | None = None, flat_start: np.ndarray | None = None) -> DesignResult:
+                tables_dir: Path | None = None, flat_start: np.ndarray | None = None,
+                finish: bool = True) -> DesignResult:
     """Run the engine's ``STAGES`` on a mesh file: load, curvature and line field, flattening, stripes,
     ribbons, G-code, the predicted deployed shape and the preview.
 
@@ -214,6 +215,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     flat_start : (n, 2) a converged flattening of the same mesh at its physical size, in the file's vertex
         order (a panel's, from the cut's check): the flattening then only runs its last phase from it.
         Used when the file's vertices reach the engine unchanged (no merge, no refinement).
+    finish : False leaves out the print programs and the pictures (``programs`` None, no previews) for
+        ``finish_design`` to make once the design is complete (a project's panels get their stitch
+        marks after every panel's prediction).
 
     Raises
     ------
@@ -226,7 +230,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                    progress or NoProgress(), predict, tables_dir)
     run.flat_start = flat_start
     for stage in STAGES:
-        if stage.applies(run):
+        if stage.applies(run) and (finish or stage.name not in FINISHING):
             _run_stage(run, stage)
     return _result(run)
 
@@ -489,20 +493,32 @@ def _layout_preview(name: str, uv: np.ndarray, F: np.ndarray, sigma2: np.ndarray
         title=f"{name}: {n} ribbons ({front} front, {n - front} back), size {design.parameters.size.bbox_diagonal:.0f} mm")
 
 
-def with_stitch_marks(result: DesignResult, stitch_marks: list[StitchMark], name: str) -> DesignResult:
-    """The design with stitch marks printed on its front (issue 26): ``design.json``, the programs and
-    the preview made again; the layout, the prediction and the report's other figures unchanged."""
+def finish_design(result: DesignResult, name: str, stitch_marks: list[StitchMark] | None = None) -> DesignResult:
+    """The print programs and the pictures of a design made with ``finish=False``, with stitch marks on
+    its front when given (issue 26); the layout, the prediction and the report's other figures as they are.
+
+    Raises
+    ------
+    DesignError
+        when the programs cannot be made or extrude nothing.
+    """
     profile = load_profile(result.design.parameters.printer_profile)
     design = result.design.updated(stitch_marks=stitch_marks or None)
     programs = _programs(design, profile if result.frame == profile.frame
                          else profile.model_copy(update={"frame": result.frame}))
     fs, bs = programs.front.stats, programs.back.stats
-    report = design.report.updated(print_=PrintReport(front=SidePrintReport(**fs.report()),
-                                                      back=SidePrintReport(**bs.report())))
-    design = design.updated(report=report)
+    if fs.extrusion_mm + bs.extrusion_mm <= 0.0:
+        raise DesignError("the print programs extrude nothing: the design would print nothing")
+    design = design.updated(report=design.report.updated(print_=PrintReport(
+        front=SidePrintReport(**fs.report()), back=SidePrintReport(**bs.report()))))
     svg, png = _layout_preview(name, result.flat_uv, result.F, result.flattening.sigma[:, 1], design, result.frame)
-    return replace(result, design=design, programs=programs, preview_svg=svg, preview_png=png)
+    deployed = (result.prediction.render_png(result.V, result.F, title=f"{name}: predicted deployed shape")
+                if result.prediction is not None else None)
+    return replace(result, design=design, programs=programs, preview_svg=svg, preview_png=png, deployed_png=deployed)
 
+
+#: The stages ``finish=False`` leaves to ``finish_design``.
+FINISHING = ("gcode", "preview")
 
 #: The engine's stages in order: what the worker, the daemon and ``ribbonctl design`` show.
 STAGES = (

@@ -33,7 +33,7 @@ from .mesh_io import write_obj
 from .panels import (bisect, boundary_loops, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
                      spectral_embedding)
 from .params import DesignParameters, SizeSpec, SolverSettings
-from .pipeline import DesignProgress, DesignResult, NoProgress, design_mesh, with_stitch_marks
+from .pipeline import DesignProgress, DesignResult, NoProgress, design_mesh, finish_design
 from .stitch import make_stitch_marks
 from .placement import fit_scale, place_in_frame
 from .refine import refine_target
@@ -105,12 +105,10 @@ def panel_margin(solver: SolverSettings, seam_allowance: float, prestretch: floa
 
 
 def check_panel(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: SolverSettings,
-                frame: FrameSpec, margin: float) -> PanelCheck:
-    """Flatten one panel (V (n, 3) at physical scale, mm; F (m, 3)) and check it against the bounds and the frame."""
-    frames = face_frames(V, F)
-    curv = face_curvature(V, F, frames)
-    lines = curvature_line_field(V, F, frames, curv, params.smoothing_lambda, solver.umbilic_tolerance,
-                                 method=solver.line_field)
+                frame: FrameSpec, margin: float, geometry: tuple | None = None) -> PanelCheck:
+    """Flatten one panel (V (n, 3) at physical scale, mm; F (m, 3)) and check it against the bounds and the
+    frame; ``geometry``: its (frames, curvature, line field) when already computed."""
+    frames, curv, lines = geometry or _geometry(V, F, params, solver)
     flat = BoundedFlattener(V, F, lines.angle, params.bounds, solver, frames=frames, prestretch=params.prestretch,
                             k1_defined=lines.anisotropy > ANISOTROPY_THRESHOLD).solve(boundary=boundary_loops(F)[0])
     (b1, b2) = params.bounds
@@ -120,6 +118,15 @@ def check_panel(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: 
     w, h = placed.max(axis=0) - placed.min(axis=0)
     return PanelCheck(bad_pct=float(100.0 * bad.mean()), flat_size=(float(w), float(h)),
                       fits=fit_scale(placed, frame, margin) >= 1.0, uv=flat.uv)
+
+
+def _geometry(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: SolverSettings) -> tuple:
+    """(frames, curvature, line field) of a mesh, as the engine's curvature stage computes them."""
+    frames = face_frames(V, F)
+    curv = face_curvature(V, F, frames)
+    lines = curvature_line_field(V, F, frames, curv, params.smoothing_lambda, solver.umbilic_tolerance,
+                                 method=solver.line_field)
+    return frames, curv, lines
 
 
 def _is_disk(F: np.ndarray, n_vertices: int) -> bool:
@@ -132,15 +139,17 @@ class _Checker:
     """Checks panels by their faces, each distinct panel once (the searches meet the same ones again)."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: SolverSettings,
-                 frame: FrameSpec, margin: float) -> None:
+                 frame: FrameSpec, margin: float, whole: tuple) -> None:
         self.V, self.F, self.params, self.solver, self.frame, self.margin = V, F, params, solver, frame, margin
+        self.whole = whole                     # the whole target's geometry: one panel is the whole
         self.seen: dict[bytes, PanelCheck] = {}
 
     def __call__(self, X: np.ndarray, labels: np.ndarray, j: int) -> PanelCheck:
         key = np.flatnonzero(labels == j).tobytes()
         if key not in self.seen:
             Vp, Fp, _, _ = panel_submesh(X, self.F, labels, j)
-            self.seen[key] = (check_panel(Vp, Fp, self.params, self.solver, self.frame, self.margin)
+            whole = self.whole if len(Fp) == len(self.F) else None
+            self.seen[key] = (check_panel(Vp, Fp, self.params, self.solver, self.frame, self.margin, whole)
                               if _is_disk(Fp, len(Vp)) else PanelCheck(100.0, (np.inf, np.inf), False))
         return self.seen[key]
 
@@ -155,12 +164,9 @@ class _Checker:
         return checks
 
 
-def _face_graph(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: SolverSettings):
+def _face_graph(V: np.ndarray, F: np.ndarray, geometry: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The face graph with its seam weights (``panels.seam_weights``) and the face areas."""
-    frames = face_frames(V, F)
-    curv = face_curvature(V, F, frames)
-    lines = curvature_line_field(V, F, frames, curv, params.smoothing_lambda, solver.umbilic_tolerance,
-                                 method=solver.line_field)
+    frames, curv, lines = geometry
     pairs, verts = interior_edges(F)
     return pairs, seam_weights(V, verts, pairs, lines.direction, lines.anisotropy, np.abs(curv.kappa1)), frames.area
 
@@ -185,11 +191,12 @@ def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: S
     its panels is too large for the frame, recursive bisection is tried too, which halves the largest
     panel that failed until there are k (balanced pieces). Each cut's seams are straightened before
     its panels are flattened. Returns the first feasible cut, or the last tried."""
-    pairs, weights, area = _face_graph(V, F, params, solver)
+    whole = _geometry(V, F, params, solver)
+    pairs, weights, area = _face_graph(V, F, whole)
     counts = range(1, MAX_PANELS + 1) if panels == "auto" else [int(panels)]
     dims = min(max(counts) - 1, len(F) - 3)
     embedding = spectral_embedding(pairs, weights, area, dims) if dims >= 1 else np.zeros((len(F), 0))
-    check = _Checker(V, F, params, solver, frame, margin)
+    check = _Checker(V, F, params, solver, frame, margin, whole)
     halves = np.zeros(len(F), dtype=np.int64)
     tried: list[dict] = []
     cut: Cut | None = None
@@ -302,7 +309,7 @@ def _design_panel(V: np.ndarray, F: np.ndarray, cut: Cut, j: int, name: str,
     diag = float(np.linalg.norm(Vp.max(axis=0) - Vp.min(axis=0)))
     result = design_mesh(path, params.model_copy(update={"size": SizeSpec(bbox_diagonal=diag)}), solver,
                          frame=frame, progress=_prefixed(progress, j + 1, n), predict=predict,
-                         tables_dir=tables_dir, flat_start=cut.checks[j].uv)
+                         tables_dir=tables_dir, flat_start=cut.checks[j].uv, finish=False)
     offset = Vp.mean(axis=0)
     dist, local = cKDTree(result.V + offset).query(Vp)
     if dist.max() > 1e-6 * diag:
@@ -367,8 +374,9 @@ def _seam(i: int, chain: SeamChain, V: np.ndarray, panels: list[PanelDesign]) ->
 
 
 def stitch_panels(panels: list[PanelDesign], seams: list[Seam], tick_length: float, name: str) -> list[PanelDesign]:
-    """Each panel with the stitch marks of its seams printed on its front: mark j of seam A is "A{j+1}"
-    on both sides, a tick across the allowance (``tick_length``, mm on the stretched fabric) and its label."""
+    """Each panel finished (``pipeline.finish_design``: its programs and pictures) with the stitch marks of
+    its seams printed on its front: mark j of seam A is "A{j+1}" on both sides, a tick across the allowance
+    (``tick_length``, mm on the stretched fabric; 0: no marks) and its label."""
     out = []
     for k, panel in enumerate(panels):
         at, outward, labels = [], [], []
@@ -378,12 +386,11 @@ def stitch_panels(panels: list[PanelDesign], seams: list[Seam], tick_length: flo
                     at.append(seam.marks[side])
                     outward.append(seam.outward[side])
                     labels += [f"{seam.label}{j + 1}" for j in range(len(seam.marks[side]))]
-        if not labels or tick_length <= 0:
-            out.append(panel)
-            continue
+        title = f"{Path(name).stem} panel {k + 1}"
         try:
-            marks = make_stitch_marks(np.vstack(at), np.vstack(outward), labels, tick_length)
-            result = with_stitch_marks(panel.result, marks, f"{Path(name).stem} panel {k + 1}")
+            marks = (make_stitch_marks(np.vstack(at), np.vstack(outward), labels, tick_length)
+                     if labels and tick_length > 0 else None)
+            result = finish_design(panel.result, title, marks)
         except (ValueError, GcodeError) as exc:
             raise DesignError(f"panel {k + 1}: the stitch marks cannot be printed: {exc}") from None
         out.append(replace(panel, result=result))
@@ -474,8 +481,13 @@ def design_project(mesh_path: str | Path, parameters: DesignParameters | None = 
     timings["panels"] = time.perf_counter() - t
     t = time.perf_counter()
     seams = project_seams(cut.V, target.F, designs)
-    designs = stitch_panels(designs, seams, seam_allowance * params.prestretch, target.name)
     timings["seams"] = time.perf_counter() - t
+    t = time.perf_counter()
+    progress.stage_started("finish", f"stitch marks, print programs and previews of the {cut.count} panels")
+    designs = stitch_panels(designs, seams, seam_allowance * params.prestretch, target.name)
+    timings["finish"] = time.perf_counter() - t
+    progress.stage_finished("finish", timings["finish"], f"{sum(len(s.marks[0]) for s in seams)} stitch marks "
+                            f"on each side of {len(seams)} seams")
     assembly = None
     if predict:
         t = time.perf_counter()
