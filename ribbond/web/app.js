@@ -383,7 +383,12 @@ function choose(file) {
   $("submit-btn").textContent = gcode ? "Upload G-code" : "Upload mesh";
 }
 $("file").addEventListener("change", () => choose($("file").files[0] || null));
-$("panels").addEventListener("change", () => { $("seam-row").hidden = !$("panels").value; });
+$("panels").addEventListener("change", () => {
+  const panels = $("panels").value;
+  $("seam-row").hidden = !panels;
+  // a project keeps one scale: without a size the mesh's units are read as mm
+  $("size").placeholder = panels ? "the mesh's own units, as mm" : "largest that fits the frame";
+});
 const drop = $("drop");
 drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
 drop.addEventListener("dragleave", () => drop.classList.remove("over"));
