@@ -127,3 +127,20 @@ def test_stitch_marks_pin_the_same_points_of_the_target_on_both_sides(project):
         front = panel.result.programs.front.text
         assert front.count(";TYPE:STITCH") == len(marks)
         assert ";TYPE:STITCH" not in panel.result.programs.back.text
+
+
+def test_one_sheet_says_how_many_panels_auto_would_make(tmp_path):
+    """The verdict of a design one sheet cannot make (a 120° cap: a quarter of its faces out of bounds)
+    names the panel count, found by the same cut as --panels auto."""
+    from ribbond.design.pipeline import design_mesh
+    from ribbond.design.verdict import verdict_lines
+    write_obj(tmp_path / "cap.obj", *surfaces.sphere_cap(RADIUS, 60.0, rings=12))
+    r = design_mesh(tmp_path / "cap.obj", DesignParameters(), SOLVER, predict=False)
+    n = r.design.report.panels_suggested
+    assert max(r.design.report.sigma1_bad_pct, r.design.report.sigma2_bad_pct) > MAX_BAD_PCT
+    assert n is not None and n >= 2
+    lines = verdict_lines(r.design.model_dump(by_alias=True))
+    assert any(f"--panels auto would cut it into {n} panels" in line for line in lines), lines
+    project = design_project(tmp_path / "cap.obj", DesignParameters(size=r.design.parameters.size), SOLVER,
+                             predict=False)
+    assert project.cut.count == n
