@@ -30,7 +30,7 @@ from .frames import face_frames
 from .intake import TargetMesh, load_target
 from .line_field import ANISOTROPY_THRESHOLD, curvature_line_field
 from .mesh_io import write_obj
-from .panels import (bisect, boundary_loops, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
+from .panels import (bisect, boundary_loops, grid_partition, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
                      spectral_embedding)
 from .params import DesignParameters, SizeSpec, SolverSettings
 from .pipeline import DesignProgress, DesignResult, NoProgress, design_mesh, finish_design
@@ -188,9 +188,10 @@ def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: S
     (up to ``MAX_PANELS``) that are each feasible.
 
     For each count k the k-means cut of the spectral embedding is tried (gores on a bowl); when one of
-    its panels is too large for the frame, recursive bisection is tried too, which halves the largest
-    panel that failed until there are k (balanced pieces). Each cut's seams are straightened before
-    its panels are flattened. Returns the first feasible cut, or the last tried."""
+    its panels is too large for the frame, the r × (k / r) tilings along the principal axes are tried
+    (``panels.grid_partition``), then recursive bisection (auto only), which halves the largest panel
+    that failed until there are k. Each cut's seams are straightened before its panels are flattened.
+    Returns the first feasible cut, or the last tried."""
     whole = _geometry(V, F, params, solver)
     pairs, weights, area = _face_graph(V, F, whole)
     counts = range(1, MAX_PANELS + 1) if panels == "auto" else [int(panels)]
@@ -199,29 +200,34 @@ def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: S
     check = _Checker(V, F, params, solver, frame, margin, whole)
     halves = np.zeros(len(F), dtype=np.int64)
     tried: list[dict] = []
+    centroids = V[F].mean(axis=1)
+
+    def _try(k: int, how: str, labels: np.ndarray) -> Cut:
+        X = straighten_seams(V, F, labels) if labels.max() > 0 else V
+        checks = check.all(X, labels, stop_early=panels == "auto")
+        tried.append({"panels": int(labels.max()) + 1, "cut": how, "worst_bad_pct": round(max(c.bad_pct for c in checks), 3),
+                      "fit": all(c.fits for c in checks), "checked": len(checks)})
+        return Cut(labels=labels, V=X, checks=checks, tried=list(tried))
+
+    def made(cut: Cut, k: int) -> bool:
+        return cut.feasible and len(cut.checks) == k
+
     cut: Cut | None = None
     for k in counts:
-        for how in ("spectral", "bisection"):
-            if how == "bisection":
-                if k == 1 or panels != "auto" or all(c.fits for c in cut.checks):
-                    continue             # halving is for a panel too large for the frame; more gores for the bounds
-                while halves.max() + 1 < k:
-                    halves = _halve(halves, V, F, check, pairs, weights, area)
-                labels = halves
-            else:
-                labels = partition(embedding[:, :max(k - 1, 1)], k, pairs, weights, area)
-            X = straighten_seams(V, F, labels) if k > 1 else V
-            checks = check.all(X, labels, stop_early=panels == "auto")
-            tried.append({"panels": k, "cut": how, "worst_bad_pct": round(max(c.bad_pct for c in checks), 3),
-                          "fit": all(c.fits for c in checks), "checked": len(checks)})
-            cut = Cut(labels=labels, V=X, checks=checks, tried=list(tried))
-            if cut.feasible and len(checks) == k:
-                break
+        cut = _try(k, "spectral", partition(embedding[:, :max(k - 1, 1)], k, pairs, weights, area))
+        too_large = k > 1 and not all(c.fits for c in cut.checks)
+        for rows in (range(1, k + 1) if too_large else []):      # a tiling, for a surface wider than the frame
+            if k % rows == 0 and not made(cut, k):
+                cut = _try(k, f"grid {rows}×{k // rows}", grid_partition(centroids, area, rows, k // rows, pairs, weights))
+        if too_large and panels == "auto" and not made(cut, k):
+            while halves.max() + 1 < k:
+                halves = _halve(halves, V, F, check, pairs, weights, area)
+            cut = _try(k, "bisection", halves)
         if progress is not None:
             t = tried[-1]
-            progress(k, f"{k} panels ({t['cut']}): " + ("feasible" if cut.feasible and len(cut.checks) == k else
+            progress(k, f"{k} panels ({t['cut']}): " + ("feasible" if made(cut, k) else
                      f"worst {t['worst_bad_pct']:.1f} % outside" + ("" if t["fit"] else ", too large for the frame")))
-        if cut is not None and cut.feasible and len(cut.checks) == k:
+        if made(cut, k):
             return cut
     assert cut is not None
     return cut

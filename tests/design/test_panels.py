@@ -7,7 +7,7 @@ import pytest
 
 from ribbond.design import surfaces
 from ribbond.design.frames import face_frames
-from ribbond.design.panels import (bisect, boundary_loops, cut_weight, interior_edges, longest_axis,
+from ribbond.design.panels import (bisect, boundary_loops, cut_weight, grid_partition, interior_edges, longest_axis,
                                    panel_submesh, partition, seam_weights, spectral_embedding, straighten_seams)
 from ribbond.design.seams import (mark_fractions, outward_normals, points_at_fractions, polyline_length,
                                   seam_chains, seam_label)
@@ -127,3 +127,16 @@ def test_straightened_gore_seams_are_meridians_on_the_sphere():
         assert before > 1.05 * polyline_length(P)                                # the zigzag it was
         normal = np.cross(P[0], P[-1])                                          # a meridian lies in a plane
         assert np.abs(P @ (normal / np.linalg.norm(normal))).max() < 1.0        # through the axis
+
+
+def test_grid_partition_tiles_a_wide_rectangle_into_equal_cells():
+    V, F = _rectangle(300.0, 200.0, 30, 20)
+    pairs, verts, weights, area = _graph(V, F)
+    labels = grid_partition(V[F].mean(axis=1), area, 2, 3, pairs, weights)
+    assert np.bincount(labels, weights=area) == pytest.approx(np.full(6, 10000.0), rel=0.05)
+    cut = labels[pairs[:, 0]] != labels[pairs[:, 1]]
+    x, y = V[verts[cut]][..., 0], V[verts[cut]][..., 1]
+    on_x = np.isclose(x, 0.0, atol=1e-9).all(axis=1)                       # one cut across the long side
+    on_y = (np.abs(np.abs(y) - 100.0 / 3) <= 7.0).all(axis=1)              # two across the short one (10 mm grid)
+    assert (on_x | on_y).all()
+    assert 800.0 <= weights[cut].sum() <= 1.2 * 800.0      # 200 + 2 × 300 mm straight, a little more on mesh edges
