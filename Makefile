@@ -79,6 +79,7 @@ bench: $(STAMP)
 	$(PY) bench/deploy.py
 	$(PY) bench/gcode.py
 	$(PY) bench/daemon.py
+	$(PY) bench/panels.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache out

@@ -111,9 +111,11 @@ def run(name: str, V: np.ndarray, F: np.ndarray, out: Path) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         t_single = _single_designs(result, Path(tmp))
     ratio = t_project / t_single
+    without = (t_project - result.timings.get("assemble", 0.0)) / t_single
     print(f"  time: project {t_project:.1f} s ({', '.join(f'{k} {v:.1f} s' for k, v in result.timings.items())}); "
           f"{result.cut.count} single designs {t_single:.1f} s; ratio {ratio:.2f} "
-          f"(goal ≤ {GOAL_SPEED:g}: {'met' if ratio <= GOAL_SPEED else 'NOT met'})", flush=True)
+          f"(goal ≤ {GOAL_SPEED:g}: {'met' if ratio <= GOAL_SPEED else 'NOT met'}); "
+          f"without the sewn prediction, which single designs do not make: {without:.2f}", flush=True)
 
 
 def main() -> None:
