@@ -230,9 +230,12 @@ def project_summary(project: dict[str, Any], out: Path) -> str:
                      f"{q.get('bad_pct', 0):.1f} % outside the bounds")
     for s in project.get("seams") or []:
         target = (s.get("length_mm") or {}).get("target")
+        deployed = (s.get("length_mm") or {}).get("deployed")
         lines.append(f"seam {s['label']:<6} panels {' and '.join(map(str, s['panels']))}"
                      + (f", {target:.0f} mm" if isinstance(target, (int, float)) else "")
-                     + (f", {s['marks']} marks" if s.get("marks") else ""))
+                     + (f", predicted {deployed[0]:.1f} / {deployed[1]:.1f} mm ({s['mismatch_pct']:.1f} % apart)"
+                        if deployed and s.get("mismatch_pct") is not None else "")
+                     + (f", {s['marks']} stitch marks" if s.get("marks") else ""))
     deployed = report.get("deployed")
     if deployed:
         dev = deployed.get("deviation_pct") or {}

@@ -535,3 +535,20 @@ def test_annulus_is_a_valid_mesh_but_for_its_hole() -> None:
     assert chi == 0                                   # annulus: χ = 2 − 2g − b = 0 with b = 2
     assert len(G) < len(F)
     assert r[used].min() > 0.3                        # the centre and the first rings are gone
+
+
+def test_panels_write_a_project_folder(tmp_path: Path) -> None:
+    """``--panels 2`` on a cap: the project folder, each panel a design folder, the summary with the seam."""
+    mesh = tmp_path / "cap.obj"
+    write_obj(mesh, *surfaces.sphere_cap(50.0, 40.0, rings=12))
+    out = tmp_path / "cap-project"
+    r = run_design(mesh, out, "--panels", "2", "--seam-allowance", "5")
+    assert r.returncode == 0, r.stderr
+    project = json.loads((out / "project.json").read_text(encoding="utf-8"))
+    assert project["seam_allowance_mm"] == 5.0 and len(project["panels"]) == 2
+    for q in project["panels"]:
+        folder = read_design_folder(out / q["folder"])
+        assert folder.design.stitch_marks                       # pinned mark to mark along the seam
+    assert "seam A" in r.stdout and "panels 1 and 2" in r.stdout and "stitch marks" in r.stdout
+    bad = run_design(mesh, tmp_path / "x", "--panels", "0")
+    assert bad.returncode != 0 and "panels" in bad.stderr
