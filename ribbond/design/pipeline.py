@@ -380,7 +380,7 @@ def _suggest_panels(run: _Run) -> None:
     if bad <= MAX_BAD_PCT:
         return
     margin = panel_margin(run.solver, SEAM_ALLOWANCE, run.params.prestretch)
-    cut = cut_target(run.V, run.F, run.params, run.solver, run.frame, "auto", margin)
+    cut = cut_target(run.V, run.F, run.params, run.solver, run.frame, "auto", margin, fewest=2)  # one sheet failed
     run.report["panels_suggested"] = cut.count if cut.feasible else 0
 
 

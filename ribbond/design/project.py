@@ -182,8 +182,26 @@ def _halve(halves: np.ndarray, V: np.ndarray, F: np.ndarray, check: _Checker, pa
     return bisect(halves, j, pairs, weights, area, across)
 
 
+def fewest_panels(area: float, params: DesignParameters, frame: FrameSpec, margin: float) -> int:
+    """A lower bound on the panels a target of ``area`` mm² needs: within the bounds a face's flat area is
+    at least σ1_min σ2_min times its own (but on the 1 % allowed out), and a panel's flat layout lies in
+    the frame less the margin."""
+    (s1, _), (s2, _) = params.bounds
+    room = (frame.size[0] - 2 * margin) * (frame.size[1] - 2 * margin)
+    return max(1, int(np.ceil(area * s1 * s2 * (1.0 - MAX_BAD_PCT / 100.0) / room - 1e-9)))
+
+
+def _too_few(k: int, fewest: int) -> Cut:
+    """The cut that is not tried: k panels cannot hold the target's flat area."""
+    return Cut(labels=np.zeros(0, dtype=np.int64), V=np.zeros((0, 3)),
+               checks=[PanelCheck(bad_pct=0.0, flat_size=(np.inf, np.inf), fits=False)],
+               tried=[{"panels": k, "cut": f"area: at least {fewest} panels", "worst_bad_pct": 0.0, "fit": False,
+                       "checked": 0}])
+
+
 def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: SolverSettings, frame: FrameSpec,
-               panels: int | str, margin: float, progress: Callable[[int, str], None] | None = None) -> Cut:
+               panels: int | str, margin: float, progress: Callable[[int, str], None] | None = None,
+               fewest: int = 1) -> Cut:
     """Cut the target (V (n, 3) mm, F (m, 3)) into ``panels`` panels, or with ``"auto"`` into the fewest
     (up to ``MAX_PANELS``) that are each feasible.
 
@@ -191,10 +209,16 @@ def cut_target(V: np.ndarray, F: np.ndarray, params: DesignParameters, solver: S
     its panels is too large for the frame, the r × (k / r) tilings along the principal axes are tried
     (``panels.grid_partition``), then recursive bisection (auto only), which halves the largest panel
     that failed until there are k. Each cut's seams are straightened before its panels are flattened.
-    Returns the first feasible cut, or the last tried."""
+    The search starts at ``fewest`` or at the area's lower bound (``fewest_panels``), whichever is more;
+    beyond ``MAX_PANELS`` (or the count asked for) nothing is tried. Returns the first feasible cut, or
+    the last tried."""
+    frames = face_frames(V, F)
+    fewest = max(fewest, fewest_panels(float(frames.area.sum()), params, frame, margin))
+    if fewest > (MAX_PANELS if panels == "auto" else int(panels)):
+        return _too_few(MAX_PANELS if panels == "auto" else int(panels), fewest)
     whole = _geometry(V, F, params, solver)
     pairs, weights, area = _face_graph(V, F, whole)
-    counts = range(1, MAX_PANELS + 1) if panels == "auto" else [int(panels)]
+    counts = range(fewest, MAX_PANELS + 1) if panels == "auto" else [int(panels)]
     dims = min(max(counts) - 1, len(F) - 3)
     embedding = spectral_embedding(pairs, weights, area, dims) if dims >= 1 else np.zeros((len(F), 0))
     check = _Checker(V, F, params, solver, frame, margin, whole)
@@ -293,6 +317,10 @@ def _load_scaled(mesh_path: str | Path, params: DesignParameters, solver: Solver
 
 
 def _infeasible_message(cut: Cut, panels: int | str) -> str:
+    if cut.tried and cut.tried[-1]["cut"].startswith("area"):
+        return (f"the target's flat area needs {cut.tried[-1]['cut'].split('at least ')[1]} of the frame "
+                + (f"(at most {MAX_PANELS} are tried)" if panels == "auto" else f"(asked for {panels})")
+                + "; make the target smaller (size)")
     worst = max(cut.checks, key=lambda c: (not c.fits, c.bad_pct))
     what = (f"{worst.bad_pct:.1f} % of a panel's faces outside the stretch bounds (at most {MAX_BAD_PCT:g} %)"
             if worst.fits else f"a panel of {worst.flat_size[0]:.0f} × {worst.flat_size[1]:.0f} mm too large "

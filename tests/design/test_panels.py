@@ -140,3 +140,14 @@ def test_grid_partition_tiles_a_wide_rectangle_into_equal_cells():
     on_y = (np.abs(np.abs(y) - 100.0 / 3) <= 7.0).all(axis=1)              # two across the short one (10 mm grid)
     assert (on_x | on_y).all()
     assert 800.0 <= weights[cut].sum() <= 1.2 * 800.0      # 200 + 2 × 300 mm straight, a little more on mesh edges
+
+
+def test_fewest_panels_is_the_flat_area_over_the_frame():
+    from ribbond.design.params import DesignParameters
+    from ribbond.design.project import fewest_panels
+    from ribbond.gcode.profiles import FrameSpec
+    frame = FrameSpec(center=(100.0, 100.0), size=(120.0, 120.0))
+    p = DesignParameters()                               # σ1 ≥ 1.0, σ2 ≥ 1.3: flat area ≥ 1.3 × the target's
+    assert fewest_panels(100.0 * 100.0 / (1.3 * 0.99), p, frame, 10.0) == 1     # exactly one 100 × 100 room
+    assert fewest_panels(100.0 * 100.0 / (1.3 * 0.99) * 1.01, p, frame, 10.0) == 2
+    assert fewest_panels(1e6, p, frame, 10.0) == int(np.ceil(1e6 * 1.3 * 0.99 / 1e4))
