@@ -270,12 +270,15 @@ def test_part_events_per_run_and_a_version_2_database_gains_the_table(tmp_path: 
         job = store.create(mesh_name="m.obj", mesh_path="/m.obj", parameters={}, start_when_ready=False)
     conn = sqlite3.connect(db)                      # as ribbond before issue 16 left it
     # (and before issue 22's notes column, the frame, same_frame, program and print_progress)
+    # (and before issue 26's projects)
     conn.executescript("DROP TABLE part_events; DROP TABLE frame; ALTER TABLE jobs DROP COLUMN notes; "
                        "ALTER TABLE jobs DROP COLUMN same_frame; ALTER TABLE jobs DROP COLUMN program; "
-                       "ALTER TABLE jobs DROP COLUMN print_progress; PRAGMA user_version = 2;")
+                       "ALTER TABLE jobs DROP COLUMN print_progress; DROP INDEX jobs_project; DROP TABLE projects; "
+                       "ALTER TABLE jobs DROP COLUMN project; ALTER TABLE jobs DROP COLUMN panel; "
+                       "ALTER TABLE jobs DROP COLUMN panels; PRAGMA user_version = 2;")
     conn.close()
     with JobStore(db) as store:
-        assert SCHEMA_VERSION == 5
+        assert SCHEMA_VERSION == 6
         assert store.get(job.id).notes == []
         assert store.frame()["state"] == "used"          # (schema 5: nothing confirmed yet)
         for part, event in ((0, "started"), (0, "done"), (1, "started"), (1, "reprint"), (1, "started"),
