@@ -337,7 +337,8 @@ class Report(_Updatable):
                                       description="% of faces with anisotropy ≤ 0.3 (format 2)")
     panels_suggested: int | None = Field(
         None, ge=0, description="when more than 1 % of faces break the stretch bounds: how many panels "
-        "`--panels auto` would cut the target into (0: not even the most it tries) (issue 26)")
+        "`--panels auto` would cut the target into, searched on a copy of at most 6,000 faces (0: not even the "
+        "most it tries) (issue 26)")
     ribbons: RibbonsReport | None = None
     print_: PrintReport | None = Field(None, alias="print")
     deployed: DeployedReport | None = None
