@@ -320,8 +320,8 @@ def straighten_seams(V: np.ndarray, F: np.ndarray, labels: np.ndarray, passes: i
         _, _, closest = igl.point_mesh_squared_distance(Y[moved], V, F)
         Y[moved] = closest
         normal = np.cross(Y[F[:, 1]] - Y[F[:, 0]], Y[F[:, 2]] - Y[F[:, 0]])
-        cos = (normal * normal0).sum(1) / np.maximum(np.linalg.norm(normal, axis=1) * np.linalg.norm(normal0, axis=1),
-                                                     1e-300)
+        size = np.linalg.norm(normal, axis=1)
+        cos = (normal * normal0).sum(1) / np.maximum(size * np.linalg.norm(normal0, axis=1), 1e-300)
         bad = np.unique(F[cos < 0.5])
         Y[bad] = X[bad]                                     # undo the moves that turn or crush a face
         X = Y

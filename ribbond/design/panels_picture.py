@@ -62,23 +62,24 @@ def render_panels_png(V: np.ndarray, F: np.ndarray, labels: np.ndarray, outlines
     seams : per seam (label, panel a, panel b, flat line on a (p, 2), flat line on b (p, 2)).
     """
     k = len(outlines)
-    fig = Figure(figsize=(6 + 3.2 * k, 6.2), dpi=dpi)
+    columns = min(k, 4)                                    # the flat panels in rows of at most four
+    rows = -(-k // columns)
+    fig = Figure(figsize=(6 + 3.2 * columns, max(6.2, 3.4 * rows)), dpi=dpi)
     FigureCanvasAgg(fig)
-    share = 6.0 / (6 + 3.2 * k)
+    share = 6.0 / (6 + 3.2 * columns)
     _target_view(fig, V, F, labels, [0.0, 0.05, share, 0.85])
-    ax = fig.add_axes([share + 0.02, 0.08, 0.97 - share, 0.8])
+    ax = fig.add_axes([share + 0.02, 0.06, 0.97 - share, 0.84])
     colours = panel_colours(k)
-    shift = np.zeros(2)
+    cell = max(float((o.max(axis=0) - o.min(axis=0)).max()) for o in outlines) + 25.0
     offsets = []
     for j, outline in enumerate(outlines):
-        lo, hi = outline.min(axis=0), outline.max(axis=0)
-        offsets.append(shift - lo)
+        lo = outline.min(axis=0)
+        offsets.append(np.array([(j % columns) * cell, -(j // columns) * cell]) - lo)
         P = outline + offsets[-1]
         ax.fill(P[:, 0], P[:, 1], color=tuple(colours[j]), alpha=0.25, lw=0)
         ax.plot(*np.vstack([P, P[:1]]).T, color=tuple(colours[j]), lw=1.2)
         ax.text(*(0.5 * (P.min(axis=0) + P.max(axis=0))), f"panel {j + 1}", ha="center", va="center",
                 fontsize=12, weight="bold", color=tuple(colours[j] * 0.6))
-        shift = shift + np.array([hi[0] - lo[0] + 25.0, 0.0])
     for label, a, b, line_a, line_b in seams:
         for me, other, line in ((a, b, line_a), (b, a, line_b)):
             P = line + offsets[me]
