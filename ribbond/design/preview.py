@@ -480,7 +480,8 @@ def _legend(fig: Figure, counts: dict[str, int], mk: np.ndarray | None,
     handles: list[object] = [
         Patch(facecolor=SIDE_COLORS["front"], label=f"front ribbons ({counts['front']})"),
         Patch(facecolor=SIDE_COLORS["back"], label=f"back ribbons ({counts['back']})"),
-        Line2D([], [], color=OUTLINE_COLOR, linewidth=1.1, label="outline (cut line)"),
+        Line2D([], [], color=OUTLINE_COLOR, linewidth=1.1,
+               label="outline (seam line: cut at the ticks' ends)" if stitches else "outline (cut line)"),
     ]
     labels = [h.get_label() for h in handles]  # type: ignore[attr-defined]
     if mk is not None:
