@@ -350,7 +350,7 @@ def _panels_hint(run: _Run) -> str:
     """How many panels ``--panels auto`` would cut a design too large for one sheet into (issue 26)."""
     from .project import SEAM_ALLOWANCE, cut_target, panel_margin
     margin = panel_margin(run.solver, SEAM_ALLOWANCE, run.params.prestretch)
-    cut = cut_target(*_search_copy(run.V, run.F), run.params, run.solver, run.frame, "auto", margin)
+    cut = cut_target(*_search_copy(run.V, run.F), run.params, _search_settings(run.solver), run.frame, "auto", margin)
     return (f", or --panels auto would cut it into about {cut.count} panels that fit" if cut.feasible
             else "; not even the most panels --panels auto tries would fit")
 
@@ -381,13 +381,19 @@ def _suggest_panels(run: _Run) -> None:
         return
     margin = panel_margin(run.solver, SEAM_ALLOWANCE, run.params.prestretch)
     V, F = _search_copy(run.V, run.F)
-    cut = cut_target(V, F, run.params, run.solver, run.frame, "auto", margin, fewest=2)  # one sheet failed
+    cut = cut_target(V, F, run.params, _search_settings(run.solver), run.frame, "auto", margin, fewest=2)
     run.report["panels_suggested"] = cut.count if cut.feasible else 0
 
 
 #: The verdict's panel count is searched on a copy of at most this many faces: each candidate panel is
 #: flattened, which on a 40k-face target took 30 s for a count it finds as well on this copy.
 SEARCH_FACES = 6000
+
+
+def _search_settings(solver: SolverSettings) -> SolverSettings:
+    """The flattening's settings for the verdict's quick search: a looser tolerance and no row-count
+    phase (2-4× faster per panel; the share of faces out moves by a few tenths of a percent)."""
+    return solver.model_copy(update={"tolerance": max(solver.tolerance, 1e-5), "spacing_integrability_weight": 0.0})
 
 
 def _search_copy(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
