@@ -263,9 +263,10 @@ def longest_axis(centroids: np.ndarray, area: np.ndarray, faces: np.ndarray) -> 
     return (centroids - c) @ axis
 
 
-def _seam_graph(F: np.ndarray, labels: np.ndarray, n: int) -> tuple[sp.csr_matrix, np.ndarray]:
-    """The seams as a vertex graph (n × n adjacency of the edges between panels) and the vertices that
-    must stay: where three panels meet, where a seam meets the target's boundary, chain ends."""
+def _seam_graph(F: np.ndarray, labels: np.ndarray, n: int) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
+    """The seams as a vertex graph (n × n adjacency of the edges between panels), the seam vertices that
+    may move (not where three panels meet, where a seam meets the target's boundary, chain ends) and
+    the target's boundary vertices."""
     pairs, verts = interior_edges(F)
     seam = verts[labels[pairs[:, 0]] != labels[pairs[:, 1]]]
     A = sp.coo_matrix((np.ones(2 * len(seam)), (np.r_[seam[:, 0], seam[:, 1]], np.r_[seam[:, 1], seam[:, 0]])),
@@ -277,7 +278,7 @@ def _seam_graph(F: np.ndarray, labels: np.ndarray, n: int) -> tuple[sp.csr_matri
     vertex_panels = sp.coo_matrix((np.ones(F.size), (F.ravel(), np.repeat(labels, 3))), shape=(n, labels.max() + 1))
     junction = np.asarray((vertex_panels.tocsr() > 0).sum(axis=1)).ravel() >= 3
     movable = (degree == 2) & ~on_rim & ~junction
-    return A, movable
+    return A, movable, on_rim
 
 
 def straighten_seams(V: np.ndarray, F: np.ndarray, labels: np.ndarray, passes: int = 30) -> np.ndarray:
@@ -299,15 +300,12 @@ def straighten_seams(V: np.ndarray, F: np.ndarray, labels: np.ndarray, passes: i
     """
     import igl
     n = len(V)
-    A, movable = _seam_graph(F, labels, n)
+    A, movable, on_rim = _seam_graph(F, labels, n)
     degree = np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1)
     E = np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]
     M = sp.coo_matrix((np.ones(len(E) * 2), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n)).tocsr()
     M.data[:] = 1.0
     ring = (M @ (M @ movable.astype(float)) > 0) & ~movable
-    on_rim = np.zeros(n, dtype=bool)
-    for loop in boundary_loops(F):
-        on_rim[loop] = True
     band = ring & ~on_rim & ~(np.asarray(A.sum(axis=1)).ravel() > 0)
     mdeg = np.maximum(np.asarray(M.sum(axis=1)).ravel(), 1)
     normal0 = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
