@@ -18,8 +18,10 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(PY) examples/demo.py
 
+# Two workers by default (a build machine has 2 cores); TEST_WORKERS=0 runs in one process.
+TEST_WORKERS ?= 2
 test: $(STAMP) verify-unit browser
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # systemd-analyze verify on a copy of the unit whose ExecStart points into the venv (verify checks
 # that the program exists; /usr/local/bin/ribbond does not on a build machine). Fails on errors and
