@@ -15,7 +15,7 @@ from pydantic import BaseModel, Field
 from ribbond.daemon.components.manual import MAX_MANUAL_COMMANDS
 from ribbond.daemon.components.projects import PROJECT_FILES
 from ribbond.daemon.store import JobRecord, ProjectRecord
-from ribbond.design.thickness import TABLE_DIR
+from ribbond.design.thickness import TABLE_DIR, TABLE_NAME
 
 #: Files of a job that can be fetched.
 JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "design",
@@ -120,7 +120,7 @@ class ProjectStatus(ProjectRecord):
 class PredictRequest(BaseModel):
     """``POST /jobs/{id}/predict``: the prediction's curvature table and model."""
 
-    table: str | None = Field(None, min_length=1, max_length=64,
+    table: str | None = Field(None, pattern=TABLE_NAME.pattern,
                               description="a curvature table's name (GET /tables); default the design's")
     fine: bool = Field(False, description="the ribbon-resolved model (minutes) instead of the homogenized one")
 
@@ -136,8 +136,14 @@ class GotoRequest(BaseModel):
     y: float = Field(description="mm, machine coordinates")
 
 
+#: A command the link can send: printable ASCII without the checksum's ``*``, not only a comment, and
+#: short enough to go out numbered (``codec.MAX_LINE_LENGTH`` less ``N<line> `` and ``*<sum>``).
+GCODE_COMMAND = r"^[ \t]*[!-'+-:<-~][\t -)+-~]*$"
+GCODE_COMMAND_MAX = 80
+
+
 class GcodeRequest(BaseModel):
-    commands: list[Annotated[str, Field(pattern=r"\S")]] = Field(
+    commands: list[Annotated[str, Field(pattern=GCODE_COMMAND, max_length=GCODE_COMMAND_MAX)]] = Field(
         min_length=1, max_length=MAX_MANUAL_COMMANDS, description="one G-code command or a short list")
 
 
@@ -162,10 +168,11 @@ class CalibrationRequest(BaseModel):
     ribbon_width: float | None = Field(None, gt=0)
     mu1: float | None = Field(None, gt=0)
     prestretch: float | None = Field(None, gt=1.0)
-    base_table: str | None = Field(None, min_length=1, max_length=64)
-    fabric: str | None = None
-    material: str | None = None
+    base_table: str | None = Field(None, pattern=TABLE_NAME.pattern)
+    fabric: str | None = Field(None, max_length=200, description="free text, kept in the table's provenance")
+    material: str | None = Field(None, max_length=200, description="free text, kept in the table's provenance")
     min_coupon_width: float | None = Field(None, gt=0)
+    # the document names the one profile the daemon drives (ribbond.api.openapi)
     printer_profile: str | None = Field(None, min_length=1)
     start: bool = False
 
@@ -177,7 +184,7 @@ def _example_table() -> str:
 
 
 class TableRequest(BaseModel):
-    toml: str = Field(description="the text of a curvature table's TOML file", examples=[_example_table()])
+    toml: str = Field(min_length=1, description="the text of a curvature table's TOML file", examples=[_example_table()])
 
 
 class ResumeRequest(BaseModel):

@@ -72,6 +72,9 @@ def _profile_bounds(components: dict[str, Any], service: RibbonService) -> None:
     bound("HeatRequest", "bed", 0, t.bed_max)
     bound("GotoRequest", "x", x0, x1)
     bound("GotoRequest", "y", y0, y1)
+    profile = components["CalibrationRequest"]["properties"]["printer_profile"]
+    text = next((s for s in profile.get("anyOf", []) if s.get("type") == "string"), profile)
+    text["enum"] = [service.config.printer_profile]             # the one printer this daemon drives
 
 
 def _describe_upload(schema: dict[str, Any], components: dict[str, Any]) -> None:
@@ -80,9 +83,9 @@ def _describe_upload(schema: dict[str, Any], components: dict[str, Any]) -> None
     components["DesignParameters"] = params
     body = components["Body_submit"]
     props = body["properties"]
-    for field in ("mesh", "gcode"):
+    for field in ("mesh", "gcode"):                            # an empty file is refused (422)
         props[field] = next(s for s in props[field]["anyOf"] if s.get("type") == "string") | {
-            "description": props[field]["description"]}
+            "description": props[field]["description"], "minLength": 1}
     props["parameters"] = {"$ref": "#/components/schemas/DesignParameters",
                            "description": "design parameters (a JSON object; with a mesh only)"}
     body["oneOf"] = [{"required": ["mesh"], "not": {"required": ["gcode"]}},
@@ -90,6 +93,7 @@ def _describe_upload(schema: dict[str, Any], components: dict[str, Any]) -> None
                       "properties": {"parameters": {"maxProperties": 0}}}]
     project = components["Body_submit_project"]["properties"]
     project["parameters"] = dict(props["parameters"])
+    project["mesh"] = {**project["mesh"], "minLength": 1}
     schema["paths"]["/projects"]["post"]["requestBody"]["content"]["multipart/form-data"]["encoding"] = {
         "parameters": {"contentType": "application/json"},
         "mesh": {"headers": {"Content-Disposition": {"schema": {

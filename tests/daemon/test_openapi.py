@@ -148,3 +148,26 @@ def test_schemathesis_finds_nothing(fuzzed: Daemon, document: dict[str, Any], tm
     assert c.post("/printer/cool").status_code == 200
     heaters = c.get("/printer", params={"refresh": "true"}).json()["heaters"]
     assert all(not h.get("target") for h in heaters.values()), heaters
+
+
+def test_the_document_states_what_a_schema_can(fuzzed: Daemon, document: dict[str, Any]) -> None:
+    """Lengths, non-empty files and allowed names are in the document, and the daemon refuses
+    exactly what they exclude (so schemathesis' positive data is not refused for them)."""
+    schemas = document["components"]["schemas"]
+    assert schemas["Body_submit"]["properties"]["gcode"]["minLength"] == 1
+    assert schemas["Body_submit"]["properties"]["mesh"]["minLength"] == 1
+    assert schemas["Body_submit_project"]["properties"]["mesh"]["minLength"] == 1
+    assert schemas["TableRequest"]["properties"]["toml"]["minLength"] == 1
+    profile = schemas["CalibrationRequest"]["properties"]["printer_profile"]["anyOf"][0]
+    assert profile["enum"] == ["ultimaker2-tpu"]                       # the daemon's default profile
+    c = fuzzed.client
+    assert c is not None
+    refused = [c.post("/jobs", files={"gcode": ("p.gcode", b"")}),
+               c.post("/tables", json={"toml": ""}),
+               c.post("/calibrations", json={"printer_profile": "prusa-mk4"}),
+               c.post("/printer/gcode", json={"commands": ["G1 X1*5"]}),
+               c.post("/printer/gcode", json={"commands": ["; only a comment"]}),
+               c.post("/printer/gcode", json={"commands": ["M117 " + "x" * 80]})]
+    for r in refused:
+        assert r.status_code == 422, (r.request.url, r.text)
+        assert r.json()["detail"], r.text                                # says what is wrong
