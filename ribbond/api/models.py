@@ -224,6 +224,14 @@ class OctoPrintServer(BaseModel):
     safemode: bool | str = Field(description="false: not in safe mode")
 
 
+class OctoPrintSettings(BaseModel):
+    """``GET /api/settings``: the part clients read (Cura's plugin checks the key with it)."""
+
+    feature: dict[str, bool] = Field(description="sdSupport: false (no SD card here)")
+    webcam: dict[str, bool | str] = Field(description="webcamEnabled, streamUrl")
+    plugins: dict[str, Any] = Field(description="none")
+
+
 class OctoPrintEntry(BaseModel):
     """The file uploaded, as OctoPrint names it."""
 

@@ -139,6 +139,7 @@ def test_a_slicer_connects_with_the_key_and_is_refused_without_it(daemon: Daemon
     assert slicer.version["text"].startswith("OctoPrint")           # what PrusaSlicer checks
     assert slicer.version["api"] == "0.1" and slicer.version["server"] == "1.5.0"
     assert slicer._get("/api/server") == {"version": "1.5.0", "safemode": False}
+    assert slicer.settings()["feature"]["sdSupport"] is False          # Cura's plugin checks the key here
     with pytest.raises(RuntimeError) as wrong:
         OctoRest(url=daemon.url, apikey="not-the-token")
     assert status_of(wrong.value) == 401 and "X-Api-Key" in str(wrong.value)

@@ -1,8 +1,8 @@
 """The part of OctoPrint's API that slicers' "send to printer" uses (issue 27;
-``service.octoprint``): ``/api/version``, ``/api/server``, ``/api/files/local`` (the upload),
-``/api/job``, ``/api/printer``, in OctoPrint's shapes. The token is the daemon's, sent as
-``X-Api-Key`` (the gate takes it on every path); the gate checks it, the Host and the Origin before
-the body is read, as on every route. Statuses are OctoPrint's: a file that is neither G-code nor a
+``service.octoprint``): ``/api/version``, ``/api/server``, ``/api/settings`` (Cura's plugin checks
+the key with it), ``/api/files/local`` (the upload), ``/api/job``, ``/api/printer``, in OctoPrint's
+shapes. The token is the daemon's, sent as ``X-Api-Key`` (the gate takes it on every path); the
+gate checks it, the Host and the Origin before the body is read, as on every route. Statuses are OctoPrint's: a file that is neither G-code nor a
 mesh is 415, one that cannot be made a job 400, the printer not operational (``/api/printer``) 409.
 """
 
@@ -14,11 +14,12 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, Request, Response, UploadFile
 
-from ribbond.daemon.components.octoprint import VERSION
+from ribbond.daemon.components.octoprint import SETTINGS, VERSION
 
 from ..deps import Service
 from ..errors import responses
-from ..models import OctoPrintJob, OctoPrintPrinter, OctoPrintServer, OctoPrintUpload, OctoPrintVersion
+from ..models import (OctoPrintJob, OctoPrintPrinter, OctoPrintServer, OctoPrintSettings, OctoPrintUpload,
+                      OctoPrintVersion)
 from .jobs import spool
 
 router = APIRouter()
@@ -44,6 +45,12 @@ async def octoprint_version() -> dict[str, str]:
 @router.get("/api/server", response_model=OctoPrintServer, responses=responses())
 async def octoprint_server() -> dict[str, Any]:
     return {"version": VERSION["server"], "safemode": False}
+
+
+@router.get("/api/settings", response_model=OctoPrintSettings, responses=responses())
+async def octoprint_settings() -> dict[str, Any]:
+    """The part of OctoPrint's settings clients read: no SD card, no camera, no plugins."""
+    return SETTINGS
 
 
 @router.post("/api/files/local", status_code=201, response_model=OctoPrintUpload, responses=_upload_responses())

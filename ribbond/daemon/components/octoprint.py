@@ -1,7 +1,8 @@
 """Jobs sent by slicers (issue 27): the part of OctoPrint's API that a slicer's "send to printer"
 uses (PrusaSlicer, OrcaSlicer, Cura's OctoPrint Connection), as Moonraker also offers it to them.
 
-A slicer checks ``/api/version`` (its ``text`` starts with ``OctoPrint``), uploads the file to
+A slicer checks ``/api/version`` (its ``text`` starts with ``OctoPrint``; Cura's plugin checks
+the key with ``/api/settings``), uploads the file to
 ``/api/files/local`` (multipart ``file``, with ``print`` / ``select``) and then reads ``/api/job``
 and ``/api/printer``. Here an upload becomes a job like any other: a G-code file a plain G-code job
 (checked against the profile line by line), a mesh a design job (its surface read and checked as
@@ -40,6 +41,11 @@ from .run import PrintState
 OCTOPRINT_VERSION = "1.5.0"
 #: ``/api/version``: clients check that ``text`` starts with ``OctoPrint`` (PrusaSlicer does).
 VERSION = {"api": "0.1", "server": OCTOPRINT_VERSION, "text": f"OctoPrint {OCTOPRINT_VERSION} (ribbond {__version__})"}
+
+#: ``/api/settings``, the part clients read: Cura's OctoPrint Connection checks the API key with
+#: this request (200: accepted) and reads the SD card and camera support from it.
+SETTINGS = {"feature": {"sdSupport": False, "temperatureGraph": False},
+            "webcam": {"webcamEnabled": False, "streamUrl": ""}, "plugins": {}}
 
 #: OctoPrint's printer state texts.
 OFFLINE, CONNECTING, ERROR = "Offline", "Connecting", "Error"
