@@ -2,8 +2,9 @@
 ``service.octoprint``): ``/api/version``, ``/api/server``, ``/api/settings`` (Cura's plugin checks
 the key with it), ``/api/files/local`` (the upload), ``/api/job``, ``/api/printer``, in OctoPrint's
 shapes. The token is the daemon's, sent as ``X-Api-Key`` (the gate takes it on every path); the
-gate checks it, the Host and the Origin before the body is read, as on every route. Statuses are OctoPrint's: a file that is neither G-code nor a
-mesh is 415, one that cannot be made a job 400, the printer not operational (``/api/printer``) 409.
+gate checks it, the Host and the Origin before the body is read, as on every route. Statuses are
+OctoPrint's: a file that is neither G-code nor a mesh is 415, one that cannot be made a job 400,
+the printer not operational (``/api/printer``) 409.
 """
 
 from __future__ import annotations

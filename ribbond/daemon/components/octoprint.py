@@ -162,7 +162,8 @@ class OctoPrintCompat:
 
     # ------------------------------------------------------------------ uploads
 
-    async def upload(self, path: Path, name: str, *, start: bool, select: bool, userdata: str = "") -> dict[str, Any]:
+    async def upload(self, path: Path, name: str, *, start: bool, select: bool,
+                     userdata: str = "") -> dict[str, Any]:
         """Make the uploaded file at ``path`` (named ``name`` by the client) a job, queued to print
         if ``start``. Raises ``UnsupportedFile`` or ``UploadRefused`` naming the problem, and
         whatever the service's submit refuses (a full queue: ``ServiceError``). Returns the job's
@@ -175,7 +176,10 @@ class OctoPrintCompat:
             raise UploadRefused(f"{name}: the file is empty")
         params = design_parameters(userdata, gcode)
         try:
-            job = await self.submit_gcode(path, name, start) if gcode else await self._mesh_job(path, name, params, start)
+            if gcode:
+                job = await self.submit_gcode(path, name, start)
+            else:
+                job = await self._mesh_job(path, name, params, start)
         except UploadRefused:
             raise
         except ValueError as exc:                      # the file itself (ServiceError is not one)
@@ -184,6 +188,7 @@ class OctoPrintCompat:
                 "effectivePrint": start}
 
     def _is_gcode(self, name: str) -> bool:
+        """A G-code program (True) or a mesh (False), by the name's suffix; ``UnsupportedFile`` else."""
         suffix = Path(name).suffix.lower()
         if suffix in self.gcode_suffixes:
             return True
