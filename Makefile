@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: demo test bench install clean verify-unit browser
+.PHONY: demo test bench install clean verify-unit browser curl
 
 # (Re)install when the dependency list changes; the project itself is installed editable.
 $(STAMP): pyproject.toml
@@ -20,7 +20,7 @@ demo: $(STAMP)
 
 # Two workers by default (a build machine has 2 cores); TEST_WORKERS=0 runs in one process.
 TEST_WORKERS ?= 2
-test: $(STAMP) verify-unit browser
+test: $(STAMP) verify-unit browser curl
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # systemd-analyze verify on a copy of the unit whose ExecStart points into the venv (verify checks
@@ -72,6 +72,10 @@ verify-unit: $(STAMP)
 CHROMIUM ?= /usr/bin/chromium
 browser:
 	$(call need,browser,test -x $(CHROMIUM),chromium)
+
+# The slicer-upload tests send PrusaSlicer's request with curl (libcurl, as PrusaSlicer does).
+curl:
+	$(call need,curl,command -v curl >/dev/null 2>&1,curl)
 
 bench: $(STAMP)
 	$(PY) bench/stream.py

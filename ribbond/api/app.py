@@ -10,8 +10,9 @@ and the commands possible now; an unknown job or file 404; bad input 422; an upl
 413; the printer not connected 503. In front of every route, before any body is read,
 ``ribbond.api.guard`` checks the Host header (421), the origin of state-changing requests (403) and,
 when a token is configured (``api.token`` or ``api.token_file``, on any address; always beyond
-loopback), ``Authorization: Bearer <token>`` (401) on every path but the documentation and the
-dashboard's files.
+loopback), ``Authorization: Bearer <token>`` or ``X-Api-Key: <token>`` (401) on every path but the
+documentation and the dashboard's files. Slicers send jobs through the part of OctoPrint's API they
+use (``/api/...``, ``routers.octoprint``).
 """
 
 from __future__ import annotations
@@ -24,10 +25,11 @@ from ribbond.daemon.service import RibbonService
 
 from . import errors, openapi
 from .guard import Guard, HostRule, Policy
-from .routers import alignment, calibrations, events, jobs, manual, pages, printer, projects, resume, tables
+from .routers import (alignment, calibrations, events, jobs, manual, octoprint, pages, printer, projects, resume,
+                      tables)
 
 #: The routers in the order their paths appear in the document.
-ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, events, pages)
+ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, events, octoprint, pages)
 
 
 def create_app(service: RibbonService, token: str | None) -> FastAPI:

@@ -21,6 +21,7 @@ from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import BaseRoute, Match
 
+from ribbond.daemon.components.octoprint import UnsupportedFile, UploadRefused
 from ribbond.daemon.config import ECHO_MAX, short
 from ribbond.daemon.jobs import IllegalTransition
 from ribbond.daemon.records import NotFound, ServiceError
@@ -92,6 +93,7 @@ _STATUS: dict[int, tuple[type[BaseModel], str]] = {
     404: (Error, "no such job, calibration, table or file"),
     409: (Conflict, "the job's or the printer's state does not allow it now (the printer halted: state halted)"),
     413: (TooLarge, "the body is over limits.max_upload_mb"),
+    415: (Error, "the file is neither a G-code program nor a mesh the engine reads"),
     421: (HostRefused, "the Host header does not name this daemon (api.allowed_hosts)"),
     422: (ValidationFailed, "the values are not acceptable"),
     503: (Error, "the printer is not connected"),
@@ -184,6 +186,11 @@ def install(app: FastAPI) -> None:
             text = str(exc) if isinstance(exc, PrinterHalted) else "the printer is halted: ribbonctl recover"
             return _json(409, {"detail": bounded(f"printer: {text}"), "state": "halted", "allowed": ["recover"]})
         return _json(503, {"detail": bounded(f"printer: {exc}")})
+
+    @app.exception_handler(UploadRefused)
+    async def _upload(_: Request, exc: UploadRefused) -> JSONResponse:
+        # a slicer's upload (OctoPrint's statuses): the file's type 415, anything else about it 400
+        return _json(415 if isinstance(exc, UnsupportedFile) else 400, {"detail": bounded(str(exc))})
 
     @app.exception_handler(ValueError)
     async def _invalid(_: Request, exc: ValueError) -> JSONResponse:

@@ -11,7 +11,9 @@ In order:
    is not the daemon's own origin is a cross-site form or script: 403. No header (curl, ribbonctl)
    passes; the dashboard's own fetches carry its origin, which is the daemon's.
 3. Every path but the documentation and the dashboard's static files needs the token, when one is
-   configured: 401 before the body is read, so an unauthenticated upload is never spooled.
+   configured: 401 before the body is read, so an unauthenticated upload is never spooled. It is
+   sent as ``Authorization: Bearer <token>`` or, as OctoPrint's clients send it (issue 27), as
+   ``X-Api-Key: <token>``, on every path alike.
 4. The body: a declared ``Content-Length`` over the limit is 413 at once; an undeclared (chunked)
    one is counted as it is read and answered 413 the moment it passes the limit, whatever the
    application was doing with it (the multipart parser would otherwise turn the abort into a 400).
@@ -154,10 +156,9 @@ class Policy:
             if refusal is not None:
                 return refusal
         if self.token is not None and not _is_open(scope.get("path", "")):
-            auth = headers.get("authorization", "")
-            given = auth[7:] if auth[:7].lower() == "bearer " else None
-            if not tokens_match(given, self.token):
-                return Refusal(401, {"detail": "missing or wrong API token (Authorization: Bearer <token>)"},
+            if not tokens_match(given_token(headers), self.token):
+                return Refusal(401, {"detail": "missing or wrong API token (Authorization: Bearer <token>, "
+                                               "or X-Api-Key: <token> as OctoPrint's clients send it)"},
                                ((b"www-authenticate", b"Bearer"),))
         length = headers.get("content-length", "")
         if length.isdigit() and int(length) > self.body_limit:
@@ -176,6 +177,15 @@ def _headers(scope: Scope) -> dict[str, str]:
     for key, value in scope.get("headers") or ():
         out.setdefault(key.decode("latin-1").lower(), value.decode("latin-1"))
     return out
+
+
+def given_token(headers: dict[str, str]) -> str | None:
+    """The token a request presents: ``Authorization: Bearer <token>``, else ``X-Api-Key: <token>``
+    (all that OctoPrint's clients, the slicers among them, send)."""
+    auth = headers.get("authorization", "")
+    if auth[:7].lower() == "bearer ":
+        return auth[7:]
+    return headers.get("x-api-key")
 
 
 def _is_open(path: str) -> bool:

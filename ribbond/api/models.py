@@ -209,3 +209,109 @@ class AlignRequest(BaseModel):
     here: bool = Field(False, description="the nozzle is over the mark now (after jogging it there)")
     review: bool = Field(False, description="after the last mark, wait in 'fitted' for accept or re-seat "
                                             "instead of printing the back at once")
+
+
+# ------------------------------------------------------------------ OctoPrint's shapes (issue 27)
+# What slicers parse (OctoPrint's documented data model, API before 2.0.0); fields ribbond adds
+# say so. Names are OctoPrint's, hence camelCase.
+
+
+class OctoPrintVersion(BaseModel):
+    """``GET /api/version``."""
+
+    api: str = Field(description="always 0.1")
+    server: str = Field(description="the OctoPrint release whose API this follows")
+    text: str = Field(description="starts with 'OctoPrint' (slicers check it)")
+
+
+class OctoPrintServer(BaseModel):
+    """``GET /api/server``."""
+
+    version: str
+    safemode: bool | str = Field(description="false: not in safe mode")
+
+
+class OctoPrintSettings(BaseModel):
+    """``GET /api/settings``: the part clients read (Cura's plugin checks the key with it)."""
+
+    feature: dict[str, bool] = Field(description="sdSupport: false (no SD card here)")
+    webcam: dict[str, bool | str] = Field(description="webcamEnabled, streamUrl")
+    plugins: dict[str, Any] = Field(description="none")
+
+
+class OctoPrintEntry(BaseModel):
+    """The file uploaded, as OctoPrint names it."""
+
+    name: str = Field(description="the job's file name as stored (a sanitized basename)")
+    display: str
+    path: str
+    origin: Literal["local"] = "local"
+    refs: dict[str, str] = Field(description="resource: the job (GET /jobs/{id}); download: its program "
+                                             "(a G-code job only)")
+
+
+class OctoPrintUpload(BaseModel):
+    """``POST /api/files/local``: the file became a job."""
+
+    files: dict[str, OctoPrintEntry] = Field(description="one entry, 'local'")
+    done: bool = Field(description="true: a G-code job, ready; false: a design job, compiling first")
+    effectiveSelect: bool = Field(description="select or print was asked for")
+    effectivePrint: bool = Field(description="queued to print (behind the fresh-frame gate)")
+    job_id: str = Field(description="ribbond's: the job made of the file (GET /jobs/{job_id})")
+
+
+class OctoPrintJobFile(BaseModel):
+    name: str | None = None
+    display: str | None = None
+    path: str | None = None
+    origin: str | None = None
+    size: int | None = Field(None, description="bytes")
+    date: int | None = Field(None, description="unix time of the upload")
+
+
+class OctoPrintJobInfo(BaseModel):
+    file: OctoPrintJobFile
+    estimatedPrintTime: float | None = Field(None, description="s, the programs' own estimate (both sides)")
+    lastPrintTime: float | None = None
+    user: str | None = None
+
+
+class OctoPrintProgress(BaseModel):
+    completion: float | None = Field(None, ge=0, le=100, description="percent of the print (both sides)")
+    filepos: int | None = None
+    printTime: int | None = Field(None, description="s since this run started")
+    printTimeLeft: int | None = Field(None, description="s")
+    printTimeLeftOrigin: str | None = None
+
+
+class OctoPrintJob(BaseModel):
+    """``GET /api/job``: the job on the printer, else the next queued to print, else the newest."""
+
+    job: OctoPrintJobInfo
+    progress: OctoPrintProgress
+    state: str = Field(description="the printer's state text: Offline, Connecting, Error, Operational, "
+                                   "Starting (a job queued, e.g. waiting for a fresh frame), Printing, Paused "
+                                   "(also waiting for the flip, the alignment or the frame check), Cancelling")
+    error: str | None = Field(None, description="why the job failed or was interrupted")
+    job_id: str | None = Field(None, description="ribbond's: the job shown (GET /jobs/{job_id})")
+    job_state: str | None = Field(None, description="ribbond's: that job's state")
+
+
+class OctoPrintTemperature(BaseModel):
+    actual: float | None = Field(description="°C")
+    target: float | None = Field(description="°C; null: none set")
+    offset: float = 0
+
+
+class OctoPrintState(BaseModel):
+    text: str = Field(description="as in GET /api/job")
+    flags: dict[str, bool] = Field(description="operational, printing, paused, pausing, resuming, finishing, "
+                                               "cancelling, error, ready, closedOrError, sdReady")
+
+
+class OctoPrintPrinter(BaseModel):
+    """``GET /api/printer``: 409 when the printer is not operational, as OctoPrint answers."""
+
+    temperature: dict[str, OctoPrintTemperature] = Field(description="tool0 (tool1, ...), bed, chamber")
+    sd: dict[str, bool] = Field(description="ready: false (no SD card here)")
+    state: OctoPrintState

@@ -21,6 +21,12 @@ EVENT = {"type": "object", "required": ["data"],
          "properties": {"event": {"type": "string"}, "data": {"type": "string", "description": "JSON"}}}
 
 
+#: The token, either way the gate takes it: a bearer token, or OctoPrint's X-Api-Key header.
+SECURITY = {"bearer": {"type": "http", "scheme": "bearer", "description": "the daemon's API token"},
+            "apiKey": {"type": "apiKey", "in": "header", "name": "X-Api-Key",
+                       "description": "the daemon's API token, as OctoPrint's clients (slicers) send it"}}
+
+
 def links(target: str, operations: dict[str, str]) -> dict[str, Any]:
     """OpenAPI links from a created resource to the operations on it (``operations``: link name ->
     operationId), the path parameter taken from the response (``target``: ``param=$response...``)."""
@@ -38,8 +44,8 @@ def file_content(suffixes: list[str]) -> dict[int | str, dict[str, Any]]:
 def refine(app: FastAPI, bearer: bool, service: RibbonService) -> None:
     """What FastAPI's generated document cannot say: the upload is one of ``mesh`` and ``gcode``,
     each named with its suffix, ``parameters`` a JSON ``DesignParameters`` object; the profile's
-    bounds of ``heat`` and ``goto`` (the service checks them); and, with a token, the bearer scheme
-    on every operation (the gate enforces it)."""
+    bounds of ``heat`` and ``goto`` (the service checks them); and, with a token, its two schemes
+    (a bearer token or ``X-Api-Key``) on every operation (the gate enforces them)."""
     build = app.openapi
 
     def openapi() -> dict[str, Any]:
@@ -49,11 +55,10 @@ def refine(app: FastAPI, bearer: bool, service: RibbonService) -> None:
             _describe_upload(schema, components.setdefault("schemas", {}))
             _profile_bounds(components["schemas"], service)
             if bearer:
-                components["securitySchemes"] = {"bearer": {"type": "http", "scheme": "bearer",
-                                                            "description": "the daemon's API token"}}
+                components["securitySchemes"] = SECURITY
                 for ops in schema["paths"].values():
                     for op in ops.values():
-                        op["security"] = [{"bearer": []}]
+                        op["security"] = [{"bearer": []}, {"apiKey": []}]
             app.openapi_schema = schema
         return app.openapi_schema
 

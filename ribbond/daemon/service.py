@@ -20,6 +20,7 @@ and the next thing to do). The rest is one component per concern, each given onl
 - ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans;
 - ``predictor.Predictor``: a design's deployed shape predicted again (a ``ribbond.deploy.worker``
   subprocess), its progress and result in the job's status.
+- ``octoprint.OctoPrintCompat``: slicers' uploads made jobs, and the job and printer in OctoPrint's words.
 
 It knows nothing of HTTP (``ribbond.api`` maps the components' methods and exceptions to routes and
 status codes) and parses no printer answers (``PrinterLink`` does).
@@ -49,6 +50,7 @@ from .components.frame import INSTRUCTION as FRESH_FRAME_INSTRUCTION, FrameGate,
 from .components.head import Head
 from .components.heaters import Heaters
 from .components.manual import MAX_MANUAL_COMMANDS, ManualControl
+from .components.octoprint import OctoPrintCompat
 from .components.predictor import Predictor
 from .components.printing import PrintTask
 from .components.projects import Projects, check_panels, panel_instruction
@@ -161,6 +163,10 @@ class RibbonService:
         self.projects = Projects(config, self.records, self.library.tables_dir, python, self.state.queue_print,
                                  self.status, self.cancel, self.start_job)          # a mesh in panels (issue 26)
         self.compiler.project_compile = self.projects.compile
+        # slicers' uploads and views in OctoPrint's words (issue 27)
+        self.octoprint = OctoPrintCompat(self.records, self.state, self.head, self.submit, self.submit_gcode,
+                                         self.status, self.manual.printer_status,
+                                         (MESH_SUFFIXES, GCODE_SUFFIXES), config.limits.max_faces)
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
