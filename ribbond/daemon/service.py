@@ -19,7 +19,9 @@ and the next thing to do). The rest is one component per concern, each given onl
 - ``head.Head``: the link, the lock of the head's moves and the head's commanded position;
 - ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans;
 - ``predictor.Predictor``: a design's deployed shape predicted again (a ``ribbond.deploy.worker``
-  subprocess), its progress and result in the job's status.
+  subprocess), its progress and result in the job's status;
+- ``notifier.Notifier``: notifications through Apprise (``[notify]``), from the bus's events, off the
+  print path.
 
 It knows nothing of HTTP (``ribbond.api`` maps the components' methods and exceptions to routes and
 status codes) and parses no printer answers (``PrinterLink`` does).
@@ -49,6 +51,7 @@ from .components.frame import INSTRUCTION as FRESH_FRAME_INSTRUCTION, FrameGate,
 from .components.head import Head
 from .components.heaters import Heaters
 from .components.manual import MAX_MANUAL_COMMANDS, ManualControl
+from .components.notifier import Notifier
 from .components.predictor import Predictor
 from .components.printing import PrintTask
 from .components.projects import Projects, check_panels, panel_instruction
@@ -161,12 +164,15 @@ class RibbonService:
         self.projects = Projects(config, self.records, self.library.tables_dir, python, self.state.queue_print,
                                  self.status, self.cancel, self.start_job)          # a mesh in panels (issue 26)
         self.compiler.project_compile = self.projects.compile
+        self.notifier = Notifier(config.notify, self.bus)    # the operator's phone (issue 27)
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
 
     def start(self) -> None:
         """Mark jobs the last daemon left holding the printer as interrupted; start the queues."""
+        # (before the interruptions below: those are news to the operator)
+        self.notifier.start(j.model_dump(mode="json") for j in self.store.list())
         interrupted = self.store.mark_interrupted("the daemon stopped while this job was running")
         for job in interrupted:
             self.records.publish(job)
@@ -206,6 +212,7 @@ class RibbonService:
         await self.printing.shutdown(reason)
 
     async def close(self) -> None:
+        await self.notifier.close()
         self.compiler.stop_all()
         self.projects.stop_all()
         self.predictor.stop_all()
