@@ -86,7 +86,8 @@ def job_label(job: dict[str, Any]) -> str:
 
 
 def _sentence(text: str) -> str:
-    text = text.strip()
+    """``text`` as a sentence's start, without its full stop (the caller ends it)."""
+    text = text.strip().rstrip(".")
     return (text[:1].upper() + text[1:]) if text else text
 
 
