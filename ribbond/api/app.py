@@ -25,11 +25,12 @@ from ribbond.daemon.service import RibbonService
 
 from . import errors, openapi
 from .guard import Guard, HostRule, Policy
-from .routers import (alignment, calibrations, events, jobs, manual, octoprint, pages, printer, projects, resume,
-                      tables)
+from .routers import (alignment, calibrations, events, jobs, manual, notifications, octoprint, pages, printer,
+                      projects, resume, tables)
 
 #: The routers in the order their paths appear in the document.
-ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, events, octoprint, pages)
+ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, notifications, events,
+           octoprint, pages)
 
 
 def create_app(service: RibbonService, token: str | None) -> FastAPI:

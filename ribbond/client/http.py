@@ -838,6 +838,8 @@ def add_commands(sub: Any) -> None:
         add(cmd)
     from .projects import add_project_commands
     add_project_commands(sub, common)
+    from .notify import add_notify_commands
+    add_notify_commands(sub, common)
 
 
 def _job_commands(cmd: Command) -> None:

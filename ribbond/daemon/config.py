@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hmac
 import ipaddress
+import logging
 import os
 import secrets
 import stat
@@ -133,6 +134,68 @@ class DesignSettings(BaseModel):
                           "(deployed.obj, deployed.png, report.deployed); false: compile without it")
 
 
+#: What ``[notify] events`` may name: each is one moment the operator is needed or told.
+NOTIFY_EVENTS = ("awaiting_flip", "alignment", "fresh_frame", "done", "failed", "interrupted", "halted")
+
+
+class NotifySettings(BaseModel):
+    """Notifications (Apprise URLs) when a job needs the operator or ends; sent off the print path."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    # repr=False: service URLs carry tokens and passwords, and the configuration is logged at start.
+    urls: list[str] = Field(default_factory=list, repr=False, description="Apprise URLs (ntfy://, tgram://, "
+                            "mailto://, json://, ...); none: no notifications")
+    events: list[str] = Field(default_factory=lambda: list(NOTIFY_EVENTS), description="the events notified: "
+                              + ", ".join(NOTIFY_EVENTS))
+    timeout_s: float = Field(10.0, gt=0, le=300, description="a send not done in this long counts as "
+                             "failed (timeout), s; the service's own connect and read timeouts are 1 s longer")
+
+    @field_validator("events")
+    @classmethod
+    def _events_known(cls, value: list[str]) -> list[str]:
+        for name in value:
+            if name not in NOTIFY_EVENTS:
+                raise ValueError(f"{short(name)!r} is not an event; the events are: {', '.join(NOTIFY_EVENTS)}")
+        return value
+
+    @field_validator("urls")
+    @classmethod
+    def _urls_usable(cls, value: list[str]) -> list[str]:
+        for i, url in enumerate(value):
+            problem = notify_url_problem(url)
+            if problem:
+                raise ValueError(f"URL {i + 1} ({url_scheme(url)}): {problem}")
+        return value
+
+
+def url_scheme(url: str) -> str:
+    """``"tgram://…"``: the URL named without the parts that may be secret."""
+    scheme, sep, _ = url.strip().partition("://")
+    return f"{short(scheme, 16)}://…" if sep and scheme else repr(short(url, 8) + "…")
+
+
+def notify_url_problem(url: str) -> str | None:
+    """Why Apprise cannot use ``url`` (None: it can). Imported here only when URLs are configured."""
+    import apprise
+
+    scheme, sep, _ = url.strip().partition("://")
+    if not sep:
+        return "not a URL: Apprise URLs are written SERVICE://..., e.g. ntfy://TOPIC or json://HOST/PATH"
+    if scheme.lower() not in apprise.NotificationManager():
+        return f"no Apprise service is called {short(scheme, 16)}://"
+    quiet = logging.getLogger("apprise")           # its own error echoes the URL, secrets and all
+    level, quiet.level = quiet.level, logging.CRITICAL
+    try:
+        plugin = apprise.Apprise.instantiate(url)
+    finally:
+        quiet.setLevel(level)
+    if plugin is None:
+        return (f"Apprise cannot use this {short(scheme, 16)}:// URL (parts missing or invalid; each service's "
+                "form: https://github.com/caronc/apprise/wiki)")
+    return None
+
+
 class DaemonConfig(BaseModel):
     """Everything ``ribbond`` reads from its configuration file; every field has a default."""
 
@@ -147,6 +210,7 @@ class DaemonConfig(BaseModel):
     flip: FlipPolicy = FlipPolicy()
     manual: ManualSettings = ManualSettings()
     design: DesignSettings = DesignSettings()
+    notify: NotifySettings = NotifySettings()
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @property

@@ -19,8 +19,10 @@ and the next thing to do). The rest is one component per concern, each given onl
 - ``head.Head``: the link, the lock of the head's moves and the head's commanded position;
 - ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans;
 - ``predictor.Predictor``: a design's deployed shape predicted again (a ``ribbond.deploy.worker``
-  subprocess), its progress and result in the job's status.
-- ``octoprint.OctoPrintCompat``: slicers' uploads made jobs, and the job and printer in OctoPrint's words.
+  subprocess), its progress and result in the job's status;
+- ``octoprint.OctoPrintCompat``: slicers' uploads made jobs, and the job and printer in OctoPrint's words;
+- ``notifier.Notifier``: notifications through Apprise (``[notify]``), from the bus's events, off the
+  print path.
 
 It knows nothing of HTTP (``ribbond.api`` maps the components' methods and exceptions to routes and
 status codes) and parses no printer answers (``PrinterLink`` does).
@@ -50,6 +52,7 @@ from .components.frame import INSTRUCTION as FRESH_FRAME_INSTRUCTION, FrameGate,
 from .components.head import Head
 from .components.heaters import Heaters
 from .components.manual import MAX_MANUAL_COMMANDS, ManualControl
+from .components.notifier import Notifier
 from .components.octoprint import OctoPrintCompat
 from .components.predictor import Predictor
 from .components.printing import PrintTask
@@ -167,12 +170,15 @@ class RibbonService:
         self.octoprint = OctoPrintCompat(self.records, self.state, self.head, self.submit, self.submit_gcode,
                                          self.status, self.manual.printer_status,
                                          (MESH_SUFFIXES, GCODE_SUFFIXES), config.limits.max_faces)
+        self.notifier = Notifier(config.notify, self.bus)    # the operator's phone (issue 27)
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
 
     def start(self) -> None:
         """Mark jobs the last daemon left holding the printer as interrupted; start the queues."""
+        # (before the interruptions below: those are news to the operator)
+        self.notifier.start(j.model_dump(mode="json") for j in self.store.list())
         interrupted = self.store.mark_interrupted("the daemon stopped while this job was running")
         for job in interrupted:
             self.records.publish(job)
@@ -212,6 +218,7 @@ class RibbonService:
         await self.printing.shutdown(reason)
 
     async def close(self) -> None:
+        await self.notifier.close()
         self.compiler.stop_all()
         self.projects.stop_all()
         self.predictor.stop_all()

@@ -5,6 +5,7 @@ import * as api from "./api.js";
 import { drawChart } from "./chart.js";
 import { layoutSVG, flipSVG, backSVG } from "./draw.js";
 import { panelMapSVG, legendHTML, projectCardHTML, panelListHTML, seamsHTML } from "./project.js";
+import { loadNotify, takeDelivery } from "./notify.js";
 
 const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
@@ -988,6 +989,9 @@ function onEvent(type, ev) {
   } else if (type === "frame" && ev.frame) {
     if (state.printer) state.printer = { ...state.printer, frame: ev.frame };
     renderPrinter();
+  } else if (type === "notification" && ev.notification) {
+    takeDelivery($("notify-line"), ev.notification);
+    return;
   } else if (type === "printer" && ev.printer) {
     takePrinter(ev.printer);
     if (state.route.page === "job" && state.jobs.has(state.route.id)) renderTemps(state.jobs.get(state.route.id));
@@ -1005,7 +1009,7 @@ function restartEvents() {
     while (!signal.aborted) {
       try {
         await api.events(onEvent, () => {
-          state.live = true; $("live").textContent = "live"; $("live").className = "pill ready"; quiet(loadJobs()); quiet(loadProjects());
+          state.live = true; $("live").textContent = "live"; $("live").className = "pill ready"; quiet(loadJobs()); quiet(loadProjects()); quiet(loadNotify($("notify-line")));
         }, signal);
       } catch (e) {
         if (signal.aborted) return;

@@ -19,6 +19,7 @@ from ribbond.daemon.config import (
     FlipPolicy,
     Limits,
     ManualSettings,
+    NotifySettings,
     SerialSettings,
     config_path,
     is_loopback,
@@ -91,6 +92,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
         flip=FlipPolicy(heaters="off", lower_to=150.0, off_after_s=60.0),
         manual=ManualSettings(raw_console=True),
         design=DesignSettings(predict=False),
+        notify=NotifySettings(urls=["json://127.0.0.1:9/hook"], events=["done", "halted"], timeout_s=3.0),
         log_level="debug",
     )
     # Every field differs from its default, so a field the loader dropped would show.
