@@ -19,7 +19,8 @@ and the next thing to do). The rest is one component per concern, each given onl
 - ``head.Head``: the link, the lock of the head's moves and the head's commanded position;
 - ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans;
 - ``predictor.Predictor``: a design's deployed shape predicted again (a ``ribbond.deploy.worker``
-  subprocess), its progress and result in the job's status.
+  subprocess), its progress and result in the job's status;
+- ``camera.Camera``: the printer's camera for the page, a snapshot kept with the job at each side's end.
 
 It knows nothing of HTTP (``ribbond.api`` maps the components' methods and exceptions to routes and
 status codes) and parses no printer answers (``PrinterLink`` does).
@@ -44,6 +45,7 @@ from ribbond.gcode.profiles import PrinterProfile
 from ribbond.printer.link import LinkState, PrinterLink
 from .components.aligner import Aligner, aligning_guidance
 from .components.calibrations import Calibrations
+from .components.camera import Camera
 from .components.compiler import COMPILE_STAGES, Compiler
 from .components.frame import INSTRUCTION as FRESH_FRAME_INSTRUCTION, FrameGate, waits_at_gate
 from .components.head import Head
@@ -161,6 +163,7 @@ class RibbonService:
         self.projects = Projects(config, self.records, self.library.tables_dir, python, self.state.queue_print,
                                  self.status, self.cancel, self.start_job)          # a mesh in panels (issue 26)
         self.compiler.project_compile = self.projects.compile
+        self.camera = Camera(config.camera, self.records)            # snapshots at each side's end (issue 27)
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
@@ -182,7 +185,8 @@ class RibbonService:
                 self.state.queue_print(job.id)
         self._tasks = [asyncio.create_task(self.compiler.run(), name="compile"),
                        asyncio.create_task(self.printing.run(), name="print"),
-                       asyncio.create_task(self._printer_events(), name="printer events")]
+                       asyncio.create_task(self._printer_events(), name="printer events"),
+                       asyncio.create_task(self.camera.run(), name="camera")]
 
     async def _printer_events(self) -> None:
         """Publish the printer's status (state, temperatures, position, head) as an event whenever
@@ -214,6 +218,7 @@ class RibbonService:
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
+        await self.camera.close()
 
     # ------------------------------------------------------------------ jobs
 
@@ -565,6 +570,7 @@ class RibbonService:
                                  "remeasure": list(run.alignment.remeasure)}
         data["verdict"] = self.verdicts.lines(job)
         data["prediction"] = self.predictor.view(job.id)
+        data["snapshots"] = self.camera.snapshots(self.job_dir(job.id))
         return data
 
     def _waits(self, job: JobRecord) -> bool:

@@ -14,6 +14,7 @@ import ribbond.daemon.config as config_mod
 from ribbond.daemon.config import (
     CONFIG_ENV,
     ApiSettings,
+    CameraSettings,
     DaemonConfig,
     DesignSettings,
     FlipPolicy,
@@ -91,6 +92,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
         flip=FlipPolicy(heaters="off", lower_to=150.0, off_after_s=60.0),
         manual=ManualSettings(raw_console=True),
         design=DesignSettings(predict=False),
+        camera=CameraSettings(stream_url="http://127.0.0.1:8080/stream", snapshot_url="http://cam.local/snapshot"),
         log_level="debug",
     )
     # Every field differs from its default, so a field the loader dropped would show.
