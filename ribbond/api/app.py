@@ -24,10 +24,10 @@ from ribbond.daemon.service import RibbonService
 
 from . import errors, openapi
 from .guard import Guard, HostRule, Policy
-from .routers import alignment, calibrations, events, jobs, manual, pages, printer, projects, resume, tables
+from .routers import alignment, calibrations, camera, events, jobs, manual, pages, printer, projects, resume, tables
 
 #: The routers in the order their paths appear in the document.
-ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, events, pages)
+ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, camera, events, pages)
 
 
 def create_app(service: RibbonService, token: str | None) -> FastAPI:

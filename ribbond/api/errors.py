@@ -21,6 +21,7 @@ from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import BaseRoute, Match
 
+from ribbond.daemon.components.camera import CameraError
 from ribbond.daemon.config import ECHO_MAX, short
 from ribbond.daemon.jobs import IllegalTransition
 from ribbond.daemon.records import NotFound, ServiceError
@@ -89,11 +90,12 @@ _STATUS: dict[int, tuple[type[BaseModel], str]] = {
     400: (Error, "the body cannot be parsed (not JSON, not multipart form data)"),
     401: (Error, "no token or a wrong one (when the daemon has a token: Authorization: Bearer <token>)"),
     403: (OriginRefused, "a state-changing request from a page of another origin"),
-    404: (Error, "no such job, calibration, table or file"),
+    404: (Error, "no such job, calibration, table or file (or no camera configured)"),
     409: (Conflict, "the job's or the printer's state does not allow it now (the printer halted: state halted)"),
     413: (TooLarge, "the body is over limits.max_upload_mb"),
     421: (HostRefused, "the Host header does not name this daemon (api.allowed_hosts)"),
     422: (ValidationFailed, "the values are not acceptable"),
+    502: (Error, "the camera did not answer, or not with JPEG images"),
     503: (Error, "the printer is not connected"),
 }
 
@@ -184,6 +186,10 @@ def install(app: FastAPI) -> None:
             text = str(exc) if isinstance(exc, PrinterHalted) else "the printer is halted: ribbonctl recover"
             return _json(409, {"detail": bounded(f"printer: {text}"), "state": "halted", "allowed": ["recover"]})
         return _json(503, {"detail": bounded(f"printer: {exc}")})
+
+    @app.exception_handler(CameraError)
+    async def _camera(_: Request, exc: CameraError) -> JSONResponse:
+        return _json(502, {"detail": bounded(f"camera: {exc}")})
 
     @app.exception_handler(ValueError)
     async def _invalid(_: Request, exc: ValueError) -> JSONResponse:
