@@ -34,6 +34,9 @@ from .test_frame_gate import queue
 
 pytestmark = pytest.mark.timeout(180)
 
+#: A small two-sided design (the saddle at 45 mm: about 8 front and 2 back ribbons), quick to print.
+SMALL = {"size": {"bbox_diagonal": 45}}
+
 
 #: The simulator runs 200× fast here (the harness's 50×): nothing in these tests waits on its clock.
 FAST = 0.005
@@ -129,7 +132,7 @@ def test_a_snapshot_is_kept_at_each_sides_end_and_served_with_the_jobs_files(
 
         frame_ready(api)
         first_segment = len(camera_sim.segments())
-        job = submit(api, meshes["two_sided"], start=True)
+        job = submit(api, meshes["two_sided"], start=True, parameters=SMALL)
         wait_for(api, job, "awaiting_flip", timeout=90)
         record = wait_snapshot(api, job, "snapshot-front.jpg")
         taken = record["snapshots"][0]["taken"]

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from tests.daemon.conftest import TIME_SCALE, Daemon, cancel_leftovers, frame_ready, running, submit, wait_for
-from tests.daemon.test_camera import CameraSim, camera_table
+from tests.daemon.test_camera import SMALL, CameraSim, camera_table
 
 from .conftest import DESKTOP, PHONE, shot
 
@@ -88,7 +88,7 @@ def test_the_camera_is_shown_while_printing_and_aligning_and_its_snapshot_with_t
     assert desktop.locator("#camera").is_hidden() and phone.locator("#camera").is_hidden()   # ready: no camera
 
     assert api.post(f"/jobs/{program}/start").status_code == 200
-    design = submit(api, meshes["two_sided"], start=True)        # compiles meanwhile; prints after the program
+    design = submit(api, meshes["two_sided"], start=True, parameters=SMALL)   # compiles meanwhile; prints next
     for page in (desktop, phone):
         page.wait_for_function(SHOWING, timeout=30 * SECOND)
     wait_for(api, program, "printing_front", until=lambda j: j["progress"] > 0.5, timeout=60)
