@@ -1,7 +1,8 @@
 """A simulated Marlin 2.x printer behind a pseudo-terminal, for testing hosts.
 
 Stands in for firmware written by others: it shares no code with ``ribbond`` and
-uses only the standard library, numpy and matplotlib.
+uses only the standard library, numpy, matplotlib and Pillow (which matplotlib
+needs: the camera draws with it).
 
     from sim import SimConfig, SimulatedPrinter
     with SimulatedPrinter(SimConfig(time_scale=0.01)) as sim:

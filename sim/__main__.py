@@ -1,7 +1,8 @@
 """``python -m sim``: serve a simulated Marlin printer on a pty until SIGTERM/SIGINT.
 
-The first line on stdout is the pty device path (flushed at once); if a disconnect
-fault later plugs in a new pty, its path is printed as a further line.
+The first line on stdout is the pty device path (flushed at once); with ``--camera-port`` the
+second is the camera's base address (``http://127.0.0.1:PORT/``: ``stream``, ``snapshot``). If a
+disconnect fault later plugs in a new pty, its path is printed as a further line.
 """
 
 from __future__ import annotations
@@ -111,6 +112,12 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--record", metavar="FILE",
                    help="write every executed command to FILE as JSON lines")
     g.add_argument("--render", metavar="FILE", help="write a PNG of the deposits at exit")
+    g.add_argument("--camera-port", type=int, default=None, metavar="N",
+                   help="serve a camera of the bed on 127.0.0.1:N (0: any free port; its address is the "
+                        "second line of stdout): /stream (MJPEG), /snapshot (JPEG), and /?action=stream, "
+                        "/?action=snapshot as mjpg-streamer spells them")
+    g.add_argument("--camera-fps", type=float, default=5.0, metavar="F",
+                   help="frames a second the camera renders and streams (default %(default)s)")
     g.add_argument("--control", metavar="SOCKET",
                    help="Unix socket for JSON-line control requests "
                         "(flip, reset, disconnect, runaway, stats, render, segments, commands, port)")
@@ -166,16 +173,27 @@ def main(argv: list[str] | None = None) -> int:
     def announce(path: str) -> None:
         print(path, flush=True)
 
+    if args.camera_port is not None and not 0 <= args.camera_port <= 65535:
+        parser.error(f"--camera-port: a TCP port 0-65535 is needed, got {args.camera_port}")
+    if args.camera_fps <= 0:
+        parser.error(f"--camera-fps: must be > 0, got {args.camera_fps}")
     sim = SimulatedPrinter(config, record_path=args.record, control_path=args.control,
                            on_port_change=announce)
     sim.start()
+    camera = None
     try:
         announce(sim.port)
+        if args.camera_port is not None:
+            from .camera import CameraServer
+            camera = CameraServer(sim, args.camera_port, fps=args.camera_fps).start()
+            announce(camera.url)
         while not done.wait(0.5):
             pass
         if args.render:
             sim.render_png(args.render)
     finally:
+        if camera is not None:
+            camera.stop()
         sim.stop()
     return 0
 

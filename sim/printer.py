@@ -345,9 +345,9 @@ class SimulatedPrinter:
         """Every command executed so far, in order."""
         return self._recorder.commands() if self._recorder is not None else []
 
-    def segments(self) -> list[Segment]:
-        """Every extrusion segment laid down so far, in order."""
-        return self._recorder.segments() if self._recorder is not None else []
+    def segments(self, start: int = 0) -> list[Segment]:
+        """Every extrusion segment laid down so far, in order (from the ``start``-th on)."""
+        return self._recorder.segments(start) if self._recorder is not None else []
 
     def stats(self) -> Stats:
         return self._call(lambda: self._c().snapshot_stats())
@@ -382,6 +382,10 @@ class SimulatedPrinter:
 
     def frame_pose(self) -> FramePose:
         return self._call(lambda: self._c().frame.pose)
+
+    def head_position(self) -> tuple[float, float, float, float]:
+        """Where the nozzle is now (x, y, z, e; mm), as the steppers move it (the camera draws it)."""
+        return self._call(lambda: self._c().fw.planner.position_at(time.monotonic()))
 
     def render_png(self, path: str) -> None:
         """PNG of the deposits, in machine and in fabric coordinates."""

@@ -5,6 +5,7 @@ same way, so that the host's pauses (garbage collection, the GIL) and the printe
 
     with SimProcess(["--baud", "250000", "--time-scale", "0.05"]) as printer:
         printer.port                     # the pty to open
+        printer.camera_url               # with --camera-port: http://127.0.0.1:PORT/
         printer.request({"cmd": "flip", "dx": 0.3})
         printer.stats()                  # dict of the simulator's counters
 """
@@ -43,6 +44,8 @@ class SimProcess:
         self._startup_timeout_s = startup_timeout_s
         self._process: subprocess.Popen[str] | None = None
         self.port = ""
+        #: The camera's base address (``--camera-port``), else "".
+        self.camera_url = ""
 
     def start(self) -> SimProcess:
         self._process = subprocess.Popen(
@@ -55,6 +58,12 @@ class SimProcess:
             self.stop()
             raise RuntimeError(f"the simulator did not start (it printed {line!r})")
         self.port = line
+        if "--camera-port" in self._args:
+            url = self._process.stdout.readline().strip()
+            if not url.startswith("http://"):
+                self.stop()
+                raise RuntimeError(f"the simulator's camera did not start (it printed {url!r})")
+            self.camera_url = url
         return self
 
     def request(self, request: dict[str, Any], timeout_s: float = 60.0) -> dict[str, Any]:

@@ -75,9 +75,10 @@ class Recorder:
         with self._lock:
             return list(self._commands)
 
-    def segments(self) -> list[Segment]:
+    def segments(self, start: int = 0) -> list[Segment]:
+        """The segments from the ``start``-th on (a reader that has the first ones copies no more)."""
         with self._lock:
-            return list(self._segments)
+            return self._segments[start:]
 
     def close(self) -> None:
         with self._lock:

@@ -25,11 +25,11 @@ from ribbond.daemon.service import RibbonService
 
 from . import errors, openapi
 from .guard import Guard, HostRule, Policy
-from .routers import (alignment, calibrations, events, jobs, manual, notifications, octoprint, pages, printer,
+from .routers import (alignment, calibrations, camera, events, jobs, manual, notifications, octoprint, pages, printer,
                       projects, resume, tables)
 
 #: The routers in the order their paths appear in the document.
-ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, notifications, events,
+ROUTERS = (jobs, projects, resume, alignment, calibrations, tables, manual, printer, camera, notifications, events,
            octoprint, pages)
 
 

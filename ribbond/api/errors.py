@@ -21,6 +21,7 @@ from pydantic import BaseModel, Field, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import BaseRoute, Match
 
+from ribbond.daemon.components.camera import CameraError
 from ribbond.daemon.components.octoprint import UnsupportedFile, UploadRefused
 from ribbond.daemon.config import ECHO_MAX, short
 from ribbond.daemon.jobs import IllegalTransition
@@ -90,12 +91,13 @@ _STATUS: dict[int, tuple[type[BaseModel], str]] = {
     400: (Error, "the body cannot be parsed (not JSON, not multipart form data)"),
     401: (Error, "no token or a wrong one (when the daemon has a token: Authorization: Bearer <token>)"),
     403: (OriginRefused, "a state-changing request from a page of another origin"),
-    404: (Error, "no such job, calibration, table or file"),
+    404: (Error, "no such job, calibration, table or file (or no camera configured)"),
     409: (Conflict, "the job's or the printer's state does not allow it now (the printer halted: state halted)"),
     413: (TooLarge, "the body is over limits.max_upload_mb"),
     415: (Error, "the file is neither a G-code program nor a mesh the engine reads"),
     421: (HostRefused, "the Host header does not name this daemon (api.allowed_hosts)"),
     422: (ValidationFailed, "the values are not acceptable"),
+    502: (Error, "the camera did not answer, or not with JPEG images"),
     503: (Error, "the printer is not connected"),
 }
 
@@ -191,6 +193,10 @@ def install(app: FastAPI) -> None:
     async def _upload(_: Request, exc: UploadRefused) -> JSONResponse:
         # a slicer's upload (OctoPrint's statuses): the file's type 415, anything else about it 400
         return _json(415 if isinstance(exc, UnsupportedFile) else 400, {"detail": bounded(str(exc))})
+
+    @app.exception_handler(CameraError)
+    async def _camera(_: Request, exc: CameraError) -> JSONResponse:
+        return _json(502, {"detail": bounded(f"camera: {exc}")})
 
     @app.exception_handler(ValueError)
     async def _invalid(_: Request, exc: ValueError) -> JSONResponse:

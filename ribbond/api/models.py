@@ -12,6 +12,7 @@ from typing import Annotated, Any, Literal
 from fastapi import Path as PathParam
 from pydantic import BaseModel, Field
 
+from ribbond.daemon.components.camera import SNAPSHOT_FILES
 from ribbond.daemon.components.manual import MAX_MANUAL_COMMANDS
 from ribbond.daemon.components.projects import PROJECT_FILES
 from ribbond.daemon.store import JobRecord, ProjectRecord
@@ -22,9 +23,10 @@ JOB_FILES = {"preview.png": "design", "preview.svg": "design", "design.json": "d
              "front.gcode": "design", "back.gcode": "design", "combined.gcode": "design",
              "target.obj": "design", "flat.obj": "design", "deployed.obj": "design", "deployed.png": "design",
              "back-corrected.gcode": "job",
-             "program.gcode": "job"}
+             "program.gcode": "job",
+             **{name: "job" for name in SNAPSHOT_FILES.values()}}
 #: The media type of each kind of file served (named, so the OpenAPI document can list them).
-MEDIA_TYPES = {".png": "image/png", ".svg": "image/svg+xml", ".json": "application/json",
+MEDIA_TYPES = {".png": "image/png", ".jpg": "image/jpeg", ".svg": "image/svg+xml", ".json": "application/json",
                ".gcode": "text/x.gcode", ".obj": "model/obj", ".csv": "text/csv"}
 #: A job file's name in a path: one of ``JOB_FILES`` (the document lists them).
 JobFile = Enum("JobFile", {name: name for name in JOB_FILES}, type=str)  # type: ignore[misc]
@@ -40,6 +42,13 @@ class NextStep(BaseModel):
 
     instruction: str
     commands: list[str] = Field(description="the exact commands possible now")
+
+
+class Snapshot(BaseModel):
+    """A camera snapshot kept with a job at a side's end."""
+
+    name: Literal["snapshot-front.jpg", "snapshot-back.jpg", "snapshot-program.jpg"]
+    taken: float = Field(description="when, unix s")
 
 
 class JobStatus(JobRecord):
@@ -67,6 +76,8 @@ class JobStatus(JobRecord):
         None, description="the design's last prediction asked for (POST /jobs/{id}/predict) in this daemon's "
         "life: state (running, done, failed), fraction 0–1, message, table, fine; when done the new "
         "report.deployed (deployed) and verdict; when failed the error")
+    snapshots: list[Snapshot] = Field(default_factory=list, description="the camera's snapshots kept at each "
+                                      "side's end ([camera]), front to back (GET /jobs/{id}/files/{name})")
     next: NextStep
 
 
@@ -115,6 +126,19 @@ class ProjectStatus(ProjectRecord):
     seams: list[ProjectSeam] = Field(default_factory=list)
     report: dict[str, Any] | None = Field(None, description="project.json's report")
     next: NextStep
+
+
+class CameraView(BaseModel):
+    """``GET /camera``: whether the daemon has a camera, where its stream and snapshot come from."""
+
+    configured: bool = Field(description="a camera is configured ([camera] stream_url or snapshot_url)")
+    stream: Literal["stream_url", "snapshot_url"] | None = Field(
+        None, description="what /camera/stream shows: the stream, or the snapshot polled twice a second")
+    snapshot: Literal["snapshot_url", "stream_url"] | None = Field(
+        None, description="what /camera/snapshot and the jobs' snapshots take: the snapshot, or the stream's next frame")
+    last_error: str | None = Field(None, description="the camera's last failure (a snapshot not kept, a stream "
+                                                     "that failed), in this daemon's life")
+    last_error_at: float | None = Field(None, description="when, unix s")
 
 
 class PredictRequest(BaseModel):

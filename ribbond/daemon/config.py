@@ -30,11 +30,12 @@ import os
 import secrets
 import stat
 import tomllib
+import urllib.parse
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 
 #: Where the daemon looks when neither ``--config`` nor ``RIBBOND_CONFIG`` names a file.
 DEFAULT_CONFIG = Path("/etc/ribbond/ribbond.toml")
@@ -196,6 +197,43 @@ def notify_url_problem(url: str) -> str | None:
     return None
 
 
+def check_camera_url(value: str, name: str) -> str:
+    """``value`` stripped if it is empty or an absolute http(s) URL with a host; else ValueError naming ``name``."""
+    text = value.strip()
+    if not text:
+        return ""
+    parts = urllib.parse.urlsplit(text)
+    try:
+        parts.port                             # noqa: B018 - raises ValueError on a bad port
+    except ValueError:
+        raise ValueError(f"{name} {short(text)!r}: the port is not a number from 0 to 65535") from None
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        raise ValueError(f"{name} {short(text)!r}: expected an http:// or https:// URL with a host, "
+                         "e.g. http://127.0.0.1:8080/stream, or \"\" for none")
+    return text
+
+
+class CameraSettings(BaseModel):
+    """The printer's camera, as crowsnest, ustreamer or mjpg-streamer serve one (issue 27)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    # Either may be empty: the other stands in (a frame of the stream as the snapshot, the snapshot
+    # polled as the stream). The daemon fetches both itself: the page gets them through /camera.
+    stream_url: str = Field("", description="MJPEG stream (multipart/x-mixed-replace), e.g. "
+                            "http://127.0.0.1:8080/stream; empty: none")
+    snapshot_url: str = Field("", description="one JPEG, e.g. http://127.0.0.1:8080/snapshot; empty: none")
+
+    @field_validator("stream_url", "snapshot_url")
+    @classmethod
+    def _url(cls, value: str, info: ValidationInfo) -> str:
+        return check_camera_url(value, str(info.field_name))
+
+    @property
+    def configured(self) -> bool:
+        return bool(self.stream_url or self.snapshot_url)
+
+
 class DaemonConfig(BaseModel):
     """Everything ``ribbond`` reads from its configuration file; every field has a default."""
 
@@ -211,6 +249,7 @@ class DaemonConfig(BaseModel):
     manual: ManualSettings = ManualSettings()
     design: DesignSettings = DesignSettings()
     notify: NotifySettings = NotifySettings()
+    camera: CameraSettings = CameraSettings()
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @property

@@ -22,7 +22,8 @@ and the next thing to do). The rest is one component per concern, each given onl
   subprocess), its progress and result in the job's status;
 - ``octoprint.OctoPrintCompat``: slicers' uploads made jobs, and the job and printer in OctoPrint's words;
 - ``notifier.Notifier``: notifications through Apprise (``[notify]``), from the bus's events, off the
-  print path.
+  print path;
+- ``camera.Camera``: the printer's camera for the page, a snapshot kept with the job at each side's end.
 
 It knows nothing of HTTP (``ribbond.api`` maps the components' methods and exceptions to routes and
 status codes) and parses no printer answers (``PrinterLink`` does).
@@ -47,6 +48,7 @@ from ribbond.gcode.profiles import PrinterProfile
 from ribbond.printer.link import LinkState, PrinterLink
 from .components.aligner import Aligner, aligning_guidance
 from .components.calibrations import Calibrations
+from .components.camera import Camera
 from .components.compiler import COMPILE_STAGES, Compiler
 from .components.frame import INSTRUCTION as FRESH_FRAME_INSTRUCTION, FrameGate, waits_at_gate
 from .components.head import Head
@@ -171,6 +173,7 @@ class RibbonService:
                                          self.status, self.manual.printer_status,
                                          (MESH_SUFFIXES, GCODE_SUFFIXES), config.limits.max_faces)
         self.notifier = Notifier(config.notify, self.bus)    # the operator's phone (issue 27)
+        self.camera = Camera(config.camera, self.records)            # snapshots at each side's end (issue 27)
         self._tasks: list[asyncio.Task[None]] = []
 
     # ------------------------------------------------------------------ life cycle
@@ -194,7 +197,8 @@ class RibbonService:
                 self.state.queue_print(job.id)
         self._tasks = [asyncio.create_task(self.compiler.run(), name="compile"),
                        asyncio.create_task(self.printing.run(), name="print"),
-                       asyncio.create_task(self._printer_events(), name="printer events")]
+                       asyncio.create_task(self._printer_events(), name="printer events"),
+                       asyncio.create_task(self.camera.run(), name="camera")]
 
     async def _printer_events(self) -> None:
         """Publish the printer's status (state, temperatures, position, head) as an event whenever
@@ -227,6 +231,7 @@ class RibbonService:
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
+        await self.camera.close()
 
     # ------------------------------------------------------------------ jobs
 
@@ -578,6 +583,7 @@ class RibbonService:
                                  "remeasure": list(run.alignment.remeasure)}
         data["verdict"] = self.verdicts.lines(job)
         data["prediction"] = self.predictor.view(job.id)
+        data["snapshots"] = self.camera.snapshots(self.job_dir(job.id))
         return data
 
     def _waits(self, job: JobRecord) -> bool:

@@ -5,6 +5,7 @@ import * as api from "./api.js";
 import { drawChart } from "./chart.js";
 import { layoutSVG, flipSVG, backSVG } from "./draw.js";
 import { panelMapSVG, legendHTML, projectCardHTML, panelListHTML, seamsHTML } from "./project.js";
+import { CameraView } from "./camera.js";
 import { loadNotify, takeDelivery } from "./notify.js";
 
 const $ = (id) => document.getElementById(id);
@@ -20,7 +21,7 @@ const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", 
 const state = {
   printer: null, jobs: new Map(), filter: "all", route: { page: "home" }, temps: [], live: false,
   designs: new Map(), files: new Map(), busy: new Set(), align: new Map(), alignMark: new Map(), compileInfo: new Map(),
-  predicted: new Map(), projects: new Map(),
+  predicted: new Map(), projects: new Map(), camera: null,
 };
 
 // ------------------------------------------------------------------ small helpers
@@ -627,6 +628,7 @@ function renderJobPage() {
   renderProjectPage();
   renderJobs();
   renderTitle();
+  placeCamera();
   if (state.route.page !== "job") return;
   const j = state.jobs.get(state.route.id);
   if (!j) { $("j-title").textContent = "No such job"; return; }
@@ -963,6 +965,61 @@ function renderOperatorView(j) {
   renderVerdict(j);
   renderTemps(j);
   renderFiles(j);
+  renderSnapshots(j);
+}
+
+// ------------------------------------------------------------------ the camera (issue 27)
+
+const camera = new CameraView($("camera-img"), $("camera-note"));
+/** Job states in which the camera is shown: the printer heats or prints the job, or its back is aligned. */
+const WATCHED = new Set([...STREAMS, "aligning", "fitted"]);
+const ALIGNING = new Set(["aligning", "fitted"]);
+const SNAP_CAPTION = { "snapshot-front.jpg": "The front, printed", "snapshot-back.jpg": "The back, printed",
+  "snapshot-program.jpg": "The program, printed" };
+
+async function loadCamera() {
+  state.camera = await api.get("/camera");
+  placeCamera();
+}
+
+/** The camera's card where the operator looks: in the alignment step beside the jog pad, under the
+ * job printing, or under the printer at home while a job prints; hidden (the stream closed) otherwise. */
+function placeCamera() {
+  const card = $("camera"), page = state.route.page;
+  const j = page === "job" ? state.jobs.get(state.route.id) : null;
+  let slot = null;
+  if (state.camera?.configured) {
+    if (j && ALIGNING.has(j.state)) slot = $("align-camera");
+    else if (j && WATCHED.has(j.state)) slot = $("jobpage").querySelector("section.card");
+    else if (page === "home" && [...state.jobs.values()].some((x) => WATCHED.has(x.state))) slot = $("printer");
+  }
+  card.hidden = !slot;
+  camera.watch(!!slot);
+  if (!slot) return;
+  const inset = slot === $("align-camera");
+  card.classList.toggle("inset", inset);
+  if (inset ? card.parentElement !== slot : slot.nextElementSibling !== card) {
+    if (inset) slot.append(card); else slot.after(card);
+  }
+}
+
+/** The camera's snapshots kept at each side's end, fetched with the token as the other files are. */
+function renderSnapshots(j) {
+  const snaps = j.snapshots || [];
+  $("j-snapshots").hidden = !snaps.length;
+  const box = $("j-snaps");
+  const key = `${j.id}:${snaps.map((s) => `${s.name}@${s.taken}`).join(",")}`;
+  if (box.dataset.key === key) return;
+  box.dataset.key = key;
+  box.innerHTML = snaps.map((s) => `<figure><img data-snap="${esc(s.name)}" alt="${esc(SNAP_CAPTION[s.name] || s.name)}">
+    <figcaption>${esc(SNAP_CAPTION[s.name] || s.name)} · ${when(s.taken)}</figcaption></figure>`).join("");
+  for (const img of box.querySelectorAll("img[data-snap]")) {
+    quiet(api.fileURL(j.id, img.dataset.snap).then((url) => {
+      if (!url) return;
+      img.addEventListener("load", () => URL.revokeObjectURL(url), { once: true });
+      img.src = url;
+    }));
+  }
 }
 
 // ------------------------------------------------------------------ live events
@@ -1041,7 +1098,7 @@ function route() {
 }
 window.addEventListener("hashchange", () => { $("toast").hidden = true; route(); });
 
-function refreshAll() { quiet(loadJobs()); quiet(loadProjects()); quiet(loadTemperatures()); pollPrinter(); }
+function refreshAll() { quiet(loadJobs()); quiet(loadProjects()); quiet(loadTemperatures()); quiet(loadCamera()); pollPrinter(); }
 
 async function main() {
   try {

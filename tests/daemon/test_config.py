@@ -14,6 +14,7 @@ import ribbond.daemon.config as config_mod
 from ribbond.daemon.config import (
     CONFIG_ENV,
     ApiSettings,
+    CameraSettings,
     DaemonConfig,
     DesignSettings,
     FlipPolicy,
@@ -93,6 +94,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
         manual=ManualSettings(raw_console=True),
         design=DesignSettings(predict=False),
         notify=NotifySettings(urls=["json://127.0.0.1:9/hook"], events=["done", "halted"], timeout_s=3.0),
+        camera=CameraSettings(stream_url="http://127.0.0.1:8080/stream", snapshot_url="http://cam.local/snapshot"),
         log_level="debug",
     )
     # Every field differs from its default, so a field the loader dropped would show.

@@ -120,7 +120,7 @@ async def transitions(service: Service, job_id: Ident) -> list[Transition]:
 
 
 @router.get("/jobs/{job_id}/files/{name}", response_class=FileResponse,
-            responses={**responses(404, 422), **file_content([".png", ".svg", ".json", ".gcode", ".obj"])})
+            responses={**responses(404, 422), **file_content([".png", ".jpg", ".svg", ".json", ".gcode", ".obj"])})
 async def job_file(service: Service, job_id: Ident, name: JobFile) -> FileResponse:
     record = service.job(job_id)
     where = JOB_FILES[name.value]
