@@ -85,15 +85,24 @@ def side_pixels(jpeg: bytes) -> dict[str, int]:
     return {side: int((np.abs(pixels - rgb).max(axis=2) <= 50).sum()) for side, rgb in SIDE_RGB.items()}
 
 
+NOZZLE_RGB = (255, 200, 0)
+NOZZLE_REACH_PX = 20
+
+
 def on_deposits(jpeg: bytes, segments: list[dict[str, Any]], side: str) -> float:
     """The share of ``side``'s deposits whose middle is in that side's colour in a camera frame: the
     view is VIEW_MM tall, centred on the frame's centre (CENTER)."""
     image = np.asarray(Image.open(io.BytesIO(jpeg)).convert("RGB"), dtype=int)
     scale = HEIGHT / VIEW_MM
     mids = [((s["x0"] + s["x1"]) / 2, (s["y0"] + s["y1"]) / 2) for s in segments if s["side"] == side]
-    assert mids, f"no {side} deposits"
-    hits = [np.abs(image[round(HEIGHT / 2 - (y - CENTER[1]) * scale), round(WIDTH / 2 + (x - CENTER[0]) * scale)]
-                   - SIDE_RGB[side]).max() <= 60 for x, y in mids]
+    pixels = [(round(HEIGHT / 2 - (y - CENTER[1]) * scale), round(WIDTH / 2 + (x - CENTER[0]) * scale)) for x, y in mids]
+    # the nozzle's marker (yellow, at most 17 px from its centre) is drawn over the deposits it is on
+    nozzle = np.argwhere((np.abs(image - NOZZLE_RGB) <= 60).all(axis=2))
+    if len(nozzle):
+        centre = nozzle.mean(axis=0)
+        pixels = [p for p in pixels if np.hypot(*(np.array(p) - centre)) > NOZZLE_REACH_PX]
+    assert len(pixels) >= 10, f"only {len(pixels)} {side} deposits in view"
+    hits = [np.abs(image[row, col] - SIDE_RGB[side]).max() <= 60 for row, col in pixels]
     return sum(hits) / len(hits)
 
 
