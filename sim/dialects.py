@@ -219,7 +219,8 @@ DIALECTS: dict[str, Dialect] = {d.name: d for d in (
         halted_answer="",
         stop_lines=("Emergency Stop! Reset the controller to continue.",),  # GCodes.cpp DoEmergencyStop()
         # Event.cpp GetTextDescription(): "Heater %u fault: %s%s", an error message; the text as
-        # RepRapFirmware 3 prints it (Mellow-3D/FLY-RRF-E3 issue #4)
+        # RepRapFirmware 3 prints it (Mellow-3D/FLY-RRF-E3 issue #4). RRF turns the heater off and
+        # pauses a print from its own card; the simulator halts, as a host's stream must stop too.
         runaway_lines=("Error: Heater 1 fault: temperature rising much more slowly than the expected 2.1°C/sec",),
         mintemp_lines=("Error: Heater 1 fault: sensor open circuit",)),
     Dialect(

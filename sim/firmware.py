@@ -64,6 +64,7 @@ def _word(text: str) -> str:
     words = strip_line_number(text).upper().split()
     return words[0] if words else ""
 
+
 # emit(text, time, is_ok): print one line (without newline) at virtual time ``time``.
 Emit = Callable[[str, float, bool], None]
 
