@@ -1,4 +1,6 @@
-"""A simulated Marlin 2.x printer behind a pseudo-terminal, for testing hosts.
+"""A simulated Marlin 2.x printer behind a pseudo-terminal, for testing hosts; with
+``SimConfig(dialect=…)`` (``--dialect``) it answers as Marlin 1.x, Prusa's firmware,
+RepRapFirmware, Smoothieware or Repetier instead (``sim.dialects``).
 
 Stands in for firmware written by others: it shares no code with ``ribbond`` and
 uses only the standard library, numpy, matplotlib and Pillow (which matplotlib

@@ -13,6 +13,7 @@ import sys
 import threading
 
 from .config import FaultConfig, FrameConfig, SimConfig
+from .dialects import DIALECTS
 from .printer import SimulatedPrinter
 
 
@@ -36,33 +37,40 @@ def build_parser() -> argparse.ArgumentParser:
     f = FaultConfig()
     p = argparse.ArgumentParser(
         prog="python -m sim",
-        description="Simulated Marlin 2.x printer behind a pseudo-terminal. Prints the pty "
-                    "device path as the first line of stdout, then serves until SIGTERM/SIGINT.")
+        description="Simulated printer behind a pseudo-terminal, answering as Marlin 2.x or, with "
+                    "--dialect, as another firmware. Prints the pty device path as the first line of "
+                    "stdout, then serves until SIGTERM/SIGINT.")
     g = p.add_argument_group("serial and firmware")
+    g.add_argument("--dialect", choices=tuple(DIALECTS), default=None,
+                   help="answer as this firmware (banner, M115, M105/M114, ok forms, busy/wait, resend "
+                        "requests, errors); the options below default to its values (default: the "
+                        "historical board, Marlin 2.1 with ADVANCED_OK and 1.x's cut-tail check)")
     g.add_argument("--baud", type=int, default=d.baud,
                    help="serial speed; bytes are paced at 10/baud s each way (default %(default)s)")
     g.add_argument("--time-scale", type=float, default=d.time_scale,
                    help="wall seconds per physical second; 0.001 runs a 2 h print in 7.2 s "
                         "(default %(default)s)")
-    g.add_argument("--no-advanced-ok", action="store_true",
-                   help="plain 'ok' instead of 'ok N<line> P<planner free> B<queue free>'")
-    g.add_argument("--no-ok-after-resend", action="store_true",
-                   help="do not print 'ok' after 'Resend:'")
-    g.add_argument("--m114-on-ok", action="store_true",
+    g.add_argument("--advanced-ok", action=argparse.BooleanOptionalAction, default=None,
+                   help="'ok N<line> P<planner free> B<queue free>' instead of a plain 'ok' "
+                        "(default: the dialect's)")
+    g.add_argument("--ok-after-resend", action=argparse.BooleanOptionalAction, default=None,
+                   help="print 'ok' after each resend request (default: the dialect's)")
+    g.add_argument("--m114-on-ok", action=argparse.BooleanOptionalAction, default=None,
                    help="answer M114 on the ok line, as Smoothieware does: "
-                        "'ok C: X:10.0000 Y:20.0000 Z:0.0000 E:0.0000'")
+                        "'ok C: X:10.0000 Y:20.0000 Z:0.0000 E:0.0000' (default: the dialect's)")
     g.add_argument("--rx-buffer", type=int, default=d.rx_buffer,
                    help="serial receive buffer in bytes; overflow is lost (default %(default)s)")
-    g.add_argument("--bufsize", type=int, default=d.bufsize,
-                   help="command queue slots, Marlin BUFSIZE (default %(default)s)")
+    g.add_argument("--bufsize", type=int, default=None,
+                   help="command queue slots, Marlin BUFSIZE (default: the dialect's, 4)")
     g.add_argument("--planner-blocks", type=int, default=d.planner_blocks,
                    help="planner ring size, holds one move less (default %(default)s)")
-    g.add_argument("--keepalive", type=float, default=d.keepalive_s,
-                   help="seconds between 'echo:busy:' lines while a command blocks; 0 = off "
-                        "(default %(default)s)")
-    g.add_argument("--cut-tail", choices=("reject", "marlin2"), default=d.cut_tail,
+    g.add_argument("--keepalive", type=float, default=None,
+                   help="seconds between busy lines while a command blocks; 0 = off "
+                        "(default: the dialect's, 2)")
+    g.add_argument("--cut-tail", choices=("reject", "marlin2"), default=None,
                    help="the tail of a line cut by a receive-buffer flush: rejected (Marlin 1.x, "
-                        "default) or queued as an unnumbered command (Marlin 2.x: Unknown command + ok)")
+                        "the default without a dialect) or queued as an unnumbered command (Marlin "
+                        "2.x: Unknown command + ok)")
     g.add_argument("--read-latency", type=float, default=d.read_latency_s, metavar="S",
                    help="main-loop latency: bytes arriving this long after a bad line are flushed "
                         "with it, cutting the line being received (default 0)")
@@ -128,8 +136,9 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
     return SimConfig(
         baud=args.baud,
         time_scale=args.time_scale,
-        advanced_ok=not args.no_advanced_ok,
-        ok_after_resend=not args.no_ok_after_resend,
+        dialect=args.dialect,
+        advanced_ok=args.advanced_ok,
+        ok_after_resend=args.ok_after_resend,
         m114_on_ok=args.m114_on_ok,
         rx_buffer=args.rx_buffer,
         bufsize=args.bufsize,

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .dialects import STOCK, Dialect, dialect_named
+
 __all__ = ["FaultConfig", "FrameConfig", "SimConfig"]
 
 
@@ -93,32 +95,40 @@ class FrameConfig:
 
 @dataclass(frozen=True)
 class SimConfig:
-    """Settings of the simulated Marlin 2.x board."""
+    """Settings of the simulated board.
+
+    ``dialect`` chooses the firmware it answers as (``sim.dialects``); the options marked "None:
+    the dialect's" take that dialect's value unless given.
+    """
 
     baud: int = 250000
     """Serial speed; 8N1 framing, so a byte takes 10/baud seconds each way."""
     time_scale: float = 1.0
     """Wall seconds per physical second (0.001 runs a 2 h print in 7.2 s)."""
-    advanced_ok: bool = True
-    """Acks read ``ok N<line> P<planner free> B<queue free>`` (Marlin ADVANCED_OK)."""
-    ok_after_resend: bool = True
-    """Print ``ok`` after every ``Resend:`` (as Marlin 2.x does)."""
-    m114_on_ok: bool = False
+    dialect: str | None = None
+    """marlin1, marlin2, prusa, reprapfirmware, smoothieware, repetier; None: the historical board
+    (Marlin 2.1's answers with ADVANCED_OK on and Marlin 1.x's cut-tail check)."""
+    advanced_ok: bool | None = None
+    """Acks read ``ok N<line> P<planner free> B<queue free>`` (Marlin ADVANCED_OK). None: the dialect's."""
+    ok_after_resend: bool | None = None
+    """Print ``ok`` after every resend request (as Marlin does). None: the dialect's."""
+    m114_on_ok: bool | None = None
     """Answer ``M114`` on the ``ok`` line, as Smoothieware does (``ok C: X:10.0000 Y:20.0000
-    Z:0.0000 E:0.0000``, without ADVANCED_OK's fields), instead of Marlin's position line + ``ok``."""
+    Z:0.0000 E:0.0000``, without ADVANCED_OK's fields), instead of Marlin's position line + ``ok``.
+    None: the dialect's."""
     rx_buffer: int = 128
     """Serial receive ring buffer in bytes (RX_BUFFER_SIZE); bytes beyond it are lost."""
-    bufsize: int = 4
-    """Command queue slots (BUFSIZE)."""
+    bufsize: int | None = None
+    """Command queue slots (BUFSIZE). None: the dialect's (4; Repetier's 1)."""
     planner_blocks: int = 16
     """Planner ring size (BLOCK_BUFFER_SIZE); it holds planner_blocks - 1 moves."""
-    keepalive_s: float = 2.0
-    """``echo:busy:`` interval while a command blocks (0 disables)."""
-    cut_tail: str = "reject"
+    keepalive_s: float | None = None
+    """Busy-line interval while a command blocks (0 disables). None: the dialect's."""
+    cut_tail: str | None = None
     """What becomes of the tail of a line cut by a receive-buffer flush (it has ``*`` but no
     ``N``): "reject" (Marlin 1.x: ``Error:No Line Number with checksum``, flush, ``Resend:``) or
     "marlin2" (Marlin 2.x: no such check; queued as an unnumbered command, so an unparsable tail
-    is answered ``echo:Unknown command`` + ``ok``)."""
+    is answered ``echo:Unknown command`` + ``ok``). None: the dialect's."""
     read_latency_s: float = 0.0
     """Wall time Marlin's main loop may take to come back to the receive buffer: bytes arriving
     that long after a bad line are already in the buffer when the error flushes it, so the line
@@ -134,6 +144,10 @@ class SimConfig:
     frame: FrameConfig = field(default_factory=FrameConfig)
 
     def __post_init__(self) -> None:
+        spec = dialect_named(self.dialect) or STOCK  # ValueError names the dialects
+        for name in ("advanced_ok", "ok_after_resend", "m114_on_ok", "cut_tail", "keepalive_s", "bufsize"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, getattr(spec, name))
         if self.baud <= 0:
             raise ValueError("baud must be > 0")
         if self.time_scale <= 0:
@@ -152,6 +166,11 @@ class SimConfig:
             raise ValueError("keepalive_s must be >= 0")
         if self.boot_s < 0:
             raise ValueError("boot_s must be >= 0")
+
+    @property
+    def spec(self) -> Dialect:
+        """The answers of the firmware this board plays (``STOCK`` without a dialect)."""
+        return dialect_named(self.dialect) or STOCK
 
     @property
     def byte_time(self) -> float:

@@ -1,4 +1,4 @@
-"""Marlin 2.x's serial intake, command queue and command handlers.
+"""Marlin 2.x's serial intake, command queue and command handlers, and other firmwares' answers.
 
 Everything runs in virtual time: the caller hands over bytes with their arrival time
 and asks the firmware to ``advance`` to a time; the firmware processes planner
@@ -10,6 +10,11 @@ Command life cycle, as in Marlin's queue.cpp / gcode.cpp:
   -> ``ok`` once the handler returns (a move: once its block is in the planner).
 Handlers that must wait are generators yielding wait conditions; the queue slot
 stays taken and ``echo:busy:`` keepalives are printed meanwhile.
+
+With a dialect (``SimConfig.dialect``, ``dialects.py``) the board answers as that firmware does:
+its banner, ``M115``, report formats, ``ok`` forms and timing (Repetier acknowledges a line on
+receipt), line checks and resend requests (Smoothieware's ``rs N``, Repetier's ``skip``,
+RepRapFirmware dropping a bad line), busy and ``wait`` lines, and what a halt leaves.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from .config import SimConfig
+from .dialects import DIALECTS, MARLIN_SETTINGS, REPETIER_BUSY, position_report, temperature_report
 from .emergency import EmergencyParser
 from .faults import FaultInjector
 from .frame import Frame
@@ -31,8 +37,12 @@ from .thermal import Heater
 
 __all__ = ["Firmware", "Emit", "FIRMWARE_NAME", "MACHINE_UUID"]
 
-FIRMWARE_NAME = "Marlin 2.1.2.1 (sim)"
+FIRMWARE_NAME = "Marlin 2.1.2.1 (sim)"  # the historical board's (dialects.STOCK)
 MACHINE_UUID = "cede2a2f-41a2-4748-9b12-c55c62f367ff"
+WAIT_AFTER_S = 1.0  # Repetier prints "wait" after this long with an empty buffer (gcode.cpp)
+# Smoothieware keeps answering these while halted (GcodeDispatch.cpp allowed_mcodes)
+SMOOTHIE_HALTED_MCODES = {"M2", "M5", "M9", "M30", "M105", "M114", "M115", "M119", "M80", "M81", "M911",
+                          "M503", "M106", "M107"}
 MAX_CMD_SIZE = 96  # Marlin's line buffer: at most 95 characters are kept
 DEFAULT_FEED = 1500.0  # mm/min, Marlin's power-on feed rate
 HOMING_S = 3.0
@@ -41,36 +51,19 @@ MAX_HOTEND_C = 275.0
 MAX_BED_C = 120.0
 HEAT_REPORT_S = 1.0  # M109/M190 print a temperature line this often (wall)
 
-ERR_KILLED = "Error:Printer halted. kill() called!"
+ERR_KILLED = "Error:Printer halted. kill() called!"  # Marlin's; each dialect's lines: dialects.py
 ERR_LINE_NO = "Line Number is not Last Line Number+1, Last Line: "
 ERR_CHECKSUM = "checksum mismatch, Last Line: "
 ERR_NO_CHECKSUM = "No Checksum with line number, Last Line: "
 ERR_NO_LINE_NUMBER = "No Line Number with checksum, Last Line: "
-ERR_RUNAWAY = "Error:Thermal Runaway, system stopped! Heater_ID: 0"
-# temperature.cpp _temp_error(): "Error:" + STR_T_MINTEMP + STR_STOPPED_HEATER + the heater index
-ERR_MINTEMP = "Error:MINTEMP triggered, system stopped! Heater_ID: 0"
-
-BANNER_SETTINGS = (
-    "echo:; Steps per unit:",
-    "echo:  M92 X80.00 Y80.00 Z400.00 E93.00",
-    "echo:; Maximum feedrates (units/s):",
-    "echo:  M203 X300.00 Y300.00 Z5.00 E25.00",
-)
-
-CAPABILITIES = (
-    ("SERIAL_XON_XOFF", 0), ("BINARY_FILE_TRANSFER", 0), ("EEPROM", 0),
-    ("VOLUMETRIC", 0), ("AUTOREPORT_POS", 0), ("AUTOREPORT_TEMP", 1),
-    ("PROGRESS", 0), ("PRINT_JOB", 1), ("AUTOLEVEL", 0), ("RUNOUT", 0),
-    ("Z_PROBE", 0), ("LEVELING_DATA", 0), ("BUILD_PERCENT", 0),
-    ("SOFTWARE_POWER", 0), ("TOGGLE_LIGHTS", 0), ("CASE_LIGHT_BRIGHTNESS", 0),
-    ("EMERGENCY_PARSER", 1), ("HOST_ACTION_COMMANDS", 1), ("PROMPT_SUPPORT", 0),
-    ("SDCARD", 0), ("AUTOREPORT_SD_STATUS", 0), ("LONG_FILENAME", 0),
-    ("THERMAL_PROTECTION", 1), ("MOTION_MODES", 0), ("ARCS", 0),
-    ("BABYSTEPPING", 0), ("CHAMBER_TEMPERATURE", 0), ("MEATPACK", 0),
-    ("CONFIG_EXPORT", 0),
-)
-
 _N_DIGITS = re.compile(r"N([-+0-9]*)")
+
+
+def _word(text: str) -> str:
+    """The command word of a received line (``N12 m110 N12*34`` -> ``M110``)."""
+    words = strip_line_number(text).upper().split()
+    return words[0] if words else ""
+
 
 # emit(text, time, is_ok): print one line (without newline) at virtual time ``time``.
 Emit = Callable[[str, float, bool], None]
@@ -139,6 +132,8 @@ class _UserWait(_Cond):
 
 
 class _HeatWait(_Cond):
+    busy = "heating"
+
     def __init__(self, heater: Heater, wait_cooling: bool, t: float) -> None:
         self.heater = heater
         self.wait_cooling = wait_cooling
@@ -149,7 +144,9 @@ class _HeatWait(_Cond):
         if not fw.wait_for_heatup or self.heater.reached(self.wait_cooling):
             return True
         if fw.t >= self.next_report:
-            fw.emit(" " + fw.temperature_report() + " W:?")
+            report = fw.heating_report(self.heater)
+            if report:
+                fw.emit(report)
             self.next_report = fw.t + HEAT_REPORT_S
         return False
 
@@ -182,6 +179,7 @@ class Firmware:
                  on_trigger: Callable[[str], None] = lambda name: None,
                  on_reset: Callable[[], None] = lambda: None) -> None:
         self.config = config
+        self.spec = config.spec  # the firmware's answers (dialects.py)
         self._out = emit
         self.recorder = recorder
         self.stats = stats
@@ -201,6 +199,9 @@ class Firmware:
         self._flush_until: float | None = None  # bytes arriving by then go with the last flush
         self._swallow: int | None = None  # swallow_resent: the line to take silently when re-sent
         self._lose_next = False  # swallow_resent: the line after the swallowed one is lost
+        self._last_rx = 0.0  # when bytes last arrived (Repetier's "wait" counts from it)
+        self._next_wait = 0.0
+        self._waiting_resend = -1  # Repetier: stale lines still to skip after a resend request
         self.queue: deque[QueuedCommand] = deque()
         self._current: _Running | None = None
         self.halted_at: float | None = None
@@ -227,12 +228,14 @@ class Firmware:
         self._next_busy = 0.0
         self.wait_for_user = False
         self.wait_for_heatup = False
+        self.fatal_line: str | None = None  # Repetier's fatal state: its message, repeated
         self.update_thermal()  # the lazy model needs the old target up to now
         self.hotend.target = 0.0
         self.bed.target = 0.0
 
-    def reset(self, t: float, *, count: bool = True) -> None:
-        """Reboot: all state is lost, the banner follows after ``boot_s``."""
+    def reset(self, t: float, *, count: bool = True, keep_output: bool = False) -> None:
+        """Reboot: all state is lost, the banner follows after ``boot_s``; ``keep_output``: the
+        lines printed just before still go out (a firmware that reboots itself after saying why)."""
         self._set_time(t)
         self._stop_motion()
         self._drop_queue()
@@ -245,7 +248,8 @@ class Firmware:
         self.booting_until = self.t + self.config.boot_s
         if count:
             self.stats.resets += 1
-        self._on_reset()
+        if not keep_output:
+            self._on_reset()
 
     def reset_stats(self) -> None:
         # The first block after a stats reset must not count as a starvation.
@@ -289,22 +293,36 @@ class Firmware:
         self._out(text, self.t, ok)
 
     def temperature_report(self) -> str:
+        """The temperatures as this firmware reports them (``M105`` without ``ok``, ``M155``)."""
         self.update_thermal()
         h, b = self.hotend, self.bed
-        return (f"T:{h.temp:.1f} /{h.target:.1f} B:{b.temp:.1f} /{b.target:.1f} "
-                f"@:{h.power} B@:{b.power}")
+        return temperature_report(self.spec, (h.temp, h.target, h.power), (b.temp, b.target, b.power))
+
+    def heating_report(self, heater: Heater) -> str:
+        """The line a heating wait prints every second ("" where the firmware prints none)."""
+        name = self.spec.name
+        if name == "reprapfirmware":
+            return ""  # RepRapFirmware reports nothing on the serial line while it waits
+        if name == "smoothieware":
+            # TemperatureControl.cpp on_second_tick(): "%s:%3.1f /%3.1f @%d" for the heater waited on
+            self.update_thermal()
+            return f"{heater.name}:{heater.temp:.1f} /{heater.target:.1f} @{heater.power}"
+        if name == "repetier":
+            return self.temperature_report()
+        return " " + self.temperature_report() + " W:?"  # Marlin's print_heater_states + " W:?"
+
+    def busy_line(self, reason: str) -> str:
+        """A keepalive line for a command that blocks ("" where the firmware prints none)."""
+        if not self.spec.busy:
+            return ""
+        if self.spec.name == "repetier":
+            return self.spec.busy.format(reason=REPETIER_BUSY.get(reason, reason))
+        # Marlin and Prusa have no "heating" keepalive: a heating wait reports "processing"
+        return self.spec.busy.format(reason="processing" if reason == "heating" else reason)
 
     def _banner(self) -> None:
-        for text in (
-            "start",
-            "echo:Marlin 2.1.2.1",
-            "echo: Last Updated: 2023-05-25 | Author: (ribbond sim)",
-            "echo:Compiled: May 25 2023",
-            f"echo: Free Memory: 4086  PlannerBufferBytes: {88 * self.config.planner_blocks}",
-            "echo:Hardcoded Default Settings Loaded",
-            *BANNER_SETTINGS,
-        ):
-            self.emit(text)
+        for text in self.spec.banner:
+            self.emit(text.format(planner_bytes=88 * self.config.planner_blocks))
 
     # --- time ------------------------------------------------------------------------
 
@@ -339,6 +357,8 @@ class Firmware:
             times.append(self._next_busy)
         if self.autoreport_s is not None:
             times.append(self._next_autoreport)
+        if self.spec.says_wait:
+            times.append(max(self._last_rx + WAIT_AFTER_S, self._next_wait))
         if self._current is None and self.queue and not self.halted:
             times.append(self.t)
         valid = [x for x in times if x is not None]
@@ -351,23 +371,43 @@ class Firmware:
 
     def _periodic(self) -> None:
         if self.busy is not None and self.config.keepalive_s > 0 and self.t >= self._next_busy:
-            self.emit("echo:busy: " + self.busy)
-            self.stats.busy_lines += 1
+            line = self.busy_line(self.busy)
+            if line:
+                self.emit(line)
+                self.stats.busy_lines += 1
             self._next_busy = self.t + self.config.keepalive_s
         if self.autoreport_s is not None and self.t >= self._next_autoreport:
-            self.emit(" " + self.temperature_report())
+            # Marlin's autoreport starts with a space (print_heater_state); Repetier's does not
+            lead = "" if self.spec.name == "repetier" else " "
+            self.emit(lead + self.temperature_report())
             self._next_autoreport = max(self._next_autoreport + self.autoreport_s,
                                         self.t + 0.5 * self.autoreport_s)
+        if self._wait_due():
+            self.emit("wait")
+            self._next_wait = self.t + WAIT_AFTER_S
+
+    def _wait_due(self) -> bool:
+        """Repetier's readFromSerial(): "wait" once a second while nothing is buffered or arrives."""
+        return (self.spec.says_wait and not self.queue and self._current is None and not self.halted
+                and self.booting_until is None and not self.rx
+                and self.t >= max(self._last_rx + WAIT_AFTER_S, self._next_wait))
 
     # --- serial receive --------------------------------------------------------------
 
     def receive(self, data: bytes, t: float) -> None:
         """Bytes that arrived on the wire by time ``t`` (normally up to one newline)."""
         self._set_time(t)
+        self._last_rx = t
         if self.booting_until is not None:
             self.stats.boot_lost_bytes += len(data)
             return
-        emergencies = self._ep.feed(data)
+        if self.spec.name == "smoothieware" and b"\x18" in data:
+            # SerialConsole.cpp: Ctrl-X halts at once and flushes what the buffer holds
+            data = data[data.rindex(b"\x18") + 1:]
+            self.rx.clear()
+            self._lb.clear()
+            self.halt(("HALTED, M999 or $X to exit HALT state",))
+        emergencies = self._ep.feed(data) if self.spec.emergency_parser else []
         if self._flush_until is not None:
             # Bytes that arrived before the main loop came back to the buffer were flushed.
             if t <= self._flush_until:
@@ -402,23 +442,28 @@ class Firmware:
 
     def _emergency(self, code: str) -> None:
         if code == "M112":
-            self.halt()
+            self.halt(self.spec.stop_lines, reboot=self.spec.halt == "reboot")
         elif code == "M108":
             self.wait_for_user = False
             self.wait_for_heatup = False
         elif code == "M410" and not self.halted:
             self._stop_motion()
 
-    def halt(self, *, runaway: bool = False, error: str | None = None) -> None:
-        """kill(): stop everything; answer every later line with an error until reset. ``error``:
-        the line printed first (a thermal error); ``runaway``: Marlin's thermal runaway line."""
+    def halt(self, lines: tuple[str, ...] | None = None, *, reboot: bool = False) -> None:
+        """kill(): print ``lines`` (the dialect's emergency stop lines by default), stop
+        everything, and stay halted, answering every later line as the firmware does, until M999
+        or a reset; ``reboot``: the board restarts instead (Prusa's kill(), Repetier's
+        KILL_METHOD 1)."""
         if self.halted:
             return
-        if runaway:
-            error = ERR_RUNAWAY
-        if error is not None:
-            self.emit(error)
-        self.emit(ERR_KILLED)
+        for line in self.spec.stop_lines if lines is None else lines:
+            self.emit(line)
+        if reboot:
+            self.stats.halts += 1
+            self.reset(self.t, count=False, keep_output=True)
+            return
+        if self.spec.name == "repetier" and lines:
+            self.fatal_line = lines[0]  # gcode.cpp reportFatalError(), for every later line
         self.halted = True
         self.halted_at = self.t
         self.stats.halts += 1
@@ -429,6 +474,11 @@ class Firmware:
         self.hotend.target = self.bed.target = 0.0
         self.autoreport_s = None
         self.wait_for_user = self.wait_for_heatup = False
+
+    def thermal_error(self, kind: str) -> None:
+        """A thermal runaway ("runaway") or a broken thermistor ("mintemp"): the dialect's lines,
+        then halted."""
+        self.halt(self.spec.runaway_lines if kind == "runaway" else self.spec.mintemp_lines)
 
     # --- the main loop: intake and processing ---------------------------------------
 
@@ -478,18 +528,33 @@ class Firmware:
         self._lb += data
 
     def _handle_line(self, raw: bytes) -> None:
-        """The checks of Marlin's queue.cpp, then enqueue."""
+        """A complete line: the dialect's checks, then enqueue."""
         cmd_b = raw.lstrip(b" ")
         if not cmd_b.strip():
+            if self.spec.answers_empty_line:
+                self.emit("ok", True)  # GcodeDispatch.cpp: "just reply ok to empty lines"
             return
         self.stats.lines_received += 1
         text = cmd_b.decode("latin-1")
-        if self.halted:
-            if strip_line_number(text).upper().split()[:1] == ["M999"]:
+        checks = self.spec.line_checks
+        if checks == "smoothie":
+            self._smoothie_line(cmd_b, text)
+        elif checks == "repetier":
+            self._repetier_line(cmd_b, text)
+        elif checks == "rrf":
+            self._rrf_line(cmd_b, text)
+        elif self.halted:
+            if _word(text) == "M999":
                 self.reset(self.t)
             else:
-                self.emit(ERR_KILLED)
-            return
+                self.emit(self.spec.halted_answer)
+        else:
+            self._marlin_line(cmd_b, text)
+        if len(self.queue) > self.stats.queue_peak:
+            self.stats.queue_peak = len(self.queue)
+
+    def _marlin_line(self, cmd_b: bytes, text: str) -> None:
+        """The checks of Marlin's queue.cpp, then enqueue."""
         line: int | None = None
         n_text: str | None = None
         if text[0] == "N":
@@ -544,8 +609,123 @@ class Firmware:
             if b"*" in cmd_b:
                 self.stats.cut_tails_queued += 1
             self.queue.append(QueuedCommand(text, None, None))
-        if len(self.queue) > self.stats.queue_peak:
-            self.stats.queue_peak = len(self.queue)
+
+    def _checksum_ok(self, cmd_b: bytes, text: str, required: bool) -> bool:
+        """Whether a numbered line's ``*checksum`` matches (a line without one: ``not required``)."""
+        star = cmd_b.rfind(b"*")
+        if star < 0:
+            return not required
+        return strtol(text, star + 1) == checksum(cmd_b[:star])
+
+    def _smoothie_line(self, cmd_b: bytes, text: str) -> None:
+        """Smoothieware's GcodeDispatch.cpp: a numbered line with a wrong checksum or number is
+        answered ``rs N<expected>`` (nothing is flushed; no ok); M110 sets the number; while halted,
+        every command but a few queries is answered ``!!``, and M999 leaves the halt."""
+        number: int | None = None
+        if text[0] == "N":
+            number = strtol(text, 1)
+            if _word(text) == "M110":
+                self.last_n = number
+                self.emit("ok", True)
+                return
+            good = self._checksum_ok(cmd_b, text, required=False)
+            if not good or number != self.last_n + 1:
+                if good:
+                    self.stats.line_number_errors += 1
+                else:
+                    self.stats.checksum_errors += 1
+                self._request_resend()
+                return
+            self.last_n = number
+        if self.halted:
+            word = _word(text)
+            if word == "M999":
+                self.halted = False
+                self.halted_at = None
+                self.emit("WARNING: After HALT you should HOME as position is currently unknown")
+                self.emit("ok", True)
+                return
+            if word not in SMOOTHIE_HALTED_MCODES:
+                self.emit("!!")
+                return
+        self.queue.append(QueuedCommand(text, number, None))
+        if number is not None:
+            self._after_numbered_line()
+
+    def _repetier_line(self, cmd_b: bytes, text: str) -> None:
+        """Repetier's gcode.cpp: a wrong checksum asks for the line again (flush, ``Resend:N``, ok);
+        a line it has already seen, or one of the stale lines after a request, is answered ``skip N``
+        and ok; another wrong number asks again; a good line is acknowledged on receipt
+        (``ok N``); in the fatal state every line gets the fatal message before its ok."""
+        number: int | None = None
+        word = _word(text)
+        if text[0] == "N":
+            number = strtol(text, 1)
+            if not self._checksum_ok(cmd_b, text, required=False):
+                self.stats.checksum_errors += 1
+                self.emit("Error:Wrong checksum")
+                self._flush_and_resend()
+                return
+            if word == "M110":
+                self.last_n = number
+                self._waiting_resend = -1
+                self.emit("ok", True)
+                return
+            if (number & 0xFFFF) != ((self.last_n + 1) & 0xFFFF):
+                self._repetier_out_of_order(number)
+                return
+            self.last_n = number
+        if self.fatal_line is not None and word == "M999":
+            self.fatal_line = None  # gcode.cpp resetFatalError(), printed when it runs
+            self.halted, self.halted_at = False, None
+            self.emit(f"ok {number}" if number is not None else "ok", True)
+            self.emit("info:Continue from fatal state")
+        else:
+            if self.fatal_line is not None:
+                self.emit(self.fatal_line)  # reportFatalError(): not queued, still acknowledged
+            else:
+                self.queue.append(QueuedCommand(text, number, None, skip_ok=True))
+            self.emit(f"ok {number}" if number is not None else "ok", True)
+        self._waiting_resend = -1
+        if number is not None:
+            self._after_numbered_line()
+
+    def _repetier_out_of_order(self, number: int) -> None:
+        if ((self.last_n - number) & 0xFFFF) < 40 or self._waiting_resend >= 0:
+            if ((self.last_n - number) & 0xFFFF) >= 40:
+                self._waiting_resend -= 1  # a stale line after a request: skipped without a word
+            self.emit(f"skip {number}")
+            self.emit("ok", True)
+            return
+        self.stats.line_number_errors += 1
+        self.emit(f"Error:expected line {self.last_n + 1} got {number}")
+        self._flush_and_resend()
+
+    def _flush_and_resend(self) -> None:
+        """Repetier's requestResend(): the receive buffer flushed, then the request."""
+        self.rx.clear()
+        self._lb.clear()
+        self._lb_skip = False
+        self._request_resend()
+
+    def _rrf_line(self, cmd_b: bytes, text: str) -> None:
+        """RepRapFirmware 3's StringParser.cpp LineFinished(): a line whose checksum is wrong is
+        dropped without a word; line numbers are not checked; after an emergency stop only M999
+        (a reset) is taken."""
+        if not self._checksum_ok(cmd_b, text, required=False):
+            self.stats.checksum_errors += 1
+            self.stats.skipped_lines += 1
+            return
+        if self.halted:
+            if _word(text) == "M999":
+                self.reset(self.t)
+            return
+        number = strtol(text, 1) if text[0] == "N" else None
+        if number is not None:
+            self.last_n = number
+        self.queue.append(QueuedCommand(text, number, None))
+        if number is not None:
+            self._after_numbered_line()
 
     def _swallow_resent(self, number: int) -> bool:
         """The swallow_resent fault on a numbered line that passed the checks: True when the line
@@ -573,10 +753,8 @@ class Firmware:
         for name in self.faults.line_accepted():
             if name == "reset":
                 self.reset(self.t)
-            elif name == "runaway":
-                self.halt(runaway=True)
-            elif name == "mintemp":
-                self.halt(error=ERR_MINTEMP)
+            elif name in ("runaway", "mintemp"):
+                self.thermal_error(name)
             else:
                 self._on_trigger(name)
 
@@ -591,14 +769,20 @@ class Firmware:
         self._request_resend()
 
     def _request_resend(self) -> None:
-        self.emit(f"Resend: {self.last_n + 1}")
+        """Ask for the line after the last one taken, in the dialect's words."""
+        if not self.spec.resend:
+            return  # RepRapFirmware 3 never asks
+        if self.spec.line_checks == "repetier":
+            self._waiting_resend = 14  # requestResend(): the stale lines that follow are skipped
+            self.emit("")  # Com::println() before the request
+        self.emit(self.spec.resend.format(n=self.last_n + 1))
         self.stats.resends_requested += 1
         if self.config.ok_after_resend:
             self.emit("ok", True)
 
     def _process(self) -> bool:
         """Run the head of the queue, or see whether the blocked handler may go on."""
-        if self.halted:
+        if self.halted and not self._runs_while_halted():
             return False
         running = self._current
         if running is not None:
@@ -621,6 +805,11 @@ class Firmware:
             self._resume(running)
         return True
 
+    def _runs_while_halted(self) -> bool:
+        """Smoothieware keeps answering its queries while halted (GcodeDispatch.cpp allowed_mcodes)."""
+        return (self.spec.name == "smoothieware" and self._current is None and bool(self.queue)
+                and _word(self.queue[0].text) in SMOOTHIE_HALTED_MCODES)
+
     def _resume(self, running: _Running) -> None:
         while True:
             try:
@@ -641,7 +830,7 @@ class Firmware:
                 return
 
     def _finish(self, cmd: QueuedCommand) -> None:
-        """ok_to_send(), then free the slot."""
+        """ok_to_send(), then free the slot (Repetier acknowledged the line on receipt)."""
         if not cmd.skip_ok:
             if self.config.advanced_ok:
                 n = f" N{cmd.n_text}" if cmd.n_text is not None else ""
@@ -694,8 +883,13 @@ class Firmware:
     def _execute(self, cmd: QueuedCommand, command: str) -> Iterator[_Cond] | None:
         g = parse(command)
         handler = _HANDLERS.get(g.code) if g is not None else None
+        if g is not None and g.code == "M155" and not self.spec.m155:
+            handler = None
         if g is None or handler is None:
-            self.emit(f'echo:Unknown command: "{command}"')
+            if self.spec.unknown:
+                word = command.split()[0] if command.split() else command
+                text = command if "{command}" in self.spec.unknown and self.spec.name != "reprapfirmware" else word
+                self.emit(self.spec.unknown.format(command=text))
             return None
         return handler(self, g, cmd)
 
@@ -808,7 +1002,11 @@ class Firmware:
         return self._heat_and_wait(self.bed, g)
 
     def _m105(self, g: GCode, cmd: QueuedCommand) -> None:
-        # Marlin's M105 prints its own ok, never with ADVANCED_OK's N/P/B fields.
+        if self.spec.ok_on_receipt:
+            self.emit(self.temperature_report())  # Repetier: its ok came on receipt
+            return
+        # Marlin's M105 prints its own ok, never with ADVANCED_OK's N/P/B fields (so do
+        # RepRapFirmware's, "ok " + the reply, and Smoothieware's, "ok " + txt_after_ok).
         cmd.skip_ok = True
         self.emit("ok " + self.temperature_report(), True)
 
@@ -825,24 +1023,26 @@ class Firmware:
             self.last_n = int(n)
 
     def _m114(self, g: GCode, cmd: QueuedCommand) -> None:
-        x, y, z, e = self.position
+        sx, sy, sz, _ = STEPS_PER_MM
+        ax, ay, az, _ = self.planner.position_at(self.t)
+        counts = (round(ax * sx), round(ay * sy), round(az * sz))
         if self.config.m114_on_ok:
             # Smoothieware: the position is the text after "ok" (GcodeDispatch prints "ok %s" with
             # the gcode's txt_after_ok; Robot::print_position writes "C: X:%1.4f Y:%1.4f Z:%1.4f").
             cmd.skip_ok = True
-            self.emit(f"ok C: X:{x:.4f} Y:{y:.4f} Z:{z:.4f} E:{e:.4f}", True)
+            self.emit("ok " + position_report(DIALECTS["smoothieware"], self.position, counts), True)
             return
-        sx, sy, sz, _ = STEPS_PER_MM
-        ax, ay, az, _ = self.planner.position_at(self.t)
-        self.emit(f"X:{x:.2f} Y:{y:.2f} Z:{z:.2f} E:{e:.2f} "
-                  f"Count X:{round(ax * sx)} Y:{round(ay * sy)} Z:{round(az * sz)}")
+        self.emit(position_report(self.spec, self.position, counts))
 
     def _m115(self, g: GCode, cmd: QueuedCommand) -> None:
-        self.emit(f"FIRMWARE_NAME:{FIRMWARE_NAME} SOURCE_CODE_URL:github.com/MarlinFirmware/Marlin "
-                  f"PROTOCOL_VERSION:1.0 MACHINE_TYPE:ribbond-sim KINEMATICS:Cartesian "
-                  f"EXTRUDER_COUNT:1 UUID:{MACHINE_UUID}")
-        for name, value in CAPABILITIES:
-            self.emit(f"Cap:{name}:{value}")
+        for line in self.spec.m115:
+            self.emit(line)
+
+    def _m112(self, g: GCode, cmd: QueuedCommand) -> None:
+        """M112 from the queue (firmware without an emergency parser: it waited its turn). No ok
+        follows (Smoothieware's stop line is its ok: "ok Emergency Stop Requested - …")."""
+        cmd.skip_ok = True
+        self.halt(self.spec.stop_lines, reboot=self.spec.halt == "reboot")
 
     def _m118(self, g: GCode, cmd: QueuedCommand) -> None:
         text = strip_line_number(cmd.text)[4:].strip()
@@ -869,7 +1069,7 @@ class Firmware:
         self.emit("echo:Hardcoded Default Settings Loaded")
 
     def _m503(self, g: GCode, cmd: QueuedCommand) -> None:
-        for text in BANNER_SETTINGS:
+        for text in MARLIN_SETTINGS:
             self.emit(text)
 
     def _t(self, g: GCode, cmd: QueuedCommand) -> None:
@@ -888,12 +1088,12 @@ _HANDLERS: dict[str, Handler] = {
     "M82": Firmware._m82, "M83": Firmware._m83,
     "M104": Firmware._m104, "M105": Firmware._m105, "M106": Firmware._m106,
     "M107": Firmware._m107, "M109": Firmware._m109, "M110": Firmware._m110,
-    "M114": Firmware._m114, "M115": Firmware._m115, "M118": Firmware._m118,
+    "M112": Firmware._m112, "M114": Firmware._m114, "M115": Firmware._m115, "M118": Firmware._m118,
     "M140": Firmware._m140, "M155": Firmware._m155, "M190": Firmware._m190,
     "M400": Firmware._m400, "M502": Firmware._m502, "M503": Firmware._m503,
     "T0": Firmware._t, "T1": Firmware._t, "T2": Firmware._t, "T3": Firmware._t,
 }
 for _code in ("M17", "M18", "M84", "M31", "M73", "M75", "M76", "M77", "M92", "M108",
-              "M112", "M117", "M201", "M203", "M204", "M205", "M220", "M221", "M410",
+              "M117", "M201", "M203", "M204", "M205", "M220", "M221", "M410",
               "M999"):
     _HANDLERS[_code] = Firmware._nothing

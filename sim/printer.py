@@ -124,10 +124,12 @@ class _Core:
         return data
 
     def _on_open(self, t: float) -> None:
-        # Opening the port reboots the board, as the DTR line does on real boards.
+        # Opening the port reboots the board, as the DTR line does on boards with a USB-serial
+        # chip; native USB boards (Duet, Smoothieboard) keep running.
         self.stats.connections += 1
         self.step()
-        self.fw.reset(t, count=False)
+        if self.config.spec.resets_on_open:
+            self.fw.reset(t, count=False)
         self.reschedule()
 
     def _on_close(self, t: float) -> None:
@@ -180,7 +182,7 @@ class _Core:
 
     def runaway(self) -> None:
         self.step()
-        self.fw.halt(runaway=True)
+        self.fw.thermal_error("runaway")
         self.port.flush(time.monotonic())
         self.reschedule()
 

@@ -245,7 +245,7 @@ def test_start_action_unknown_echo_other() -> None:
     assert codec.parse_line('echo:Unknown command: "G999"') == codec.UnknownCommand("G999")
     assert codec.parse_line("echo:SD card ok") == codec.Echo("SD card ok")
     assert codec.parse_line("echo:  M92 X80.00 Y80.00 Z400.00 E93.00") == codec.Echo("M92 X80.00 Y80.00 Z400.00 E93.00")
-    assert codec.parse_line("wait") == codec.Other("wait")  # Repetier idle
+    assert codec.parse_line("wait") == codec.Wait()  # Repetier idle (tests/test_codec_dialects.py)
     assert codec.parse_line("// Klipper state: Ready") == codec.Other("// Klipper state: Ready")
     assert codec.parse_line("\x00\xff garbage") == codec.Other("\x00\xff garbage")
 
@@ -262,7 +262,7 @@ ODD_LINES = [
     ("X:", codec.Other("X:")),                      # no position
     ("X:1.0 Y:2.0", codec.Other("X:1.0 Y:2.0")),    # cut before Z
     ("Error:", codec.Error("", ErrorKind.OTHER)),
-    ("!!", codec.Error("", ErrorKind.OTHER)),
+    ("!!", codec.Error("halted (!!)", ErrorKind.HALTED, fatal=True)),  # Smoothieware, halted
     ("echo:", codec.Echo("")),
     ("rs", codec.Other("rs")),
     ("ok C:", codec.Ok(text="C:")),                 # a cut Smoothieware M114 answer: no position

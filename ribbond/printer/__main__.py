@@ -38,7 +38,8 @@ def _parser() -> argparse.ArgumentParser:
                         help="unacknowledged bytes allowed in flight (default 63, safe for 64-byte receive "
                              "buffers; 127 for Marlin's standard 128-byte buffer)")
     common.add_argument("--no-ok-after-resend", action="store_true",
-                        help="the firmware sends no 'ok' after a resend request (Marlin does)")
+                        help="the firmware sends no 'ok' after a resend request (Marlin does; by default "
+                             "the firmware's dialect, from M115, says)")
     common.add_argument("--timeout", type=float, default=8.0, metavar="S",
                         help="seconds of silence before probing the printer (default 8)")
     common.add_argument("--boot-wait", type=float, default=2.5, metavar="S",
@@ -56,7 +57,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _link(args: argparse.Namespace) -> PrinterLink:
-    capabilities = Capabilities(rx_buffer_bytes=args.rx_buffer, ok_after_resend=not args.no_ok_after_resend)
+    # only a flag given overrides the dialect M115 names (Capabilities pins what it is given)
+    explicit = {"ok_after_resend": False} if args.no_ok_after_resend else {}
+    capabilities = Capabilities(rx_buffer_bytes=args.rx_buffer, **explicit)
     return PrinterLink(
         args.port, args.baud, capabilities=capabilities, timeouts=Timeouts(default_s=args.timeout),
         ping_pong=args.ping_pong, boot_wait_s=args.boot_wait, reset_on_open=args.reset_on_open,
@@ -114,7 +117,7 @@ async def _info(args: argparse.Namespace) -> int:
     await link.connect()
     try:
         status = link.status
-        print(f"firmware: {status.firmware or 'unknown'}")
+        print(f"firmware: {status.firmware or 'unknown'} (spoken to as {status.dialect})")
         print(f"advanced ok: {'yes' if status.advanced_ok else 'no'}")
         for name, enabled in sorted(status.capabilities.items()):
             print(f"  {name}: {'yes' if enabled else 'no'}")

@@ -2,12 +2,17 @@
 
 Nothing here does I/O or keeps state. Encoding adds the line number and XOR checksum Marlin checks
 (``N<n> <command>*<checksum>``); parsing turns each line the printer sends into one typed event.
-The parser is lenient in the ways established hosts are, because firmwares differ: ``ok`` with or
-without ``N``/``P``/``B`` fields or a temperature report after it, ``Resend: 12``, ``Resend:12``,
-``rs N12`` and ``rs 12``, ``echo:``-prefixed or bare ``busy:`` lines, leading spaces, and ``Error:``
-lines whose text says whether the printer has halted. ``M114``'s position may come on its own line
-before the ``ok`` (Marlin, Klipper, RepRapFirmware) or on the ``ok`` line itself (Smoothieware:
-``ok C: X:10.0000 Y:20.0000 Z:0.0000``); both parse to the same :class:`Position`.
+The parser knows the answers of Marlin 1.x/2.x, Prusa firmware, RepRapFirmware, Smoothieware and
+Repetier (their tables, with sources, are in ``tests/test_codec_dialects.py``): ``ok`` with or
+without ``N``/``P``/``B`` fields, a line number (Repetier: ``ok 12``) or a temperature report after
+it, ``Resend: 12``, ``Resend:12``, ``rs N12`` and ``rs 12``, Repetier's ``skip 12`` and ``wait``,
+``echo:``-prefixed or bare ``busy:`` lines, leading spaces, and error lines whose text says whether
+the printer has halted (``Error:``, Smoothieware's ``!!`` and ``HALT`` lines, Repetier's ``fatal:``,
+RepRapFirmware's emergency stop). ``M114``'s position may come on its own line before the ``ok``
+(Marlin, Klipper, RepRapFirmware) or on the ``ok`` line itself (Smoothieware: ``ok C: X:10.0000
+Y:20.0000 Z:0.0000``); both parse to the same :class:`Position`. The parser keeps no state and knows
+no dialect: a line means the same whoever prints it; what differs in the protocol around the lines
+(when an ``ok`` comes, what follows a resend request) is ``capabilities.Dialect``'s.
 """
 
 from __future__ import annotations
@@ -192,6 +197,20 @@ class TemperatureReport:
 
 
 @dataclass(frozen=True)
+class Skip:
+    """Repetier's ``skip 12``: line 12 was ignored (a line it already has, or one sent after a line
+    it asked for again); an ``ok`` that acknowledges nothing follows."""
+
+    line: int
+
+
+@dataclass(frozen=True)
+class Wait:
+    """``wait``: the printer has had nothing to do for a second, its command buffer is empty
+    (Repetier's WAITING_IDENTIFIER; Marlin's NO_TIMEOUTS prints it too)."""
+
+
+@dataclass(frozen=True)
 class Start:
     """``start``: the firmware has (re)booted. During a job this means all its state is lost."""
 
@@ -246,6 +265,8 @@ class Other:
 Event = (
     Ok
     | Resend
+    | Skip
+    | Wait
     | Error
     | Busy
     | TemperatureReport
@@ -263,7 +284,16 @@ _NUMBER = r"-?\d+(?:\.\d+)?"
 # T:210.0 /210.0, T0:20.1 /0.0, B:60 /60, @:64, B@:0, W:?; Klipper writes "B:60.0 /60.0" too.
 _HEATER = re.compile(rf"(?<![\w@])([TBC]\d?):\s*({_NUMBER})(?:\s*/\s*({_NUMBER}))?")
 _POWER = re.compile(rf"(?<!\w)([TBC]?\d?)@:\s*({_NUMBER})")
+# Smoothieware prints each heater's power right after it, "@" without a colon: "T:21.0 /0.0 @0"
+_SMOOTHIE_POWER = re.compile(rf"(?<![\w@])([TBC]\d?):\s*{_NUMBER}\s*/\s*{_NUMBER}\s+@(\d+)")
 _RESEND = re.compile(r"^(?:resend|rs)\s*:?\s*N?\s*(\d+)", re.IGNORECASE)
+_SKIP = re.compile(r"^skip\s+(\d+)\s*$", re.IGNORECASE)
+# Repetier's line check: "Error:expected line 12 got 14" (line 11 was the last it took)
+_EXPECTED_LINE = re.compile(r"expected line\s+(-?\d+)", re.IGNORECASE)
+# Lines that say the printer is halted without an "Error:" prefix: Smoothieware (GcodeDispatch.cpp,
+# SerialConsole.cpp, TemperatureControl.cpp) and RepRapFirmware's emergency stop (GCodes.cpp).
+_HALT_LINE = re.compile(r"HALT asserted|Entering Alarm/Halt state|^HALTED\b|exit HALT state"
+                        r"|^Emergency Stop! Reset the controller", re.IGNORECASE)
 _OK_FIELD = re.compile(r"\b([NPB])(-?\d+)\b")
 _BARE_NUMBER = re.compile(r"^\s*(\d+)\s*$")
 _LAST_LINE = re.compile(r"Last Line:\s*(-?\d+)", re.IGNORECASE)
@@ -274,10 +304,9 @@ _POSITION = re.compile(
 _OK_POSITION = re.compile(
     rf"^C:\s*X:\s*({_NUMBER})\s+Y:\s*({_NUMBER})\s+Z:\s*({_NUMBER})(?:\s+E\d?:\s*({_NUMBER}))?"
 )
-_FIRMWARE_FIELD = re.compile(
-    r"(FIRMWARE_NAME|FIRMWARE_VERSION|SOURCE_CODE_URL|PROTOCOL_VERSION|MACHINE_TYPE|KINEMATICS"
-    r"|EXTRUDER_COUNT|UUID|FIRMWARE_URL):"
-)
+# M115's keys: upper case, "_" and "-" (Smoothieware's "X-SOURCE_CODE_URL"), at the start or after a
+# space or a comma (Smoothieware separates its fields with ", "; RepRapFirmware writes "KEY: value").
+_FIRMWARE_FIELD = re.compile(r"(?:^|(?<=[\s,]))([A-Z][A-Z0-9_-]*[A-Z0-9_]):")
 
 
 def parse_temperatures(text: str) -> Temperatures | None:
@@ -288,6 +317,9 @@ def parse_temperatures(text: str) -> Temperatures | None:
             readings[name] = [float(current), float(target) if target else None, None]
     if not readings:
         return None
+    for name, power in _SMOOTHIE_POWER.findall(text):
+        if name in readings:
+            readings[name][2] = int(power)
     for name, power in _POWER.findall(text):
         key = name or "T"
         if key in readings:
@@ -320,23 +352,49 @@ def _parse_ok(rest: str) -> Ok:
     )
 
 
-def _parse_error(message: str) -> Error:
-    lower = message.lower()
+#: Words of a heater error after which the firmware has turned its heaters off and stopped: Marlin
+#: and Prusa ("Thermal Runaway", "MINTEMP", "MAXTEMP", "Heating failed"), Smoothieware ("Temperature
+#: runaway", "took too long to be reached"), Repetier ("Heater decoupled", "Heater/sensor error") and
+#: RepRapFirmware ("Heater 1 fault").
+_THERMAL_WORDS = ("thermal runaway", "maxtemp", "mintemp", "heating failed", "temperature runaway",
+                  "too long to be reached", "heater decoupled", "heater/sensor error")
+_HEATER_FAULT = re.compile(r"\bheater \d+ fault\b", re.IGNORECASE)
+
+
+def _last_line(message: str) -> int | None:
+    """The last line the printer took: Marlin's "Last Line: 41", Repetier's "expected line 42"."""
     match = _LAST_LINE.search(message)
-    last_line = int(match.group(1)) if match else None
-    if "checksum mismatch" in lower:
-        return Error(message, ErrorKind.CHECKSUM, last_line)
-    if "line number is not" in lower:
-        return Error(message, ErrorKind.LINE_NUMBER, last_line)
-    if "no checksum" in lower:
-        return Error(message, ErrorKind.NO_CHECKSUM, last_line)
+    if match:
+        return int(match.group(1))
+    match = _EXPECTED_LINE.search(message)
+    return int(match.group(1)) - 1 if match else None
+
+
+def _line_check_kind(lower: str) -> str | None:
+    """The line check an error reports (Marlin's, Prusa's and Repetier's words), if any."""
+    if "checksum mismatch" in lower or "wrong checksum" in lower:
+        return ErrorKind.CHECKSUM
+    if "line number is not" in lower or "expected line" in lower:
+        return ErrorKind.LINE_NUMBER
+    if "no checksum" in lower or "missing checksum" in lower:
+        return ErrorKind.NO_CHECKSUM
     if "no line number" in lower:
-        return Error(message, ErrorKind.NO_LINE_NUMBER, last_line)
-    if "thermal runaway" in lower or "maxtemp" in lower or "mintemp" in lower or "heating failed" in lower:
+        return ErrorKind.NO_LINE_NUMBER
+    return None
+
+
+def _parse_error(message: str, fatal: bool = False) -> Error:
+    """An error line's text; ``fatal``: the prefix alone says the printer stopped (``fatal:``)."""
+    lower = message.lower()
+    last_line = _last_line(message)
+    kind = _line_check_kind(lower)
+    if kind is not None:
+        return Error(message, kind, last_line)
+    if any(word in lower for word in _THERMAL_WORDS) or _HEATER_FAULT.search(message):
         return Error(message, ErrorKind.THERMAL, last_line, fatal=True)
-    if "kill() called" in lower or "halted" in lower:
+    if "kill() called" in lower or "halted" in lower or _HALT_LINE.search(message):
         return Error(message, ErrorKind.HALTED, last_line, fatal=True)
-    if "printer stopped" in lower or "stopped due to errors" in lower:
+    if "printer stopped" in lower or "stopped due to errors" in lower or fatal:
         return Error(message, ErrorKind.STOPPED, last_line, fatal=True)
     return Error(message, ErrorKind.OTHER, last_line)
 
@@ -355,11 +413,22 @@ def parse_line(raw: str) -> Event:
         if match:
             return Resend(int(match.group(1)))
         return Other(line)
-    if lower.startswith("error:") or lower.startswith("!!"):
-        message = line[6:] if lower.startswith("error:") else line[2:]
-        return _parse_error(message.strip())
+    if lower.startswith("error:") or lower.startswith("fatal:"):
+        return _parse_error(line[6:].strip(), fatal=lower.startswith("fatal:"))
+    if lower.startswith("!!"):
+        # Smoothieware answers every command with a bare "!!" while halted (GcodeDispatch.cpp);
+        # Klipper puts "!! " before an error message that does not stop it.
+        message = line[2:].strip()
+        return Error("halted (!!)", ErrorKind.HALTED, fatal=True) if not message else _parse_error(message)
+    if _HALT_LINE.search(line):
+        return _parse_error(line)
     if lower == "start":
         return Start()
+    if lower == "wait":
+        return Wait()
+    skip = _SKIP.match(line)
+    if skip:
+        return Skip(int(skip.group(1)))
     if lower.startswith("//action:"):
         return Action(line[len("//action:") :].strip())
     body = line[5:].strip() if lower.startswith("echo:") else line
@@ -371,6 +440,9 @@ def parse_line(raw: str) -> Event:
         return UnknownCommand(command)
     if lower.startswith("echo:"):
         return Echo(body)
+    for prefix in ("info:", "warning:"):  # Repetier's "Info:PowerUp", RepRapFirmware's warnings
+        if lower.startswith(prefix):
+            return Echo(line[len(prefix):].strip())
     if line.startswith("FIRMWARE_NAME:"):
         return FirmwareInfo(_split_firmware_fields(line))
     if line.startswith("Cap:"):
@@ -392,11 +464,13 @@ def parse_line(raw: str) -> Event:
 def _split_firmware_fields(line: str) -> dict[str, str]:
     """Split ``FIRMWARE_NAME:Marlin 2.1 (…) SOURCE_CODE_URL:… UUID:…`` into its fields.
 
-    Values may contain spaces (the firmware name does), so split on the known keys.
+    Values may contain spaces (the firmware name does) and colons (a URL, a time), so a key is an
+    upper-case word followed by ``:`` at the start or after a space or comma; a value ends where the
+    next key starts, without the space or comma before it.
     """
     marks = list(_FIRMWARE_FIELD.finditer(line))
     fields: dict[str, str] = {}
     for i, mark in enumerate(marks):
         end = marks[i + 1].start() if i + 1 < len(marks) else len(line)
-        fields[mark.group(1)] = line[mark.end() : end].strip()
+        fields.setdefault(mark.group(1), line[mark.end() : end].strip().rstrip(",").strip())
     return fields

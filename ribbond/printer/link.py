@@ -57,6 +57,8 @@ class PrinterStatus(BaseModel):
 
     state: LinkState
     firmware: str = ""
+    #: The firmware family the link speaks to (``capabilities.DIALECTS``), from ``M115``.
+    dialect: str = ""
     capabilities: dict[str, bool] = {}
     advanced_ok: bool = False
     heaters: dict[str, HeaterStatus] = {}
@@ -121,7 +123,9 @@ class PrinterLink:
         How long to wait for the boot banner after opening (boards that reset on open need 1–2 s;
         boards that do not reset send nothing, and the handshake goes on after this long).
     temperature_interval_s
-        Autoreport interval asked for with ``M155`` when the firmware has AUTOREPORT_TEMP.
+        Autoreport interval asked for with ``M155`` when the firmware has AUTOREPORT_TEMP; a
+        firmware whose dialect has no ``M155`` (RepRapFirmware, Smoothieware) is asked with
+        ``M105`` this often instead, as hosts do.
     """
 
     def __init__(
@@ -153,9 +157,12 @@ class PrinterLink:
         self._boot_seen: asyncio.Event | None = None
         self._last_line_at = 0.0
         self._rehandshake: asyncio.Task[None] | None = None
+        self._poller: asyncio.Task[None] | None = None
         self._state_changed: asyncio.Event | None = None
         self._position_at = 0.0
+        self._temperatures_at = 0.0
         self._collectors: list[list[str]] = []
+        self._event_collectors: list[list[codec.Event]] = []
 
     # ------------------------------------------------------------------ state
 
@@ -182,6 +189,7 @@ class PrinterLink:
         status.capabilities = dict(self.capabilities.reported)
         status.advanced_ok = self.capabilities.advanced_ok
         status.firmware = self.capabilities.firmware_name
+        status.dialect = self.capabilities.spec.label
         if self._sender is not None:
             status.lines_acknowledged = self._sender.last_acknowledged_line
             status.window_bytes = self._sender.window.window
@@ -222,6 +230,24 @@ class PrinterLink:
                 self._set_state(LinkState.DISCONNECTED)
             raise
         self._set_state(LinkState.READY)
+        if self._poller is None and not self.capabilities.m155 and self.temperature_interval_s > 0:
+            self._poller = asyncio.get_running_loop().create_task(self._poll_temperatures())
+
+    async def _poll_temperatures(self) -> None:
+        """Ask for the temperatures (``M105``) every ``temperature_interval_s`` while the link is
+        up and nothing else has reported them: the dashboard's readings stay live on a firmware that
+        cannot autoreport them."""
+        interval = self.temperature_interval_s
+        while True:
+            await asyncio.sleep(interval)
+            if self._state not in (LinkState.READY, LinkState.STREAMING):
+                continue
+            if time.monotonic() - self._temperatures_at < interval:
+                continue
+            try:
+                await asyncio.wait_for(self.query_temperatures(), self.timeouts.default_s)
+            except (LinkError, asyncio.TimeoutError) as exc:
+                log.debug("temperature poll: %s", exc)
 
     async def _await_boot(self) -> None:
         """Wait for the banner (boards that reset on open) or for the boot wait to pass."""
@@ -242,12 +268,7 @@ class PrinterLink:
             sender = self.sender
             try:
                 await asyncio.wait_for(sender.reset_line_numbers(), self.timeouts.default_s * 2)
-                answer = await asyncio.wait_for(sender.send("M115"), self.timeouts.default_s * 2)
-                for event in answer.events:
-                    if isinstance(event, codec.FirmwareInfo):
-                        self.capabilities.learn_firmware(event)
-                    elif isinstance(event, codec.Capability):
-                        self.capabilities.learn_capability(event)
+                await self._learn_firmware(sender)
                 if self.capabilities.autoreport_temperatures and self.temperature_interval_s > 0:
                     await asyncio.wait_for(sender.send(f"M155 S{self.temperature_interval_s}"),
                                            self.timeouts.default_s * 2)
@@ -259,6 +280,48 @@ class PrinterLink:
                 last_error = exc
                 log.warning("handshake failed (%s); trying again", exc)
         raise LinkError(f"printer on {self.port} did not complete the handshake: {last_error}")
+
+    async def _learn_firmware(self, sender: Sender) -> None:
+        """``M115``: the firmware's name (and so its dialect) and its ``Cap:`` lines.
+
+        Most firmwares print the report before their ``ok``; Repetier acknowledges ``M115`` on
+        receipt and prints it when it runs. The report is complete once the answer to an ``M114``
+        sent after it has come (commands run in order), so without a ``FIRMWARE_NAME`` by the
+        ``ok`` the link asks for one and waits for it."""
+        seen: list[codec.Event] = []
+        self._event_collectors.append(seen)
+        try:
+            await asyncio.wait_for(sender.send("M115"), self.timeouts.default_s * 2)
+            if not any(isinstance(event, codec.FirmwareInfo) for event in seen):
+                mark = len(seen)
+                try:  # best effort: a firmware that names itself nowhere still gets connected
+                    answer = await asyncio.wait_for(sender.send("M114"), self.timeouts.default_s)
+                except asyncio.TimeoutError:
+                    log.warning("no answer to M114 after M115 within %.1f s", self.timeouts.default_s)
+                else:
+                    if answer.ok.position is None:
+                        await self._wait_for(lambda: any(isinstance(e, codec.Position) for e in seen[mark:]),
+                                             self.timeouts.default_s)
+        finally:
+            self._event_collectors.remove(seen)
+        for event in seen:
+            if isinstance(event, codec.FirmwareInfo):
+                self.capabilities.learn_firmware(event)
+            elif isinstance(event, codec.Capability):
+                self.capabilities.learn_capability(event)
+        if not self.capabilities.firmware_name:
+            log.warning("the printer on %s did not name its firmware (M115): speaking to it as %s",
+                        self.port, self.capabilities.spec.label)
+
+    @staticmethod
+    async def _wait_for(condition: Callable[[], bool], timeout: float) -> bool:
+        """Poll ``condition`` until it holds (True) or ``timeout`` seconds pass (False)."""
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() >= deadline:
+                return False
+            await asyncio.sleep(0.02)
+        return True
 
     def _new_sender(self) -> None:
         if self._sender is not None:
@@ -272,6 +335,9 @@ class PrinterLink:
         """Close the port (in-flight work fails with Disconnected)."""
         if self._rehandshake is not None:
             self._rehandshake.cancel()
+        if self._poller is not None:
+            self._poller.cancel()
+            self._poller = None
         if self._sender is not None:
             self._sender.stop(Disconnected("link closed by the host"))
         self._close_transport()
@@ -309,19 +375,31 @@ class PrinterLink:
             self._collectors.remove(lines)
         return answer, lines
 
+    def _report_grace_s(self) -> float:
+        """How long a query's report may follow its ``ok``: a moment where the ``ok`` means
+        "processed", as long as the commands before it take where it means "received" (Repetier)."""
+        return 1.0 if self.capabilities.ok_means == "processed" else self.timeouts.default_s
+
     async def query_temperatures(self) -> codec.Temperatures:
-        """Ask for the temperatures (``M105``)."""
+        """Ask for the temperatures (``M105``): on the ``ok`` line (Marlin, RepRapFirmware,
+        Smoothieware), on a line before it, or after it (Repetier: wait a little)."""
+        asked_at = time.monotonic()
         answer = await self.send("M105")
         if answer.ok.temperatures is not None:
             return answer.ok.temperatures
         for event in answer.events:
             if isinstance(event, codec.TemperatureReport):
                 return event.temperatures
+        if await self._wait_for(lambda: self._temperatures_at >= asked_at, self._report_grace_s()):
+            heaters = self._status.heaters
+            return codec.Temperatures(tuple(codec.HeaterReading(name, h.current, h.target, h.power)
+                                            for name, h in heaters.items()))
         raise LinkError(f"printer answered M105 without temperatures: {answer.ok.text!r}")
 
-    async def query_position(self, grace_s: float = 1.0) -> codec.Position:
+    async def query_position(self, grace_s: float | None = None) -> codec.Position:
         """Ask for the position (``M114``), wherever the firmware puts it: on its own line before
-        the ``ok`` (Marlin), on the ``ok`` line (Smoothieware), or after the ``ok`` (wait a little)."""
+        the ``ok`` (Marlin), on the ``ok`` line (Smoothieware), or after the ``ok`` (Repetier, whose
+        ``ok`` comes on receipt: wait for it, ``grace_s`` or as the dialect allows)."""
         asked_at = time.monotonic()
         answer = await self.send("M114")
         if answer.ok.position is not None:
@@ -329,11 +407,11 @@ class PrinterLink:
         found = answer.first(codec.Position)
         if isinstance(found, codec.Position):
             return found
-        deadline = time.monotonic() + grace_s
-        while time.monotonic() < deadline:
-            if self._status.position is not None and self._position_at >= asked_at:
-                return codec.Position(*self._status.position)
-            await asyncio.sleep(0.02)
+        grace = self._report_grace_s() if grace_s is None else grace_s
+        if await self._wait_for(lambda: self._status.position is not None and self._position_at >= asked_at,
+                                grace):
+            assert self._status.position is not None
+            return codec.Position(*self._status.position)
         raise LinkError("printer answered M114 without a position")
 
     # ------------------------------------------------------------------ streaming
@@ -391,13 +469,17 @@ class PrinterLink:
         self.sender.cancel()
 
     def emergency_stop(self) -> None:
-        """Send ``M112`` at once, ahead of everything, and halt the link."""
+        """Send the emergency stop at once, ahead of everything, and halt the link: ``M112``, or
+        Ctrl-X for Smoothieware (acted on as it arrives; its ``M112`` waits its turn)."""
         if self._transport is None or not self._transport.is_open:
             raise Disconnected("cannot send the emergency stop: the port is not open")
-        self._transport.write_urgent(codec.encode_unnumbered("M112"))
+        self._transport.write_urgent(self.capabilities.stop_bytes)
         if not self.capabilities.emergency_parser:
             log.warning("the firmware reports no EMERGENCY_PARSER: M112 waits behind the commands "
                         "it has queued; cut the power if the machine must stop now")
+        if self.capabilities.emergency_stop == "reboots":
+            log.warning("%s reboots on M112: its queue and position are lost; the link connects "
+                        "again when its banner comes", self.capabilities.spec.label)
         if self._sender is not None:
             self._sender.stop(PrinterHalted("emergency stop (M112) sent by the host"))
         if self._state is not LinkState.HALTED:
@@ -437,6 +519,8 @@ class PrinterLink:
         for lines in self._collectors:
             lines.append(text)
         event = codec.parse_line(text)
+        for events in self._event_collectors:
+            events.append(event)
         log.debug("<< %s", text)
         self._observe(event)
         for listener in self._listeners:
@@ -466,6 +550,7 @@ class PrinterLink:
         elif isinstance(event, codec.Error):
             self._status.last_error = event.message
         if temperatures is not None:
+            self._temperatures_at = time.monotonic()
             self._status.heaters = {
                 h.name: HeaterStatus(current=h.current, target=h.target, power=h.power)
                 for h in temperatures.heaters

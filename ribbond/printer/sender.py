@@ -30,6 +30,16 @@ It is a go-back-N sender over Marlin's line-number protocol:
   either the printer asks for a lost line, or its ``ok T:…`` proves that everything before the probe
   was processed. A printer that stays silent through several probes is reported, not waited on.
 
+* Per dialect (``Capabilities``): a firmware that answers an empty line (Smoothieware) is never
+  nudged; Repetier's ``skip N`` (a stale or repeated line ignored) counts as a stale line's refusal
+  and the ``ok`` after it acknowledges nothing; its ``wait`` (idle) probes lines still unacknowledged
+  at once; a firmware whose ``ok`` only says "received" (Repetier) has a command's answer wait for
+  a proof that it ran (:mod:`.proof`: an ``M114`` sent after it reports its position), and a
+  program's ``M400`` counts only once proven, the program's next lines waiting for it; a firmware
+  that drops a bad line without a word (RepRapFirmware 3) is stopped, naming the lines, when a
+  query's answer shows that an earlier line was never acknowledged (an ``M105`` follows each
+  ``M400`` there, so that a part does not count as printed before that is known).
+
 The sender parses nothing: it takes events from :mod:`.codec` and writes bytes to a callable.
 """
 
@@ -48,12 +58,16 @@ from pydantic import BaseModel, Field
 from . import codec
 from .capabilities import Capabilities
 from .errors import LinkError, PrinterSilent, ProtocolError, StreamCancelled
+from .proof import RunProofs
 from .window import WindowGovernor
 
 log = logging.getLogger(__name__)
 
 PROBE_COMMAND = "M105"
 _LINE_NUMBER_RESET = "M110 N0"
+#: Commands whose ``ok`` is their whole answer even where ``ok`` means "received": ``M110`` is done
+#: on receipt (Repetier's checkAndPushCommand), and the link waits for the queries' reports itself.
+_ANSWERED_ON_RECEIPT = ("M110", "M105", "M114")
 
 
 class Timeouts(BaseModel):
@@ -102,7 +116,7 @@ def _keeps_alive(event: codec.Event) -> bool:
     if isinstance(event, codec.TemperatureReport):
         return event.waiting
     return isinstance(event, (codec.Busy, codec.Error, codec.Position, codec.FirmwareInfo,
-                              codec.Capability, codec.UnknownCommand))
+                              codec.Capability, codec.UnknownCommand, codec.Skip))
 
 
 def _command_word(command: str) -> str:
@@ -166,6 +180,7 @@ class _Line:
     offset: int | None = None  # unacknowledged bytes, this line included, when it was last sent
     future: asyncio.Future[Answer] | None = None
     events: list[codec.Event] = field(default_factory=list)
+    receipt: codec.Ok | None = None  # its ok, when its answer waits for a proof that it ran
 
 
 @dataclass
@@ -234,6 +249,10 @@ class Sender:
         self._pending_resend: int | None = None  # lowest line asked for and not yet acknowledged
         self._refused: int | None = None  # the line the last line-check Error refused
         self._unproven: int | None = None  # a re-sent line the printer asked past, unacknowledged
+        self._skip_oks = 0  # Repetier: oks due after "skip N" lines, which acknowledge nothing
+        self._last_query = -1  # the last line a query's answer acknowledged by name
+        self._proofs: RunProofs[_Line] = RunProofs()  # where ok means "received" (proof.py)
+        self._run_hold: _Line | None = None  # a program M400 whose run the program waits for
         self._last_heard = time.monotonic()
         self._nudged_at = -1.0  # the _last_heard of the silence already nudged
         self._nudge_behind: int | None = None  # a nudge's byte waits behind this line in the buffer
@@ -256,7 +275,8 @@ class Sender:
         """Fail everything outstanding with ``reason`` and stop sending."""
         if self._failure is None:
             self._failure = reason
-        for line in self._history_from(self._acked_through + 1) + list(self._singles):
+        waiting = self._proofs.clear()
+        for line in waiting + self._history_from(self._acked_through + 1) + list(self._singles):
             if line.future is not None and not line.future.done():
                 line.future.set_exception(reason)
         self._inflight.clear()
@@ -291,6 +311,12 @@ class Sender:
         self._acked_through = -1
         self._resend_ok_due = False
         self._pending_resend = self._unproven = None
+        self._skip_oks = 0
+        self._last_query = -1
+        self._run_hold = None
+        for line in self._proofs.clear():  # a reset or a new handshake: they will never be proven
+            if line.future is not None and not line.future.done():
+                line.future.set_exception(LinkError("line numbers reset before the command was proven run"))
         self._nudge_behind = None  # numbers restart: an old nudge's line would never be acknowledged
         return self.send(_LINE_NUMBER_RESET)
 
@@ -357,19 +383,63 @@ class Sender:
             self._on_ok(event)
         elif isinstance(event, codec.Resend):
             self._on_resend(event.line)
+        elif isinstance(event, codec.Skip):
+            self._on_skip()
+        elif isinstance(event, codec.Wait):
+            self._on_wait()
         else:
             if isinstance(event, codec.Error):
                 self._on_line_error(event)
-            oldest = self._history.get(self._acked_through + 1)
+            # Output comes before the ok of the command it answers, or, where ok means "received",
+            # after it: then it belongs to the oldest command not yet proven run.
+            oldest = self._proofs.oldest_unproven or self._history.get(self._acked_through + 1)
             if oldest is not None and oldest.number < self._next_number:
-                oldest.events.append(event)  # output comes before the ok of the command it answers
+                oldest.events.append(event)
+            if isinstance(event, codec.Position) and self.capabilities.ok_means == "received":
+                self._complete_runs(self._proofs.position_reported())
+
+    def _on_skip(self) -> None:
+        """Repetier ignored a line (one sent after a line it asked for again, or one it already
+        has) and says so with ``skip N`` and an ``ok``: during a resend hold it is one of the stale
+        lines' answers, as Marlin's repeated requests are; its ``ok`` acknowledges nothing."""
+        self._skip_oks += 1
+        if self._hold is not None and self._resend_target is not None:
+            self._stale_seen += 1
+            if self._stale_seen >= self._stale_expected:
+                self._hold.cancel()
+                self._end_hold()
+
+    def _on_wait(self) -> None:
+        """``wait``: the printer's command buffer has been empty for a second. Everything it
+        received has run; a line still unacknowledged was lost, or its ``ok`` was: probe now
+        rather than after the silence timeout."""
+        unanswered = bool(self._inflight)  # (before the proof lets the program send more)
+        if self.capabilities.ok_means == "received":
+            self._complete_runs(self._proofs.idle(self._acked_through))
+        if unanswered and self._hold is None and self._probes_outstanding == 0:
+            self._probe()
+
+    def _complete_runs(self, lines: list[_Line]) -> None:
+        """Lines acknowledged on receipt are now proven run: give their answers."""
+        program_lines = 0
+        for line in lines:
+            assert line.receipt is not None
+            program_lines += self._complete(line, line.receipt)
+            if self._run_hold is line:
+                self._run_hold = None
+        self._count_program_lines(program_lines)
+        self._pump()
 
     def _on_ok(self, ok: codec.Ok) -> None:
         self.capabilities.learn_ok(ok)
+        plain = not ok.advanced and ok.temperatures is None and ok.position is None
         if self._resend_ok_due:
             self._resend_ok_due = False
-            if not ok.advanced and ok.temperatures is None and ok.position is None:
+            if plain:
                 return  # the ok Marlin prints right after each Resend: line
+        if self._skip_oks and plain and ok.line is None:
+            self._skip_oks -= 1
+            return  # the ok Repetier prints after each "skip N"
         if ok.advanced:
             if ok.line is not None:
                 self._ack_through(ok.line, ok)
@@ -381,8 +451,11 @@ class Sender:
             word = "M105" if ok.temperatures is not None else "M114"
             query = next((line for line in self._history_from(self._acked_through + 1)
                           if _command_word(line.command) == word), None)
+            if query is not None and self._dropped_before(query):
+                return
             if query is not None:
                 self._ack_through(query.number, ok)
+                self._last_query = query.number
             else:
                 self._ack_oldest(ok)
         elif self.capabilities.advanced_ok:
@@ -392,6 +465,22 @@ class Sender:
         else:
             self._ack_oldest(ok)
         self._pump()
+
+    def _dropped_before(self, query: _Line) -> bool:
+        """A query's answer came while a line before it is unacknowledged. Marlin's line numbers
+        prove that line was processed (its ok was lost); a firmware that drops a line failing its
+        checks without a word (RepRapFirmware 3) answers every other line with a plain ``ok``, so
+        one of the lines since the last query it answered may never have run: stop, saying so."""
+        oldest = self._acked_through + 1
+        if self.capabilities.bad_lines != "discarded" or query.number <= oldest:
+            return False
+        since = self._last_query + 1
+        self._fail(ProtocolError(
+            f"printer answered line {query.number} ({query.command}) while line {oldest}{self._where(oldest)} "
+            f"was unacknowledged: this firmware drops a line that fails its checks without a word, so one of "
+            f"lines {since} to {query.number - 1} may never have run. Stopped with line {self._acked_through} "
+            f"counted acknowledged; resume with the part reprinted"))
+        return True
 
     def _ack_oldest(self, ok: codec.Ok) -> None:
         """A plain ok: the printer processes lines in number order, so it is the oldest's, except
@@ -416,15 +505,18 @@ class Sender:
         if number <= self._acked_through or self._unproven_skipped(number, ok):
             return
         program_lines = 0
+        received = self.capabilities.ok_means == "received"
         for n in range(self._acked_through + 1, number + 1):
             self._acked_through = n
             line = self._history.get(n)
             if line is None:
                 continue
-            if line.future is not None and not line.future.done():
-                line.future.set_result(Answer(line.command, line.number, line.events, ok))
-            if line.program_index is not None:
-                program_lines += 1
+            if received:
+                self._proofs.received(line, needs_proof=line.receipt is not None)
+                if line.receipt is not None:
+                    line.receipt = ok  # its answer waits for the proof that it ran
+                    continue
+            program_lines += self._complete(line, ok)
         while self._inflight and self._inflight[0].number <= number:
             self._inflight_bytes -= len(self._inflight.popleft().data)
         if self._nudge_behind is not None and self._nudge_behind <= number:
@@ -432,11 +524,20 @@ class Sender:
         if self._pending_resend is not None and self._pending_resend <= number:
             self._pending_resend = None
 
-        if program_lines and self._program is not None:
-            self._program.acknowledged += program_lines
+        self._count_program_lines(program_lines)
+        self._forget_old_history()
+
+    def _complete(self, line: _Line, ok: codec.Ok) -> int:
+        """Give ``line`` its answer; 1 when it is a program line (to count), else 0."""
+        if line.future is not None and not line.future.done():
+            line.future.set_result(Answer(line.command, line.number, line.events, ok))
+        return 1 if line.program_index is not None else 0
+
+    def _count_program_lines(self, count: int) -> None:
+        if count and self._program is not None:
+            self._program.acknowledged += count
             self._report_progress()
             self._maybe_finish_program()
-        self._forget_old_history()
 
     def _on_resend(self, number: int) -> None:
         refused, self._refused = self._refused, None
@@ -598,6 +699,8 @@ class Sender:
         index = program.next_index
         if index in program.barriers and program.acknowledged < index:
             return None
+        if self._run_hold is not None:
+            return None  # a program M400 acknowledged on receipt: its run is not proven yet
         return _Line(-1, program.commands[index], b"", program_index=index), False
 
     def _pump(self) -> None:
@@ -623,10 +726,30 @@ class Sender:
                 line.data = data
                 self._history[line.number] = line
                 self._next_number += 1
+                self._follow_up(line, single)
             if not self._window_allows(len(line.data)):
                 return
             self._transmit(line)
             self._cursor += 1
+
+    def _follow_up(self, line: _Line, single: bool) -> None:
+        """A query sent right behind ``line`` where the firmware's ``ok`` alone does not prove it.
+
+        Where ``ok`` means "received": a command whose answer must mean "it has run" (every command
+        from ``send``, a program's ``M400``) is followed by an ``M114``, whose report proves it; a
+        program waits for its ``M400``'s proof before its next line. Where a bad line is dropped
+        without a word: an ``M400`` (a part's end, the end of a job) is followed by an ``M105``,
+        whose ``ok T:…`` names its line, so a line dropped before it is found before the ``M400``
+        counts (``_dropped_before``)."""
+        word = _command_word(line.command)
+        if self.capabilities.ok_means == "received":
+            if single and word not in _ANSWERED_ON_RECEIPT or not single and word == "M400":
+                line.receipt = codec.Ok()  # placeholder until its own ok arrives
+                self._singles.appendleft(_Line(-1, "M114", b""))
+                if not single:
+                    self._run_hold = line
+        elif self.capabilities.bad_lines == "discarded" and word == "M400":
+            self._singles.appendleft(_Line(-1, PROBE_COMMAND, b""))
 
     def _transmit(self, line: _Line) -> None:
         if not self._inflight:
@@ -665,6 +788,7 @@ class Sender:
                           for line in self._history_from(self._acked_through + 1))
         if program.cancelled and not outstanding:
             self._program = None
+            self._run_hold = None  # its M400's proof may still come; nothing waits for it now
             if not program.done.done():
                 program.done.set_exception(StreamCancelled(
                     f"cancelled after {program.acknowledged} of {len(program.commands)} lines"))
@@ -722,6 +846,8 @@ class Sender:
         nudge = self.timeouts.nudge_s
         if nudge <= 0 or silent < nudge or self._nudged_at == self._last_heard:
             return
+        if self.capabilities.answers_empty_line:
+            return  # Smoothieware answers an empty line with ok: that ok would acknowledge a line
         self._nudged_at = self._last_heard
         self.nudges += 1
         self._nudge_behind = self._cursor - 1
