@@ -3,8 +3,10 @@ files, start, cancel, and a new prediction of a design (``RibbonService``, ``ser
 
 from __future__ import annotations
 
+import contextlib
 import json
 import tempfile
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -60,6 +62,22 @@ async def spool(upload: UploadFile, out: Any, limit: int) -> None:
         out.write(chunk)
 
 
+@contextlib.asynccontextmanager
+async def spooled(service: Any, upload: UploadFile) -> AsyncIterator[Path]:
+    """The upload in a file of the state's ``uploads/`` (within ``limits.max_upload_mb``), removed
+    afterwards: the service moves what it keeps."""
+    uploads = Path(service.config.state_dir) / "uploads"
+    uploads.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
+    tmp = Path(tmp_name)
+    try:
+        with open(fd, "wb") as out:
+            await spool(upload, out, int(service.config.limits.max_upload_mb * 1024 * 1024))
+        yield tmp
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 @router.post("/jobs", status_code=201, response_model=JobStatus,
              responses={**responses(409, mutating=True, body=True),
                         201: {"links": links("job_id=$response.body#/id", JOB_LINKS)}})
@@ -75,19 +93,11 @@ async def submit(service: Service,
     params = parse_parameters(parameters, mesh is not None, gcode is not None, same_frame)
     upload = mesh if mesh is not None else gcode
     assert upload is not None
-    uploads = Path(service.config.state_dir) / "uploads"
-    uploads.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
-    tmp = Path(tmp_name)
-    try:
-        with open(fd, "wb") as out:
-            await spool(upload, out, int(service.config.limits.max_upload_mb * 1024 * 1024))
+    async with spooled(service, upload) as tmp:
         if mesh is not None:
             return job_status(service, service.submit(tmp, mesh.filename or "mesh.obj", params, start))
         return job_status(service, await service.submit_gcode(tmp, upload.filename or "program.gcode", start,
                                                               same_frame))
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 @router.get("/jobs", response_model=list[JobStatus], responses=responses(422))

@@ -9,8 +9,6 @@ the printer not operational (``/api/printer``) 409.
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, Request, Response, UploadFile
@@ -21,7 +19,7 @@ from ..deps import Service
 from ..errors import responses
 from ..models import (OctoPrintJob, OctoPrintPrinter, OctoPrintServer, OctoPrintSettings, OctoPrintUpload,
                       OctoPrintVersion)
-from .jobs import spool
+from .jobs import spooled
 
 router = APIRouter()
 
@@ -66,17 +64,9 @@ async def octoprint_upload(
         userdata: Annotated[str, Form(description="a mesh's design parameters, JSON (as POST /jobs takes them)")] = "",
 ) -> dict[str, Any]:
     """Upload a slicer's file: it becomes a job, started when ``print`` is true."""
-    uploads = Path(service.config.state_dir) / "uploads"
-    uploads.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
-    tmp = Path(tmp_name)
-    try:
-        with open(fd, "wb") as out:
-            await spool(file, out, int(service.config.limits.max_upload_mb * 1024 * 1024))
+    async with spooled(service, file) as tmp:
         made = await service.octoprint.upload(tmp, file.filename or "", start=print_, select=select,
                                               userdata=userdata)
-    finally:
-        tmp.unlink(missing_ok=True)
     job_url = str(request.url_for("job", job_id=made["job_id"]))
     refs = {"resource": job_url}
     if made["done"]:

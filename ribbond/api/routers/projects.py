@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
 from typing import Annotated
 
 from fastapi import APIRouter, File, Form, Query, UploadFile
@@ -14,7 +12,7 @@ from ..deps import Service, file_response
 from ..errors import responses
 from ..models import Ident, ProjectFile, ProjectStatus
 from ..openapi import file_content, links
-from .jobs import parse_parameters, spool
+from .jobs import parse_parameters, spooled
 
 router = APIRouter()
 
@@ -39,17 +37,9 @@ async def submit_project(service: Service,
                          ) -> ProjectStatus:
     """Upload a mesh to print in panels: compiled once, then one two-sided job per panel."""
     params = parse_parameters(parameters, True, False, False)
-    uploads = Path(service.config.state_dir) / "uploads"
-    uploads.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(dir=uploads, prefix="upload-")
-    tmp = Path(tmp_name)
-    try:
-        with open(fd, "wb") as out:
-            await spool(mesh, out, int(service.config.limits.max_upload_mb * 1024 * 1024))
+    async with spooled(service, mesh) as tmp:
         return ProjectStatus.model_validate(service.submit_project(tmp, mesh.filename or "mesh.obj", params, panels,
                                                                    seam_allowance, start))
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 @router.get("/projects", response_model=list[ProjectStatus], responses=responses(422))
