@@ -129,7 +129,7 @@ def test_schemathesis_finds_nothing(fuzzed: Daemon, document: dict[str, Any], tm
     cli = Path(sys.executable).with_name("schemathesis")
     command = [str(cli) if cli.exists() else "schemathesis", "--config-file", str(CONFIG), "run",
                f"{fuzzed.url}/openapi.json", "--checks", "all", "--max-examples", str(MAX_EXAMPLES),
-               "--seed", str(SEED), "--workers", "1", "--request-timeout", "30", "--no-color",
+               "--seed", str(SEED), "--workers", "1", "--request-timeout", "60", "--no-color",
                "--header", f"Authorization: Bearer {TOKEN}", "--report", "junit", "--report-dir", str(tmp_path)]
     # --workers 1: hypothesis parses lambdas with ast, which CPython 3.11 does not do safely in threads
     # cwd: schemathesis keeps a cache folder (.schemathesis) where it runs
