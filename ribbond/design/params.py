@@ -250,6 +250,27 @@ class ParameterError(ValueError):
                         "type": err["type"]} for err in problems]
 
 
+def parameters_from_json(text: str, *, field: str = "parameters", program: bool = False) -> dict[str, Any]:
+    """Design parameters sent as JSON text (a form's ``field``), checked only for shape: a JSON
+    object, and none at all with a G-code ``program`` (its parameters are a mesh's); the values are
+    ``settings_from_dict``'s to check.
+
+    Raises
+    ------
+    ValueError
+        naming ``field``: not JSON, not an object, or parameters given with a program.
+    """
+    try:
+        params: Any = json.loads(text)
+    except ValueError as exc:
+        raise ValueError(f"{field}: not valid JSON: {exc}") from None
+    if not isinstance(params, dict):
+        raise ValueError(f"{field}: expected a JSON object of design parameters")
+    if program and params:           # said, not silently dropped
+        raise ValueError(f"{field}: a G-code program takes no design parameters (they are a mesh's)")
+    return params
+
+
 def settings_from_dict(data: dict[str, Any]) -> DesignSettings:
     """``DesignSettings`` from the ``--params`` layout: design parameters at the top level and an
     optional ``solver`` table.

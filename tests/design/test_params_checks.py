@@ -12,7 +12,7 @@ import pytest
 from ribbond.design.errors import DesignError
 from ribbond.design.mesh_io import write_obj
 from ribbond.design.params import (DesignParameters, SolverSettings, check_printable, load_settings,
-                                   settings_from_dict)
+                                   parameters_from_json, settings_from_dict)
 from ribbond.design.pipeline import design_mesh
 from ribbond.design.stripes import chain_segments
 from ribbond.design.surfaces import saddle
@@ -114,3 +114,18 @@ def test_a_design_without_ribbons_is_refused(mesh: Path) -> None:
 def test_degenerate_sizes_are_refused_before_any_work(mesh: Path) -> None:
     with pytest.raises(DesignError, match=r"size\.bbox_diagonal = 1e-09 mm"):
         design_mesh(mesh, DesignParameters(size={"bbox_diagonal": 1e-9}), SolverSettings(), predict=False)
+
+
+@pytest.mark.parametrize("text, program, problem", [
+    ("[1", False, "parameters: not valid JSON"),
+    ("[1, 2]", False, "parameters: expected a JSON object"),
+    ('{"prestretch": 1.5}', True, "parameters: a G-code program takes no design parameters"),
+])
+def test_parameters_from_json_names_the_field_and_the_problem(text: str, program: bool, problem: str) -> None:
+    with pytest.raises(ValueError, match=problem):
+        parameters_from_json(text, program=program)
+
+
+def test_parameters_from_json_takes_an_object_and_a_program_without_any() -> None:
+    assert parameters_from_json('{"prestretch": 1.5}') == {"prestretch": 1.5}
+    assert parameters_from_json("{}", field="userdata", program=True) == {}

@@ -4,7 +4,6 @@ files, start, cancel, and a new prediction of a design (``RibbonService``, ``ser
 from __future__ import annotations
 
 import contextlib
-import json
 import tempfile
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -16,6 +15,7 @@ from fastapi.responses import FileResponse
 from ribbond.daemon.jobs import JobState
 from ribbond.daemon.records import NotFound
 from ribbond.daemon.store import Transition
+from ribbond.design.params import parameters_from_json
 
 from ..deps import Service, file_response, job_status
 from ..errors import responses
@@ -38,14 +38,7 @@ def parse_parameters(text: str, mesh: bool, gcode: bool, same_frame: bool) -> di
     """The form's ``parameters`` as a JSON object, and the form's fields consistent with each other."""
     if mesh == gcode:
         raise ValueError("upload either a mesh (field 'mesh') or a G-code program (field 'gcode')")
-    try:
-        params: Any = json.loads(text)
-    except ValueError as exc:
-        raise ValueError(f"parameters: not valid JSON: {exc}") from None
-    if not isinstance(params, dict):
-        raise ValueError("parameters: expected a JSON object")
-    if gcode and params:           # said, not silently dropped
-        raise ValueError("parameters: a G-code program takes no design parameters (they are a mesh's)")
+    params = parameters_from_json(text, program=gcode)
     if mesh and same_frame:
         raise ValueError("same_frame: only a plain G-code program may print on the frame as it is; "
                          "a design always needs a fresh stretched frame")

@@ -20,7 +20,6 @@ state of its own, and the nearest is ``Paused``: the print stopped until a perso
 from __future__ import annotations
 
 import asyncio
-import json
 import re
 import shutil
 import tempfile
@@ -30,7 +29,7 @@ from typing import Any
 
 from ribbond import __version__
 from ribbond.design.intake import load_target
-from ribbond.design.params import settings_from_dict
+from ribbond.design.params import parameters_from_json, settings_from_dict
 from ..jobs import JobState
 from ..records import JobRecords, ServiceError
 from ..store import JobRecord
@@ -123,14 +122,9 @@ def design_parameters(userdata: str, gcode: bool) -> dict[str, Any]:
     if not userdata.strip():
         return {}
     try:
-        params = json.loads(userdata)
+        return parameters_from_json(userdata, field="userdata", program=gcode)
     except ValueError as exc:
-        raise UploadRefused(f"userdata: not valid JSON: {exc}") from None
-    if not isinstance(params, dict):
-        raise UploadRefused("userdata: expected a JSON object of design parameters")
-    if gcode and params:
-        raise UploadRefused("userdata: a G-code program takes no design parameters (they are a mesh's)")
-    return params
+        raise UploadRefused(str(exc)) from None
 
 
 def _checked_name(name: str) -> str:
