@@ -7,6 +7,7 @@ and why a check's expected statuses are widened)."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -159,6 +160,11 @@ def test_the_document_states_what_a_schema_can(fuzzed: Daemon, document: dict[st
     assert schemas["Body_submit"]["properties"]["mesh"]["minLength"] == 1
     assert schemas["Body_submit_project"]["properties"]["mesh"]["minLength"] == 1
     assert schemas["TableRequest"]["properties"]["toml"]["minLength"] == 1
+    command = schemas["GcodeRequest"]["properties"]["commands"]["items"]
+    sendable, refused_by_link = ["G28", "G1 X10 Y5 F3000 ; a move", "\tM105"], ["G1 X1*5", "; only a comment", "M117 é"]
+    assert all(re.fullmatch(command["pattern"], c) for c in sendable)
+    assert not any(re.fullmatch(command["pattern"], c) for c in refused_by_link)
+    assert command["maxLength"] <= 95 - len("N9999999 *255")              # still sendable numbered
     profile = schemas["CalibrationRequest"]["properties"]["printer_profile"]["anyOf"][0]
     assert profile["enum"] == ["ultimaker2-tpu"]                       # the daemon's default profile
     c = fuzzed.client
