@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 import shapely
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from ribbond.design.format import Ribbon
@@ -299,8 +300,9 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     _, i0 = raster.tree.query(centroid, workers=-1)
     c0 = samples.xy[i0]
     mu1_w, mu2_w = mu[samples.ribbon[i0], 0], mu[samples.ribbon[i0], 1]
-    f_d = _fraction_along(raster.image, c0, d, n, mu1_w, mu2_w, n_along)
-    f_p = _fraction_across(raster.image, centroid, d, n, mu1_w, mu2_w, n_across)
+    field = direction_field(samples, raster.image, 0.5 * float(np.median(mu[:, 1])))
+    f_d = _fraction_along(raster.image, field, c0, d, n, mu1_w, mu2_w, n_along)
+    f_p = _fraction_across(raster.image, field, centroid, d, n, mu1_w, mu2_w, n_across)
     f_d, f_p = np.clip(f_d, 0.0, 1.0), np.clip(f_p, 0.0, 1.0)
     # the measuring lines jump from row to row between faces: smooth over the nearest faces
     # (Gaussian, σ = μ2 / 2), the scale below which the pattern is not a material
@@ -350,21 +352,102 @@ def _near_ribbons(samples: RibbonSamples, centroid: np.ndarray, mu: np.ndarray, 
     return _Near(sid=sid, w=w, wsum=wsum, bare=bare, direction=d)
 
 
-def _fraction_along(image: CoverageImage, c0: np.ndarray, d: np.ndarray, n: np.ndarray, mu1_w: np.ndarray,
-                    mu2_w: np.ndarray, n_along: int) -> np.ndarray:
-    """f_d: along d over ± μ1 (triangular), on the nearest centerline's row and the rows μ2 to either
-    side (weights ¼, ½, ¼: both staggered grids of a cell), each line straying ± μ2/3 sideways."""
+@dataclass(frozen=True)
+class DirectionField:
+    """The ribbons' line field over the flat domain, as a raster of the tensor (cos 2φ, sin 2φ) of their
+    centerline tangents, Gaussian-smoothed (σ = ``smoothing``): sign-free, so a ribbon walked either way
+    and the two staggered grids add up. ``direction`` reads it at points; ``streamline`` follows it."""
+
+    c2: CoverageImage
+    s2: np.ndarray
+
+    def direction(self, xy: np.ndarray, previous: np.ndarray) -> np.ndarray:
+        """(k, 2) unit ribbon directions at points xy (k, 2), signed to agree with ``previous`` (k, 2);
+        ``previous`` itself where no ribbon is near."""
+        a = self.c2.sample(self.c2.covered, xy)
+        b = self.c2.sample(self.s2, xy)
+        phi = 0.5 * np.arctan2(b, a)
+        d = np.column_stack([np.cos(phi), np.sin(phi)])
+        d *= np.where(np.einsum("kc,kc->k", d, previous) < 0, -1.0, 1.0)[:, None]
+        weak = a * a + b * b < 1e-6
+        d[weak] = previous[weak]
+        return d
+
+    def streamline(self, start: np.ndarray, d0: np.ndarray, step: np.ndarray, count: int,
+                   across: bool = False) -> np.ndarray:
+        """(k, count + 1, 2) points every ``step`` (k,) mm from ``start`` (k, 2), the first step along
+        ``d0`` (k, 2), following the ribbon direction (``across``: its normal), by the midpoint rule."""
+        out = np.empty((len(start), count + 1, 2))
+        out[:, 0] = p = start
+        prev = d0
+        for i in range(count):
+            k1 = self._heading(p, prev, across)
+            k2 = self._heading(p + (0.5 * step)[:, None] * k1, k1, across)
+            p = p + step[:, None] * k2
+            out[:, i + 1] = p
+            prev = k2
+        return out
+
+    def _heading(self, xy: np.ndarray, previous: np.ndarray, across: bool) -> np.ndarray:
+        if not across:
+            return self.direction(xy, previous)
+        prev_d = np.column_stack([previous[:, 1], -previous[:, 0]])            # normal -> its direction
+        d = self.direction(xy, prev_d)
+        return np.column_stack([-d[:, 1], d[:, 0]])
+
+
+def direction_field(samples: RibbonSamples, image: CoverageImage, smoothing: float) -> DirectionField:
+    """The ribbons' line field on a raster of about smoothing/2 pixels over ``image``'s extent."""
+    ny, nx = image.covered.shape
+    extent = np.array([nx, ny]) * image.pixel
+    pixel = max(0.5 * smoothing, image.pixel)
+    n = np.maximum(np.ceil(extent / pixel).astype(int) + 1, 2)
+    ij = np.clip(np.rint((samples.xy - image.origin) / pixel).astype(np.int64), 0, n - 1)
+    flat = ij[:, 1] * n[0] + ij[:, 0]
+    tx, ty = samples.tangent[:, 0], samples.tangent[:, 1]
+    c2 = np.bincount(flat, weights=tx * tx - ty * ty, minlength=n[0] * n[1]).reshape(n[1], n[0])
+    s2 = np.bincount(flat, weights=2 * tx * ty, minlength=n[0] * n[1]).reshape(n[1], n[0])
+    sig = smoothing / pixel
+    c2 = ndimage.gaussian_filter(c2, sig, mode="constant")
+    s2 = ndimage.gaussian_filter(s2, sig, mode="constant")
+    img = CoverageImage(covered=c2, inside=np.ones_like(c2), origin=image.origin, pixel=float(pixel))
+    return DirectionField(c2=img, s2=s2)
+
+
+def _line(field: DirectionField, centre: np.ndarray, d: np.ndarray, half: np.ndarray, n: int,
+          across: bool = False) -> np.ndarray:
+    """(k, n, 2) the midpoints of n equal pieces of the streamline through ``centre`` over ± ``half``
+    (k,): the ribbon direction's (``across``: its normal's), started along ± d."""
+    h = 2.0 * half / n
+    m = n // 2
+    fwd = field.streamline(centre, d, h, m, across)
+    bwd = field.streamline(centre, -d, h, n - m, across)
+    pts = np.concatenate([bwd[:, ::-1], fwd[:, 1:]], axis=1)                   # n + 1 points, −half..half
+    return 0.5 * (pts[:, 1:] + pts[:, :-1])
+
+
+def _fraction_along(image: CoverageImage, field: DirectionField, c0: np.ndarray, d: np.ndarray,
+                    n: np.ndarray, mu1_w: np.ndarray, mu2_w: np.ndarray, n_along: int) -> np.ndarray:
+    """f_d: along the rows over ± μ1 (triangular), on the nearest centerline's row and the rows μ2 to
+    either side (weights ¼, ½, ¼: both staggered grids of a cell), each line straying ± μ2/3 sideways.
+    The lines follow the ribbons' direction field (a row curves in the flat; a straight line leaves it)."""
     m = len(c0)
     ta, wa = _windows(n_along)
     lat = np.linspace(-1.0, 1.0, 5)
-    base = c0[:, None, :] + (mu1_w[:, None] * ta[None, :])[:, :, None] * d[:, None, :]     # (m, na, 2)
+    rows = _line(field, c0, n, mu2_w, 2, across=True)                          # (m, 2, 2): the rows ∓ μ2/2
+    side = field.streamline(c0, n, mu2_w, 1, across=True)[:, 1]                 # μ2 along +n
+    other = field.streamline(c0, -n, mu2_w, 1, across=True)[:, 1]
+    del rows
     num = np.zeros(m)
     den = np.zeros(m)
-    for row, wr in ((-1.0, 0.25), (0.0, 0.5), (1.0, 0.25)):
-        line = base + ((row * mu2_w)[:, None, None]) * n[:, None, :]
+    for start, wr in ((other, 0.25), (c0, 0.5), (side, 0.25)):
+        line = _line(field, start, d, mu1_w, n_along)                           # (m, na, 2)
+        tang = np.diff(line, axis=1, append=line[:, -1:] + (line[:, -1:] - line[:, -2:-1]))
+        tang /= np.maximum(np.linalg.norm(tang, axis=2, keepdims=True), 1e-12)
+        nrm = np.stack([-tang[..., 1], tang[..., 0]], axis=-1)
         cov = np.zeros((m, n_along))
         for off in lat:
-            p = line + ((off * mu2_w / 3.0)[:, None, None]) * n[:, None, :]
+            p = line + (off * mu2_w / 3.0)[:, None, None] * nrm
             cov = np.maximum(cov, image.sample(image.covered, p))
         ins = image.sample(image.inside, line)
         num += wr * (cov * wa).sum(axis=1)
@@ -372,15 +455,20 @@ def _fraction_along(image: CoverageImage, c0: np.ndarray, d: np.ndarray, n: np.n
     return num / np.maximum(den, 1e-12)
 
 
-def _fraction_across(image: CoverageImage, centroid: np.ndarray, d: np.ndarray, n: np.ndarray,
-                     mu1_w: np.ndarray, mu2_w: np.ndarray, n_across: int) -> np.ndarray:
-    """f_p: across over ± μ2 (triangular) of the union of the ribbons met within ± μ1/2 along."""
-    tc, wc = _windows(n_across)
-    across = centroid[:, None, :] + (mu2_w[:, None] * tc[None, :])[:, :, None] * n[:, None, :]
-    cov = np.zeros((len(centroid), n_across))
-    for off in np.linspace(-0.5, 0.5, 9):
-        p = across + ((off * mu1_w)[:, None, None]) * d[:, None, :]
-        cov = np.maximum(cov, image.sample(image.covered, p))
+def _fraction_across(image: CoverageImage, field: DirectionField, centroid: np.ndarray, d: np.ndarray,
+                     n: np.ndarray, mu1_w: np.ndarray, mu2_w: np.ndarray, n_across: int) -> np.ndarray:
+    """f_p: across over ± μ2 (triangular) of the union of the ribbons met within ± μ1/2 along the rows
+    (following them: on curved rows a straight shift would meet a row twice, at other heights)."""
+    _, wc = _windows(n_across)
+    m = len(centroid)
+    across = _line(field, centroid, n, mu2_w, n_across, across=True)          # (m, nc, 2)
+    start = across.reshape(-1, 2)
+    dd = field.direction(start, np.repeat(d, n_across, axis=0))
+    reach = np.repeat(0.5 * mu1_w, n_across) / 4.0
+    fwd = field.streamline(start, dd, reach, 4)
+    bwd = field.streamline(start, -dd, reach, 4)
+    pts = np.concatenate([bwd[:, :0:-1], fwd], axis=1)                          # 9 points, −μ1/2..μ1/2
+    cov = image.sample(image.covered, pts).max(axis=1).reshape(m, n_across)
     ins = image.sample(image.inside, across)
     return (cov * wc).sum(axis=1) / np.maximum((ins * wc).sum(axis=1), 1e-12)
 

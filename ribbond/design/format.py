@@ -26,10 +26,10 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from ribbond.design.params import DesignParameters, SizeSpec
 
 #: The format this module writes; it reads it and the formats of ``READABLE_FORMATS``.
-FORMAT = "ribbond-design/3"
+FORMAT = "ribbond-design/4"
 
 #: Every format this module reads (formats 2 and 3 only add report fields to format 1).
-READABLE_FORMATS = ("ribbond-design/1", "ribbond-design/2", "ribbond-design/3")
+READABLE_FORMATS = ("ribbond-design/1", "ribbond-design/2", "ribbond-design/3", "ribbond-design/4")
 
 #: Largest tolerated deviation of a ribbon direction from unit length.
 UNIT_TOLERANCE = 1e-6
@@ -308,6 +308,47 @@ class PrintReport(BaseModel):
     back: SidePrintReport
 
 
+class Spread(BaseModel):
+    """p5, median and p95 of a per-face figure, %."""
+
+    model_config = _CONFIG
+    p5: float
+    median: float
+    p95: float
+
+
+class PlasticShare(BaseModel):
+    """The plastic area, % of the flat area: printed, and as Eq. 10 asks."""
+
+    model_config = _CONFIG
+    printed: float = Field(ge=0)
+    eq10: float = Field(ge=0)
+
+
+class IntendedCurvature(BaseModel):
+    """∫K of the target and of the metric the flattening asks for (dimensionless)."""
+
+    model_config = _CONFIG
+    target: float
+    intended: float
+
+
+class RealizationReport(BaseModel):
+    """``report.realization`` (format 4): how far the printed plastic realizes the flattening's metric
+    and curvature (README, "The design format")."""
+
+    model_config = _CONFIG
+    along_pct: Spread | None = Field(None, description="100 (c_realized σ1 − 1) along the ribbons, interior faces")
+    across_pct: Spread | None = Field(None, description="100 (c_realized σ2 − 1) across them, interior faces")
+    along_pct_outline: Spread | None = Field(None, description="along, faces near the outline")
+    across_pct_outline: Spread | None = Field(None, description="across, faces near the outline")
+    plastic_pct: PlasticShare
+    bare_pct: float = Field(ge=0, le=100, description="% of faces with no plastic within one μ2")
+    curvature_pct: Spread | None = Field(None, description="100 (κ_rest / |κ1| − 1) where the table allows")
+    clamped_pct: float = Field(ge=0, le=100, description="% of ribbons at the table's τ limits")
+    total_gaussian_curvature: IntendedCurvature
+
+
 class Report(_Updatable):
     """``report``: Table 1 of the paper, timings, and (when made) the ribbon and print stages.
 
@@ -343,6 +384,8 @@ class Report(_Updatable):
     print_: PrintReport | None = Field(None, alias="print")
     deployed: DeployedReport | None = None
     refined: RefinedReport | None = Field(None, description="the coarse target refined at intake")
+    realization: RealizationReport | None = Field(None, description="the printed plastic against the "
+                                                  "flattening's metric and curvature (format 4)")
 
 
 class Design(_Updatable):

@@ -22,6 +22,7 @@ import numpy as np
 import shapely
 
 from ..deploy.predict import RELEASES, Prediction, predict_deployed
+from ..deploy.realization import realization
 from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
 from ..gcode.program import GcodeError, Programs, make_programs
 from . import linalg
@@ -29,8 +30,8 @@ from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
-from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, RefinedReport,
-                     Report, Ribbon, RibbonsReport, SidePrintReport, Source, StitchMark)
+from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, RealizationReport,
+                     RefinedReport, Report, Ribbon, RibbonsReport, SidePrintReport, Source, StitchMark)
 from .frames import FaceFrames, face_frames
 from .intake import TargetMesh, check_disk, load_target
 from .mesh_io import obj_bytes
@@ -456,6 +457,7 @@ def _design_document(run: _Run) -> None:
         front=run.front, back=layout.count - run.front, dropped_short=layout.dropped_short,
         trimmed_angle=layout.trimmed_angle, thickness_clamped=run.clamped,
         **{key: Quantiles(**value) for key, value in q.items()})
+    report["realization"] = _realization(run)
     run.parameters = Parameters.resolved(run.params, run.size)
     target, flat = run.target, run.flat
     run.design = Design(
@@ -465,6 +467,15 @@ def _design_document(run: _Run) -> None:
         ribbons=run.ribbons,
         registration_marks=[(float(x), float(y)) for x, y in run.marks],
         report=Report(**report))
+
+
+def _realization(run: _Run) -> RealizationReport:
+    """How far the ribbons as printed realize the flattening's σ and the target's κ1 (format 4)."""
+    p = run.params
+    r = realization(run.uv, run.F, run.flat.sigma, run.direction, run.kappa1, run.ribbons,
+                    prestretch=p.prestretch, ribbon_width=p.ribbon_width, ribbon_length=p.ribbon_length,
+                    table=run.table, target_V=run.V)
+    return RealizationReport(**r.report())
 
 
 def _gcode(run: _Run) -> str:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -305,6 +306,12 @@ def _midpoints(c: _Centerlines, psi: StripePattern, X1: np.ndarray, level: float
     return np.sort(s_mid[keep])
 
 
+#: The longest dash, × l_r: where the pattern's period exceeds μ1 (or a row's short end cell joins its
+#: neighbour) a dash f · period is longer than l_r, up to this.
+MAX_DASH = 1.25
+#: The shortest gap between two dashes of a row, × w_r: closer, the printed ends fuse.
+DASH_GAP = 0.5
+
 #: Ribbon polylines are simplified within this distance, mm: the isoline crossings are dense (one per
 #: stripe-mesh edge, some a few µm apart), far denser than a printer resolves.
 SIMPLIFY_TOLERANCE = 0.005
@@ -463,25 +470,91 @@ class _Pieces:
     dropped: int
 
 
-def _ribbon_spans(c: _Centerlines, s_mid: np.ndarray, l_r: float, w_r: float
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Each ribbon's arc-length span [a, b]: l_r centred on its midpoint, within its polyline, halfway
-    to its neighbours; with the node before each midpoint and its polyline."""
-    node_of = np.clip(np.searchsorted(c.s, s_mid, side="right") - 1, 0, len(c.s) - 1)
-    pid = c.poly[node_of]
-    half = np.minimum(0.5 * l_r, 0.5 * c.closed_length[pid])
+class _Midpoints(NamedTuple):
+    """The ribbon midpoints of one grid: arc length s (sorted), polyline, and whether ψ put it there
+    (False: one more period past a row's first or last, ``_continued``)."""
+
+    s: np.ndarray
+    pid: np.ndarray
+    real: np.ndarray
+
+
+def _continued(c: _Centerlines, s_mid: np.ndarray, mu1_mid: np.ndarray) -> _Midpoints:
+    """The midpoints, with one more a period (the neighbour's spacing, or μ1 alone) before the first
+    and after the last of each polyline wherever the row reaches past the last one's cell: a row whose
+    end lies more than half a period past its last midpoint would otherwise end bare."""
+    pid = c.poly[np.clip(np.searchsorted(c.s, s_mid, side="right") - 1, 0, len(c.s) - 1)]
+    first = np.insert(pid[1:] != pid[:-1], 0, True)
+    last = np.append(pid[1:] != pid[:-1], True)
+    step = np.append(np.diff(s_mid), np.inf)
+    back = np.insert(np.diff(s_mid), 0, np.inf)
+    p_first = np.where(first & last, mu1_mid, step)[first]
+    p_last = np.where(first & last, mu1_mid, back)[last]
+    lo_s = c.s[c.start[pid[first]]]
+    hi_s = c.s[np.append(c.start[1:], len(c.s))[pid[last]] - 1]
+    add_lo = s_mid[first] - 0.5 * p_first > lo_s
+    add_hi = s_mid[last] + 0.5 * p_last < hi_s
+    s = np.concatenate([s_mid, (s_mid[first] - p_first)[add_lo], (s_mid[last] + p_last)[add_hi]])
+    poly = np.concatenate([pid, pid[first][add_lo], pid[last][add_hi]])
+    real = np.concatenate([np.ones(len(s_mid), dtype=bool), np.zeros(int(add_lo.sum() + add_hi.sum()), dtype=bool)])
+    order = np.lexsort((s, poly))
+    return _Midpoints(s=s[order], pid=poly[order], real=real[order])
+
+
+def _cells(c: _Centerlines, mids: _Midpoints, mu1_mid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each midpoint's cell [lo, hi] of its row: from the gap centre before it to the one after
+    (halfway to its neighbours; a row's first and last cells as long as their neighbour's, or μ1
+    alone), within its polyline."""
+    s, pid = mids.s, mids.pid
     first_s = c.s[c.start[pid]]
     last_s = c.s[np.append(c.start[1:], len(c.s))[pid] - 1]
-    a = np.maximum(s_mid - half, first_s)
-    b = np.minimum(s_mid + half, last_s)
     same_prev = np.insert(pid[1:] == pid[:-1], 0, False)
     same_next = np.append(pid[1:] == pid[:-1], False)
-    prev_mid = np.insert(0.5 * (s_mid[1:] + s_mid[:-1]), 0, -np.inf)
-    next_mid = np.append(0.5 * (s_mid[1:] + s_mid[:-1]), np.inf)
-    # midpoints closer than l_r (where stripes merge): cut halfway, a ribbon width apart
-    a = np.where(same_prev, np.maximum(a, prev_mid + 0.5 * w_r), a)
-    b = np.where(same_next, np.minimum(b, next_mid - 0.5 * w_r), b)
-    return node_of, pid, a, np.maximum(a, b)
+    gap_before = np.insert(0.5 * np.diff(s), 0, np.inf)
+    gap_after = np.append(0.5 * np.diff(s), np.inf)
+    half_before = np.where(same_prev, gap_before, np.where(same_next, gap_after, 0.5 * mu1_mid))
+    half_after = np.where(same_next, gap_after, half_before)
+    lo = np.maximum(s - half_before, first_s)
+    hi = np.minimum(s + half_after, last_s)
+    return lo, np.maximum(lo, hi)
+
+
+def _merge_short_ends(mids: _Midpoints, lo: np.ndarray, hi: np.ndarray, fraction: np.ndarray,
+                      min_length: float) -> tuple[np.ndarray, np.ndarray]:
+    """A row's end cell too short for a dash (f · length < ``min_length``) joins its neighbour's cell,
+    so its share of plastic is printed by the neighbour's dash instead of being lost."""
+    lo, hi = lo.copy(), hi.copy()
+    pid = mids.pid
+    same_prev = np.insert(pid[1:] == pid[:-1], 0, False)
+    same_next = np.append(pid[1:] == pid[:-1], False)
+    short = fraction * (hi - lo) < min_length
+    head = short & ~same_prev & same_next                      # a row's first cell
+    tail = short & ~same_next & same_prev                      # its last
+    i = np.flatnonzero(head)
+    lo[i + 1] = lo[i]
+    j = np.flatnonzero(tail)
+    hi[j - 1] = hi[j]
+    gone = head | tail
+    hi[gone] = lo[gone]
+    return lo, hi
+
+
+def _dashes(cells: _Intervals, s_mid: np.ndarray, fraction: np.ndarray, min_gap: float, max_length: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The dashes [a, b] of the cells, with the cell of each: one per run of a cell's kept intervals
+    (inside the outline, on the field, one sign of κ1), of ``fraction`` (Eq. 10's plastic share along,
+    l_r / μ1) of the run's length, placed as near the cell's midpoint as the run allows.
+
+    A whole cell of length P gets f P = l_r where the pattern's period is μ1; a cell cut by the outline,
+    a trim, a change of side or the end of its row keeps the same share on what is left (the
+    contraction along it is then still 1/σ1, where a dash of l_r would over- or under-fill it), at least
+    ``min_gap`` from the run's ends so that dashes never fuse, and at most ``max_length`` long."""
+    runs = _pieces(cells, 0.0)
+    owner = cells.r[runs.start_q[runs.kept]]
+    A, B = runs.A + 0.5 * min_gap, runs.B - 0.5 * min_gap
+    D = np.clip(np.minimum(fraction[owner] * (runs.B - runs.A), np.minimum(B - A, max_length)), 0.0, None)
+    centre = np.clip(s_mid[owner], A + 0.5 * D, np.maximum(B - 0.5 * D, A + 0.5 * D))
+    return centre - 0.5 * D, centre + 0.5 * D, owner
 
 
 def _breakpoints(c: _Centerlines, k1: np.ndarray, a: np.ndarray, b: np.ndarray,
@@ -623,16 +696,27 @@ def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: flo
     s_mid = _midpoints(c, grid.psi, grid.psi.direction, level)
     if len(s_mid) == 0:
         return
-    node_of, pid, a, b = _ribbon_spans(c, s_mid, params.ribbon_length, params.ribbon_width)
-    iv = _intervals(c, k1, a, b, inset, grid.direction, np.cos(np.deg2rad(params.max_trim_angle)))
-    cuts.trimmed += iv.trimmed
+    cos_trim = np.cos(np.deg2rad(params.max_trim_angle))
+    mids = _continued(c, s_mid, np.interp(s_mid, c.s, mu1))
+    mu1_mid = np.interp(mids.s, c.s, mu1)
+    fraction = np.clip(params.ribbon_length / mu1_mid, 0.0, 1.0)
+    lo, hi = _merge_short_ends(mids, *_cells(c, mids, mu1_mid), fraction, params.min_ribbon_length)
+    cells = _intervals(c, k1, lo, hi, inset, grid.direction, cos_trim)
+    a, b, owner = _dashes(cells, mids.s, fraction, DASH_GAP * params.ribbon_width,
+                          MAX_DASH * params.ribbon_length)
+    iv = _intervals(c, k1, a, b, inset, grid.direction, cos_trim)
+    cuts.trimmed += cells.trimmed
     pieces = _pieces(iv, params.min_ribbon_length)
     cuts.dropped += pieces.dropped
     if len(pieces.A) == 0:
         return
     _measure_directions(cuts, grid, iv, pieces.kept_interval)
     _add_pieces(cuts, c, pieces.A, pieces.B, g, (k1, mu1, mu2))
-    _measure_midpoints(cuts, c, s_mid, node_of, pid, iv.r[pieces.start_q[pieces.kept]], mu1, first_line)
+    made = np.unique(owner[iv.r[pieces.start_q[pieces.kept]]])
+    real = mids.real
+    node_of = np.clip(np.searchsorted(c.s, mids.s[real], side="right") - 1, 0, len(c.s) - 1)
+    kept_real = np.cumsum(real)[made[real[made]]] - 1                 # indices among the real midpoints
+    _measure_midpoints(cuts, c, mids.s[real], node_of, mids.pid[real], kept_real, mu1, first_line)
 
 
 def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters) -> RibbonLayout:

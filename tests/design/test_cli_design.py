@@ -149,7 +149,7 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert len(folder.target_F) == len(fine.F) == 16 * len(F)       # 1,600 faces: coarse, refined twice
     assert np.array_equal(folder.target_F, fine.F)     # a clean mesh keeps its faces and order
     d = design_json(out)
-    assert d["format"] == "ribbond-design/3" and d["units"] == "mm"
+    assert d["format"] == "ribbond-design/4" and d["units"] == "mm"
     assert d["source"]["file"] == "cylinder.obj" and d["source"]["faces"] == len(F)
     assert d["report"]["refined"]["from_faces"] == len(F) and d["report"]["refined"]["faces"] == len(fine.F)
     assert f"refined     {len(F):,} → {len(fine.F):,} faces" in proc.stdout

@@ -98,7 +98,7 @@ def test_round_trip_is_exact() -> None:
 def test_keys_are_the_documented_ones() -> None:
     data = as_dict(make_design(8))
     assert set(data) == DOC_TOP
-    assert data["format"] == FORMAT == "ribbond-design/3" and data["units"] == "mm"
+    assert data["format"] == FORMAT == "ribbond-design/4" and data["units"] == "mm"
     assert set(data["source"]) == DOC_SOURCE
     assert set(data["parameters"]) == DOC_PARAMETERS
     assert data["parameters"]["size"] == {"bbox_diagonal": 110.0}
@@ -175,8 +175,8 @@ def edited(change: Any) -> str:
 
 
 def test_wrong_format_is_refused_by_name() -> None:
-    with pytest.raises(ValueError, match=r"design\.json.*format.*'ribbond-design/4'"):
-        design_from_json(edited(lambda d: d.update(format="ribbond-design/4")))
+    with pytest.raises(ValueError, match=r"design\.json.*format.*'ribbond-design/5'"):
+        design_from_json(edited(lambda d: d.update(format="ribbond-design/5")))
     with pytest.raises(ValueError, match="format"):
         Design(**{**make_design(8).__dict__, "format": "other/1"})
 
