@@ -27,6 +27,7 @@ import shapely
 
 from .params import DesignParameters, spacing_for_sigma
 from .remesh import locate, remesh_flat
+from .row_ends import extend_ends, turned_extensions
 from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, integrable_frequency,
                       vertex_average, vertex_line_field)
 
@@ -428,6 +429,8 @@ class _Cuts:
     mids_xy: list[np.ndarray] = field(default_factory=list)
     mids_tangent: list[np.ndarray] = field(default_factory=list)
     mids_line: list[np.ndarray] = field(default_factory=list)
+    ext_lo: list[np.ndarray] = field(default_factory=list)
+    ext_hi: list[np.ndarray] = field(default_factory=list)
     dropped: int = 0
     trimmed: int = 0
 
@@ -439,7 +442,7 @@ class _Intervals:
     r : the ribbon each interval's middle falls in (−1 before the first); vec, face : the link it lies
     on and that link's face; cosang : |cos| of its angle to the direction field; keep : in a ribbon,
     on a polyline, inside the inset outline and aligned; positive : κ1 > 0 there; trimmed : how many
-    ribbons lose an interval for its angle.
+    ribbons lose an interval for its angle; turned : in a ribbon, on a polyline and inside, but not aligned.
     """
 
     lo: np.ndarray
@@ -451,6 +454,7 @@ class _Intervals:
     keep: np.ndarray
     positive: np.ndarray
     trimmed: int
+    turned: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -479,26 +483,58 @@ class _Midpoints(NamedTuple):
     real: np.ndarray
 
 
-def _continued(c: _Centerlines, s_mid: np.ndarray, mu1_mid: np.ndarray) -> _Midpoints:
-    """The midpoints, with one more a period (the neighbour's spacing, or μ1 alone) before the first
-    and after the last of each polyline wherever the row reaches past the last one's cell: a row whose
-    end lies more than half a period past its last midpoint would otherwise end bare."""
+def _continued(c: _Centerlines, s_mid: np.ndarray, mu1: np.ndarray, min_length: float) -> _Midpoints:
+    """ψ's midpoints, and more wherever a row holds none for a period: in a gap between two of them
+    (ψ's phase stalls near its singularities), past a row's first and last (a row continues to its
+    end), and along a row where ψ marks none at all (the rows around a saddle's centre): every μ1.
+    Rows without them were left bare. Loops only get their gaps filled (they have no ends)."""
+    at = lambda s: np.interp(s, c.s, mu1)                                      # noqa: E731
     pid = c.poly[np.clip(np.searchsorted(c.s, s_mid, side="right") - 1, 0, len(c.s) - 1)]
-    first = np.insert(pid[1:] != pid[:-1], 0, True)
-    last = np.append(pid[1:] != pid[:-1], True)
-    step = np.append(np.diff(s_mid), np.inf)
-    back = np.insert(np.diff(s_mid), 0, np.inf)
-    p_first = np.where(first & last, mu1_mid, step)[first]
-    p_last = np.where(first & last, mu1_mid, back)[last]
-    lo_s = c.s[c.start[pid[first]]]
-    hi_s = c.s[np.append(c.start[1:], len(c.s))[pid[last]] - 1]
-    add_lo = s_mid[first] - 0.5 * p_first > lo_s
-    add_hi = s_mid[last] + 0.5 * p_last < hi_s
-    s = np.concatenate([s_mid, (s_mid[first] - p_first)[add_lo], (s_mid[last] + p_last)[add_hi]])
-    poly = np.concatenate([pid, pid[first][add_lo], pid[last][add_hi]])
-    real = np.concatenate([np.ones(len(s_mid), dtype=bool), np.zeros(int(add_lo.sum() + add_hi.sum()), dtype=bool)])
+    lo, hi = c.mid_range[:, 0], c.mid_range[:, 1]
+    open_ = ~np.isfinite(c.closed_length)
+    same = pid[1:] == pid[:-1]
+    gap = np.diff(s_mid)
+    n_in = np.where(same, np.maximum(np.round(gap / at(s_mid[:-1] + 0.5 * gap)) - 1, 0), 0).astype(np.int64)
+    k = np.arange(n_in.sum()) - np.repeat(np.cumsum(n_in) - n_in, n_in)
+    inner = np.repeat(s_mid[:-1], n_in) + np.repeat(gap / (n_in + 1), n_in) * (k + 1)
+    first = np.insert(~same, 0, True)[:len(pid)] & open_[pid]
+    last = np.append(~same, True)[:len(pid)] & open_[pid]
+    ends = [_every_period(s_mid[first], lo[pid[first]], -at(s_mid[first])),
+            _every_period(s_mid[last], hi[pid[last]], at(s_mid[last]))]
+    empty = np.setdiff1d(np.flatnonzero(open_ & (hi - lo >= min_length)), pid)
+    n_e = np.maximum(np.round((hi - lo)[empty] / at(0.5 * (lo + hi)[empty])), 1).astype(np.int64)
+    j = np.arange(n_e.sum()) - np.repeat(np.cumsum(n_e) - n_e, n_e)
+    whole = np.repeat(lo[empty], n_e) + (j + 0.5) * np.repeat((hi - lo)[empty] / n_e, n_e)
+    extra = np.concatenate([inner, *ends, whole])
+    s = np.concatenate([s_mid, extra])
+    poly = c.poly[np.clip(np.searchsorted(c.s, s, side="right") - 1, 0, len(c.s) - 1)]
+    poly[:len(s_mid)] = pid
+    poly[len(s_mid):len(s_mid) + len(inner)] = np.repeat(pid[:-1], n_in)
+    n_end = [len(e) for e in ends]
+    poly[len(s_mid) + len(inner):len(s_mid) + len(inner) + sum(n_end)] = np.concatenate(
+        [_repeat_owner(pid[first], s_mid[first], lo[pid[first]], -at(s_mid[first])),
+         _repeat_owner(pid[last], s_mid[last], hi[pid[last]], at(s_mid[last]))])
+    poly[len(s) - len(whole):] = np.repeat(empty, n_e)
+    real = np.arange(len(s)) < len(s_mid)
     order = np.lexsort((s, poly))
     return _Midpoints(s=s[order], pid=poly[order], real=real[order])
+
+
+def _end_count(s0: np.ndarray, bound: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """How many more midpoints a period ``step`` apart (signed) fit from s0 toward ``bound``: each one's
+    cell (half a period either side) must reach into the row."""
+    return np.maximum(np.floor((bound - s0) / step + 0.5), 0).astype(np.int64)
+
+
+def _every_period(s0: np.ndarray, bound: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """The midpoints s0 + j step, j = 1…, toward ``bound`` (``_end_count`` of them per row end)."""
+    n = _end_count(s0, bound, step)
+    j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 1
+    return np.repeat(s0, n) + j * np.repeat(step, n)
+
+
+def _repeat_owner(pid: np.ndarray, s0: np.ndarray, bound: np.ndarray, step: np.ndarray) -> np.ndarray:
+    return np.repeat(pid, _end_count(s0, bound, step))
 
 
 def _cells(c: _Centerlines, mids: _Midpoints, mu1_mid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -601,7 +637,8 @@ def _intervals(c: _Centerlines, k1: np.ndarray, a: np.ndarray, b: np.ndarray, in
     positive = np.interp(mid, c.s, k1) > 0
     candidate = in_ribbon & on_line & inside
     return _Intervals(lo=lo, hi=hi, r=r, vec=vec, face=face, cosang=cosang, keep=candidate & aligned,
-                      positive=positive, trimmed=len(np.unique(r[candidate & ~aligned])))
+                      positive=positive, trimmed=len(np.unique(r[candidate & ~aligned])),
+                      turned=candidate & ~aligned)
 
 
 def _pieces(iv: _Intervals, min_length: float) -> _Pieces:
@@ -684,6 +721,16 @@ def _measure_midpoints(cuts: _Cuts, c: _Centerlines, s_mid: np.ndarray, node_of:
     cuts.mids_line.append(first_line + pid[kept_mid])
 
 
+def _plan_extensions(cuts: _Cuts, c: _Centerlines, cells: _Intervals, pieces: _Pieces,
+                     fraction: np.ndarray) -> None:
+    """How far each piece is to be continued straight where its row turns away (``row_ends``)."""
+    row = c.poly[np.clip(np.searchsorted(c.s, pieces.A, side="right") - 1, 0, len(c.s) - 1)]
+    lo, hi = c.mid_range[row, 0], c.mid_range[row, 1]
+    ext_lo, ext_hi = turned_extensions(cells.lo, cells.hi, cells.turned, pieces.A, pieces.B, row, hi, lo, fraction)
+    cuts.ext_lo.append(ext_lo)
+    cuts.ext_hi.append(ext_hi)
+
+
 def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: float, inset: shapely.Geometry,
               params: DesignParameters, first_line: int) -> None:
     """Cut the ribbons of one staggered grid (centerlines ``c`` at arg θ = ``level``) into ``cuts``."""
@@ -694,10 +741,10 @@ def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: flo
     mu1 = _on_edges(grid.mu1, edges, c.edge, c.t)
     mu2 = _on_edges(grid.mu2, edges, c.edge, c.t)
     s_mid = _midpoints(c, grid.psi, grid.psi.direction, level)
-    if len(s_mid) == 0:
-        return
     cos_trim = np.cos(np.deg2rad(params.max_trim_angle))
-    mids = _continued(c, s_mid, np.interp(s_mid, c.s, mu1))
+    mids = _continued(c, s_mid, mu1, params.min_ribbon_length)
+    if len(mids.s) == 0:
+        return
     mu1_mid = np.interp(mids.s, c.s, mu1)
     fraction = np.clip(params.ribbon_length / mu1_mid, 0.0, 1.0)
     lo, hi = _merge_short_ends(mids, *_cells(c, mids, mu1_mid), fraction, params.min_ribbon_length)
@@ -712,7 +759,9 @@ def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: flo
         return
     _measure_directions(cuts, grid, iv, pieces.kept_interval)
     _add_pieces(cuts, c, pieces.A, pieces.B, g, (k1, mu1, mu2))
-    made = np.unique(owner[iv.r[pieces.start_q[pieces.kept]]])
+    cell_of = owner[iv.r[pieces.start_q[pieces.kept]]]
+    _plan_extensions(cuts, c, cells, pieces, fraction[cell_of])
+    made = np.unique(cell_of)
     real = mids.real
     node_of = np.clip(np.searchsorted(c.s, mids.s[real], side="right") - 1, 0, len(c.s) - 1)
     kept_real = np.cumsum(real)[made[real[made]]] - 1                 # indices among the real midpoints
@@ -738,6 +787,12 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
         starts = np.append(c.start, len(c.s))
         centerlines[g] = [c.xy[starts[p]:starts[p + 1]] for p in range(len(c.start))]
         _cut_grid(cuts, grid, c, g, level, inset, params, g * len(centerlines[0]))
+    if cuts.points:
+        budget = np.maximum(MAX_DASH * params.ribbon_length - np.concatenate(cuts.lengths), 0.0)
+        ext_lo = np.minimum(np.concatenate(cuts.ext_lo), budget)
+        ext_hi = np.minimum(np.concatenate(cuts.ext_hi), budget - ext_lo)
+        cuts.points = extend_ends(cuts.points, ext_lo, ext_hi, np.concatenate(cuts.spacings)[:, 1], inset)
+        cuts.lengths = [np.array([float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in cuts.points])]
     across = ([across_spacing(np.concatenate(cuts.mids_xy), np.concatenate(cuts.mids_tangent),
                               np.concatenate(cuts.mids_line), centerlines[0] + centerlines[1], grid.mu2_at)]
               if cuts.mids_xy else [])
