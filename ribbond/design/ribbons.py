@@ -27,7 +27,6 @@ import shapely
 
 from .params import DesignParameters, spacing_for_sigma
 from .remesh import locate, remesh_flat
-from .row_ends import extend_ends, turned_extensions
 from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, integrable_frequency,
                       vertex_average, vertex_line_field)
 
@@ -429,8 +428,6 @@ class _Cuts:
     mids_xy: list[np.ndarray] = field(default_factory=list)
     mids_tangent: list[np.ndarray] = field(default_factory=list)
     mids_line: list[np.ndarray] = field(default_factory=list)
-    ext_lo: list[np.ndarray] = field(default_factory=list)
-    ext_hi: list[np.ndarray] = field(default_factory=list)
     dropped: int = 0
     trimmed: int = 0
 
@@ -442,7 +439,7 @@ class _Intervals:
     r : the ribbon each interval's middle falls in (−1 before the first); vec, face : the link it lies
     on and that link's face; cosang : |cos| of its angle to the direction field; keep : in a ribbon,
     on a polyline, inside the inset outline and aligned; positive : κ1 > 0 there; trimmed : how many
-    ribbons lose an interval for its angle; turned : in a ribbon, on a polyline and inside, but not aligned.
+    ribbons lose an interval for its angle.
     """
 
     lo: np.ndarray
@@ -454,7 +451,6 @@ class _Intervals:
     keep: np.ndarray
     positive: np.ndarray
     trimmed: int
-    turned: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -637,8 +633,7 @@ def _intervals(c: _Centerlines, k1: np.ndarray, a: np.ndarray, b: np.ndarray, in
     positive = np.interp(mid, c.s, k1) > 0
     candidate = in_ribbon & on_line & inside
     return _Intervals(lo=lo, hi=hi, r=r, vec=vec, face=face, cosang=cosang, keep=candidate & aligned,
-                      positive=positive, trimmed=len(np.unique(r[candidate & ~aligned])),
-                      turned=candidate & ~aligned)
+                      positive=positive, trimmed=len(np.unique(r[candidate & ~aligned])))
 
 
 def _pieces(iv: _Intervals, min_length: float) -> _Pieces:
@@ -721,16 +716,6 @@ def _measure_midpoints(cuts: _Cuts, c: _Centerlines, s_mid: np.ndarray, node_of:
     cuts.mids_line.append(first_line + pid[kept_mid])
 
 
-def _plan_extensions(cuts: _Cuts, c: _Centerlines, cells: _Intervals, pieces: _Pieces,
-                     fraction: np.ndarray) -> None:
-    """How far each piece is to be continued straight where its row turns away (``row_ends``)."""
-    row = c.poly[np.clip(np.searchsorted(c.s, pieces.A, side="right") - 1, 0, len(c.s) - 1)]
-    lo, hi = c.mid_range[row, 0], c.mid_range[row, 1]
-    ext_lo, ext_hi = turned_extensions(cells.lo, cells.hi, cells.turned, pieces.A, pieces.B, row, hi, lo, fraction)
-    cuts.ext_lo.append(ext_lo)
-    cuts.ext_hi.append(ext_hi)
-
-
 def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: float, inset: shapely.Geometry,
               params: DesignParameters, first_line: int) -> None:
     """Cut the ribbons of one staggered grid (centerlines ``c`` at arg θ = ``level``) into ``cuts``."""
@@ -759,9 +744,7 @@ def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: flo
         return
     _measure_directions(cuts, grid, iv, pieces.kept_interval)
     _add_pieces(cuts, c, pieces.A, pieces.B, g, (k1, mu1, mu2))
-    cell_of = owner[iv.r[pieces.start_q[pieces.kept]]]
-    _plan_extensions(cuts, c, cells, pieces, fraction[cell_of])
-    made = np.unique(cell_of)
+    made = np.unique(owner[iv.r[pieces.start_q[pieces.kept]]])
     real = mids.real
     node_of = np.clip(np.searchsorted(c.s, mids.s[real], side="right") - 1, 0, len(c.s) - 1)
     kept_real = np.cumsum(real)[made[real[made]]] - 1                 # indices among the real midpoints
@@ -787,12 +770,6 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
         starts = np.append(c.start, len(c.s))
         centerlines[g] = [c.xy[starts[p]:starts[p + 1]] for p in range(len(c.start))]
         _cut_grid(cuts, grid, c, g, level, inset, params, g * len(centerlines[0]))
-    if cuts.points:
-        budget = np.maximum(MAX_DASH * params.ribbon_length - np.concatenate(cuts.lengths), 0.0)
-        ext_lo = np.minimum(np.concatenate(cuts.ext_lo), budget)
-        ext_hi = np.minimum(np.concatenate(cuts.ext_hi), budget - ext_lo)
-        cuts.points = extend_ends(cuts.points, ext_lo, ext_hi, np.concatenate(cuts.spacings)[:, 1], inset)
-        cuts.lengths = [np.array([float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in cuts.points])]
     across = ([across_spacing(np.concatenate(cuts.mids_xy), np.concatenate(cuts.mids_tangent),
                               np.concatenate(cuts.mids_line), centerlines[0] + centerlines[1], grid.mu2_at)]
               if cuts.mids_xy else [])
