@@ -92,29 +92,33 @@ def badly_broken(report: dict[str, Any]) -> bool:
 
 
 def _clamp_advice(ribbons: dict[str, Any], parameters: dict[str, Any], share: float) -> str:
-    """What would make the clamped thicknesses fit: the end they clamp at decides (a surface too flat
-    for the thinnest plastic wants to be smaller, too curved for the thickest larger), and the report's
-    ``thickness_fit`` says whether any size helps; without those fields no size is advised."""
+    """What would make the clamped thicknesses fit, in brackets: the end they clamp at (a surface too
+    flat for the thinnest plastic wants to be smaller, too curved for the thickest larger) and the
+    report's ``thickness_fit``, the size at which the fewest clamp; without those fields no size is
+    advised."""
     flat, curved = ribbons.get("thickness_clamped_flat"), ribbons.get("thickness_clamped_curved")
     fit = ribbons.get("thickness_fit")
     ends = ""
     if flat is not None and curved is not None:
-        ends = (f" ({flat} flatter than the thinnest plastic curls, {curved} more curved than the "
-                "thickest)")
-    if share <= MANY_CLAMPED_PCT:
-        return ends
-    clamped = int(ribbons.get("thickness_clamped") or 0)
-    if fit is None:
-        return ends + " (a curvature table measured over a wider range would fit)"
-    scale, left = float(fit["scale"]), int(fit["clamped"])
-    size = (parameters.get("size") or {}).get("bbox_diagonal")
-    at = f"{scale * float(size):.0f} mm" if size else f"{scale:.2f}× this size"
-    if left >= clamped or abs(scale - 1.0) < 0.05:
-        return ends + (" (no size does better, curvature going as 1/size: a curvature table measured over "
-                       "a wider range would fit)")
-    way = "larger" if scale > 1.0 else "smaller"
-    return ends + (f" (a {way} surface would fit better, curvature going as 1/size: at {at} "
-                   f"{left} would clamp; or a curvature table measured over a wider range)")
+        others = int(ribbons.get("thickness_clamped") or 0) - int(flat) - int(curved)
+        ends = ", ".join([f"{flat} flatter than the thinnest plastic curls", f"{curved} more curved than the thickest"]
+                         + ([f"{others} at a spacing μ2 outside the table's"] if others > 0 else []))
+    advice = ""
+    if share > MANY_CLAMPED_PCT and fit is None:
+        advice = "a curvature table measured over a wider range would fit"
+    elif share > MANY_CLAMPED_PCT:
+        scale, left = float(fit["scale"]), int(fit["clamped"])
+        size = (parameters.get("size") or {}).get("bbox_diagonal")
+        at = f"{scale * float(size):.0f} mm" if size else f"{scale:.2f}× this size"
+        if left >= int(ribbons.get("thickness_clamped") or 0) or abs(scale - 1.0) < 0.05:
+            advice = ("no size does better (curvature goes as 1/size): a curvature table measured over a "
+                      "wider range would fit")
+        else:
+            advice = (f"a {'larger' if scale > 1.0 else 'smaller'} surface would fit better, curvature going "
+                      f"as 1/size: at {at} {left} would clamp, if the frame takes it; or a curvature table "
+                      "measured over a wider range")
+    inside = ": ".join(part for part in (ends, advice) if part)
+    return f" ({inside})" if inside else ""
 
 
 def _ribbon_lines(ribbons: dict[str, Any], parameters: dict[str, Any]) -> list[str]:
