@@ -21,9 +21,9 @@ What it says, in this order:
 - ribbons dropped as too short or trimmed where they turned off the field;
 - where the shape is lost: the flattening keeps N % of the target's ∫K, the layout realizes its
   metric within M %, the prediction keeps K %, and the step that loses the most is named;
-- the prediction of the deployed shape, and, when the bounds are badly broken, that its small
-  deviation is no sign of success: it releases the flattening as computed, stretches outside what
-  the fabric can take included.
+- the prediction of the deployed shape, and, when the surface is OUTSIDE the bounds on more than
+  ``BADLY_BROKEN_PCT`` of faces, that its small deviation is no sign of success: it releases the
+  flattening as computed, stretches outside what the fabric can take included.
 """
 
 from __future__ import annotations
@@ -86,9 +86,8 @@ def bounds_line(report: dict[str, Any]) -> str:
 
 
 def badly_broken(report: dict[str, Any]) -> bool:
-    """The bounds are broken beyond the tolerance on more than ``BADLY_BROKEN_PCT`` of faces."""
-    bad, dev = _misfit(report)
-    return dev >= SLIGHT_DEVIATION and bad > BADLY_BROKEN_PCT
+    """OUTSIDE the bounds (``outside_bounds``) on more than ``BADLY_BROKEN_PCT`` of faces."""
+    return outside_bounds(report) and _misfit(report)[0] > BADLY_BROKEN_PCT
 
 
 def _clamp_advice(ribbons: dict[str, Any], parameters: dict[str, Any], share: float) -> str:

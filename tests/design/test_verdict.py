@@ -94,6 +94,13 @@ def test_outside_the_bounds_advises_no_size() -> None:
     assert lines[1].startswith("one sheet cannot make it: --panels auto would cut it into about 4 panels")
 
 
+def test_the_prediction_is_no_sign_of_success_only_when_outside_the_bounds_widely() -> None:
+    deployed = {"deviation_pct": {"mean": 0.8, "p99": 2.0, "max": 3.0}}
+    for bad, dev, warned in ((40.0, 0.2, True), (12.0, 0.004, False), (5.0, 0.05, False)):
+        last = verdict_lines({"report": {**flattening(bad, dev), "deployed": deployed}})[-1]
+        assert last.startswith("prediction") and ("NOT a sign of success" in last) is warned, (bad, dev, last)
+
+
 # ------------------------------------------------------------------ clamped thicknesses
 
 
