@@ -97,6 +97,7 @@ def _clamp_advice(ribbons: dict[str, Any], parameters: dict[str, Any], share: fl
     advised."""
     flat, curved = ribbons.get("thickness_clamped_flat"), ribbons.get("thickness_clamped_curved")
     fit = ribbons.get("thickness_fit")
+    total = int(ribbons.get("front") or 0) + int(ribbons.get("back") or 0)
     ends = ""
     if flat is not None and curved is not None:
         others = int(ribbons.get("thickness_clamped") or 0) - int(flat) - int(curved)
@@ -114,8 +115,8 @@ def _clamp_advice(ribbons: dict[str, Any], parameters: dict[str, Any], share: fl
                       "wider range would fit")
         else:
             advice = (f"a {'larger' if scale > 1.0 else 'smaller'} surface would fit better, curvature going "
-                      f"as 1/size: at {at} {left} would clamp, if the frame takes it; or a curvature table "
-                      "measured over a wider range")
+                      f"as 1/size: at {at}, {left} of {total} would clamp (if the frame takes it); or a "
+                      "curvature table measured over a wider range")
     inside = ": ".join(part for part in (ends, advice) if part)
     return f" ({inside})" if inside else ""
 
