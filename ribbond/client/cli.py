@@ -100,8 +100,8 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         *([f"refined     {r.refined.from_faces:,} → {r.refined.faces:,} faces ({r.refined.method}; at most "
            f"{r.refined.offset_pct:.2f} % of the diagonal off the file's surface) for the layout"]
           if r.refined is not None else []),
-        f"k1 field    {result.field.method}, λ = {p.smoothing_lambda:g}; {r.umbilic_pct or 0:.1f} % of faces "
-        f"umbilic (anisotropy ≤ 0.3); {len(result.field.singular_vertices)} singular vertices"
+        f"k1 field    {result.field.method}, λ = {p.smoothing_lambda:g}; {k1_undefined_text(result)}; "
+        f"{len(result.field.singular_vertices)} singular vertices"
         + ("" if result.field.aligned else " (no curvature direction: arbitrary smooth field)"),
         *_deviation_line("field vs k1", r.field_k1_deviation_deg),
         f"flattening  {r.iterations} iterations, "
@@ -148,6 +148,25 @@ def summary(result: DesignResult, out_dir: Path) -> str:
     lines += verdict_text({"report": r.model_dump(mode="json", by_alias=True),
                            "parameters": p.model_dump(mode="json")})
     return "\n".join(lines)
+
+
+def k1_undefined_text(result: DesignResult) -> str:
+    """Where k1 is not defined (anisotropy ≤ 0.3, ``report.umbilic_pct``), split by why (issue 34): a
+    symmetric saddle's faces (|κ1| ≈ |κ2|, opposite signs) are not umbilic, their ribbon direction is
+    ambiguous."""
+    from ribbond.design.line_field import ANISOTROPY_THRESHOLD
+    from ribbond.design.report import umbilic_split
+
+    diagonal = float(np.linalg.norm(result.V.max(axis=0) - result.V.min(axis=0)))
+    split = umbilic_split(result.curvature.kappa1, result.curvature.kappa2, result.field.anisotropy,
+                          ANISOTROPY_THRESHOLD, 0.1 / max(diagonal, 1e-300))   # line_field's flat floor
+    low, ambiguous = split["umbilic_pct"], split["ambiguous_pct"]
+    if low == 0:
+        return "k1 defined on every face (anisotropy > 0.3)"
+    parts = [f"{ambiguous:.1f} % ribbon direction ambiguous (|κ1| ≈ |κ2|, opposite signs)"] if ambiguous else []
+    if low - ambiguous > 0:
+        parts.append(f"{low - ambiguous:.1f} % umbilic or flat (|κ1| ≈ |κ2|, same sign)")
+    return f"k1 undefined on {low:.1f} % of faces (anisotropy ≤ 0.3): " + ", ".join(parts)
 
 
 def verdict_text(design: dict[str, Any]) -> list[str]:

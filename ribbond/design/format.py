@@ -267,6 +267,15 @@ class RefinedReport(BaseModel):
                               "surface, % of its bounding-box diagonal")
 
 
+class ThicknessFit(BaseModel):
+    """The size factor (× the design's size: κ1 / scale, σ and μ2 unchanged) at which the fewest ribbon
+    thicknesses clamp to the table, the closest to 1 among ties, and how many clamp there."""
+
+    model_config = _CONFIG
+    scale: float = Field(gt=0)
+    clamped: int = Field(ge=0)
+
+
 class RibbonsReport(BaseModel):
     """``report.ribbons``: what the ribbon stage made.
 
@@ -287,6 +296,13 @@ class RibbonsReport(BaseModel):
         "the harmonic mean of μ2 over that gap, %")
     spacing_error_along_pct: Quantiles | None = Field(
         None, description="neighbouring ribbon midpoints on a centerline against μ1, %")
+    thickness_clamped_flat: int | None = Field(
+        None, ge=0, description="of thickness_clamped: |κ1| below what the table's thinnest plastic curls "
+        "(the surface too flat for the table there; issue 34)")
+    thickness_clamped_curved: int | None = Field(
+        None, ge=0, description="of thickness_clamped: |κ1| above what its thickest plastic curls (too curved)")
+    thickness_fit: ThicknessFit | None = Field(
+        None, description="the size at which the fewest thicknesses would clamp (thickness.fitting_scale)")
 
 
 class SidePrintReport(BaseModel):
@@ -376,6 +392,9 @@ class Report(_Updatable):
         "centerline pulled back through the flattening), length-weighted (format 2)")
     umbilic_pct: float | None = Field(None, ge=0, le=100,
                                       description="% of faces with anisotropy ≤ 0.3 (format 2)")
+    ambiguous_pct: float | None = Field(
+        None, ge=0, le=100, description="of umbilic_pct: faces where |κ1| ≈ |κ2| with opposite signs (K < 0, "
+        "H ≈ 0, a symmetric saddle): not umbilic, the ribbon direction is ambiguous (issue 34)")
     panels_suggested: int | None = Field(
         None, ge=0, description="when more than 1 % of faces break the stretch bounds: how many panels "
         "`--panels auto` would cut the target into, searched on a copy of at most 6,000 faces (0: not even the "

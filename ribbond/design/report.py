@@ -51,3 +51,32 @@ def flattening_report(flat: FlatteningResult, area: np.ndarray,
         "converged": bool(flat.converged),
         "time_per_iteration_s": float(per_iteration),
     }
+
+
+def umbilic_split(kappa1: np.ndarray, kappa2: np.ndarray, anisotropy: np.ndarray, threshold: float,
+                  flat_curvature: float) -> dict[str, float]:
+    """The faces where k1 is not defined (anisotropy ≤ ``threshold``), by why (issue 34).
+
+    |κ1| ≈ |κ2| is an umbilic only with the same sign (a sphere's point). With opposite signs (K < 0,
+    H ≈ 0, a symmetric saddle) the curvature is not isotropic at all: its two principal directions
+    bend by as much, one each way, so which one the ribbons follow is ambiguous. Faces whose
+    |κ1| + |κ2| is below ``flat_curvature`` are flat (their signs are noise) and count as umbilic.
+
+    Parameters
+    ----------
+    kappa1, kappa2 : (m,) signed principal curvatures, 1/mm; anisotropy : (m,) as the line field's;
+    threshold : the umbilic tolerance; flat_curvature : κ below which a face is flat, 1/mm.
+
+    Returns
+    -------
+    ``{"umbilic_pct", "ambiguous_pct"}``: the share of faces at or below the threshold (format 2's
+    ``umbilic_pct``), and of those with opposite signs that are not flat, % of all faces.
+    """
+    k1, k2, a = (np.asarray(x, dtype=float) for x in (kappa1, kappa2, anisotropy))
+    if not (k1.shape == k2.shape == a.shape and k1.ndim == 1):
+        raise ValueError(f"kappa1, kappa2 and anisotropy must be 1-D of one length, got {k1.shape}, "
+                         f"{k2.shape}, {a.shape}")
+    low = a <= threshold
+    ambiguous = low & (k1 * k2 < 0) & (np.abs(k1) + np.abs(k2) >= flat_curvature)
+    n = max(len(a), 1)
+    return {"umbilic_pct": float(100.0 * low.sum() / n), "ambiguous_pct": float(100.0 * ambiguous.sum() / n)}

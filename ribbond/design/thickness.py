@@ -130,15 +130,32 @@ class ThicknessResult:
     thickness : (R,) float, plastic thickness τ, mm, within the table's range.
     clamped : (R,) bool, the ribbon's μ2 or |κ1| was outside the table's range, so its τ was
         taken at the nearest edge of the table.
+    target : (R,) float, the |κ1| asked for, 1/mm.
+    spacing_out : (R,) bool, μ2 outside the table's spacings (clamped whatever the size).
+    reachable : (R, 2) float, [κ(τ_min), κ(τ_max)] of the ribbon's side at its μ2 (clamped to the
+        table's spacings), 1/mm: the curvatures the table can give there.
     """
 
     thickness: np.ndarray
     clamped: np.ndarray
+    target: np.ndarray
+    spacing_out: np.ndarray
+    reachable: np.ndarray
 
     @property
     def clamped_count(self) -> int:
         """How many ribbons were clamped."""
         return int(np.count_nonzero(self.clamped))
+
+    @property
+    def too_flat(self) -> np.ndarray:
+        """(R,) bool: |κ1| below what the thinnest plastic curls (the ribbon curves too much)."""
+        return self.target < self.reachable[:, 0]
+
+    @property
+    def too_curved(self) -> np.ndarray:
+        """(R,) bool: |κ1| above what the thickest plastic curls (the ribbon curves too little)."""
+        return self.target > self.reachable[:, 1]
 
 
 def _vector(values: np.ndarray, what: str) -> np.ndarray:
@@ -210,9 +227,35 @@ def ribbon_thickness(table: CurvatureTable, kappa1: np.ndarray, mu2: np.ndarray)
     t = np.clip((target - k0) / (k1 - k0), 0.0, 1.0)
     thickness = tau[i] + t * (tau[i + 1] - tau[i])
 
-    clamped = ((mu < spacing[0]) | (mu > spacing[-1])
-               | (target < curve[:, 0]) | (target > curve[:, -1]))
-    return ThicknessResult(thickness=thickness, clamped=clamped)
+    spacing_out = (mu < spacing[0]) | (mu > spacing[-1])
+    clamped = spacing_out | (target < curve[:, 0]) | (target > curve[:, -1])
+    return ThicknessResult(thickness=thickness, clamped=clamped, target=target, spacing_out=spacing_out,
+                           reachable=np.column_stack([curve[:, 0], curve[:, -1]]))
+
+
+def fitting_scale(result: ThicknessResult) -> tuple[float, int]:
+    """The size at which the fewest ribbon thicknesses clamp (issue 34: "a smaller surface" is not always
+    better).
+
+    The target scaled by λ keeps its flattening (σ, so μ2 of Eq. 10) and divides κ1 by λ: ribbon i is
+    within the table for λ ∈ [|κ1_i| / κ(τ_max), |κ1_i| / κ(τ_min)] (none where κ1 = 0 or μ2 is outside
+    the table). The λ covered by the most intervals, the closest to 1 (in ratio) among ties.
+
+    Returns
+    -------
+    (scale, clamped): λ (1.0 when no ribbon can fit at any size) and how many ribbons clamp at it.
+    """
+    k, reach = result.target, result.reachable
+    ok = (k > 0) & ~result.spacing_out
+    if not ok.any():
+        return 1.0, len(k)
+    x = np.concatenate([k[ok] / reach[ok, 1], k[ok] / reach[ok, 0]])
+    step = np.concatenate([np.ones(ok.sum()), -np.ones(ok.sum())])
+    order = np.lexsort((-step, x))                      # at a tie an interval opens before one closes
+    x, cover = x[order], np.cumsum(step[order])
+    best = np.flatnonzero(cover == cover.max())         # the segments [x_i, x_i+1] covered the most
+    scale = np.clip(1.0, x[best], x[np.minimum(best + 1, len(x) - 1)])
+    return float(scale[np.argmin(np.abs(np.log(scale)))]), int(len(k) - cover.max())
 
 
 def table_curvature(table: CurvatureTable, side: Literal["front", "back"],

@@ -826,7 +826,10 @@ function renderVerdict(j) {
   const key = JSON.stringify(lines);
   if (box.dataset.key === key) return;
   box.dataset.key = key;
-  box.innerHTML = lines.map((l) => `<li class="${/OUTSIDE|NOT a sign|clamped/.test(l) ? "bad" : ""}">${esc(l)}</li>`).join("");
+  // the bad lines in red; "where the shape is lost" (issue 34) set apart, its step to look at in red
+  const cls = (l) => [/^where the shape is lost/.test(l) ? "chain" : "",
+    /OUTSIDE|NOT a sign|clamped|step to look at/.test(l) ? "bad" : ""].filter(Boolean).join(" ");
+  box.innerHTML = lines.map((l) => `<li class="${cls(l)}">${esc(l)}</li>`).join("");
 }
 
 // ------------------------------------------------------------------ the prediction (issue 23)

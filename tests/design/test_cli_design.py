@@ -372,6 +372,24 @@ def test_deep_cap_is_outside_the_bounds(tmp_path: Path) -> None:
     assert r["sigma1_bad_pct"] > 0 or r["sigma2_bad_pct"] > 0
     assert max(r["sigma1_max_dev"], r["sigma2_max_dev"]) > 0.01
     assert re.search(r"verdict\s+OUTSIDE the stretch bounds", proc.stdout), proc.stdout
+    # a sphere's points are umbilic: |κ1| = |κ2|, the same sign
+    field = next(line for line in proc.stdout.splitlines() if line.startswith("k1 field"))
+    assert "% umbilic or flat (|κ1| ≈ |κ2|, same sign)" in field and "ambiguous" not in field, field
+
+
+def test_a_symmetric_saddle_is_called_ambiguous_not_umbilic(tmp_path: Path) -> None:
+    """z = κ (x² − y²)/2 near its centre: κ1 = −κ2, so k1 is undefined on every face (anisotropy ≈ 0),
+    but not because the surface is umbilic: it bends as much one way as the other (issue 34)."""
+    V, F = surfaces.saddle(40.0, 1 / 50, 1 / 50, rings=10)
+    mesh = tmp_path / "saddle.obj"
+    write_obj(mesh, V, F)
+    proc = run_design(mesh, tmp_path / "d", "-q")
+    assert proc.returncode == 0, proc.stderr
+    field = next(line for line in proc.stdout.splitlines() if line.startswith("k1 field"))
+    assert design_json(tmp_path / "d")["report"]["umbilic_pct"] > 90
+    assert re.search(r"k1 undefined on \S+ % of faces \(anisotropy ≤ 0.3\): (9\d|100)\.\d % ribbon direction "
+                     r"ambiguous \(\|κ1\| ≈ \|κ2\|, opposite signs\)", field), field
+    assert "umbilic" not in field or "% umbilic or flat" in field
 
 
 def _shallow_cap(tmp_path: Path) -> Path:

@@ -127,6 +127,16 @@ def test_clamping_below_above_and_outside_the_spacing_range():
     assert res.thickness[5] == pytest.approx(0.5, abs=1e-12)
     assert res.clamped.tolist() == [True, True, True, True, True, False]
     assert res.clamped_count == 5
+    # which end (issue 34): too flat for the thinnest plastic, too curved for the thickest, or the spacing
+    assert res.too_flat.tolist() == [True, False, True, False, False, False]
+    assert res.too_curved.tolist() == [False, True, False, False, False, False]
+    assert res.spacing_out.tolist() == [False, False, False, True, True, False]
+    # what the table can give at each ribbon's side and spacing (μ2 clamped to the range)
+    front = [0, 1, 3, 4, 5]
+    mu_in = np.clip(mu, MU[0], MU[-1])
+    assert res.reachable[front, 0] == pytest.approx(kappa_front(TAU[0], mu_in[front]), abs=1e-15)
+    assert res.reachable[front, 1] == pytest.approx(kappa_front(TAU[-1], mu_in[front]), abs=1e-15)
+    assert res.reachable[2] == pytest.approx([kappa_front(TAU[0], 5.0) / 2, kappa_front(TAU[-1], 5.0) / 2], abs=1e-15)
     # The table's end values themselves are inside the range.
     ends = ribbon_thickness(table, kappa_front(np.array([TAU[0], TAU[-1]]), np.array(MU[::2])),
                             np.array(MU[::2]))

@@ -65,6 +65,10 @@ def test_a_design_page_shows_the_verdict_in_the_preview_colours_with_its_files(
     assert items.all_inner_texts() == record["verdict"]
     assert "bad" in (items.nth(0).get_attribute("class") or "")
     assert "NOT a sign of success" in items.nth(items.count() - 1).inner_text()
+    # where the shape is lost (issue 34), just before the prediction, set apart from the other lines
+    chain = items.nth(items.count() - 2)
+    assert chain.inner_text().startswith("where the shape is lost: the flattening keeps")
+    assert "chain" in (chain.get_attribute("class") or "").split()
     # the layout draws the front ribbons as the preview does (red), the back ones blue
     page.wait_for_selector("#j-layout .rib.front", state="attached")
     stroke = page.locator("#j-layout .rib.front").first.evaluate("e => getComputedStyle(e).stroke")
