@@ -31,7 +31,8 @@ from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
 from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, RealizationReport,
-                     RefinedReport, Report, Ribbon, RibbonsReport, SidePrintReport, Source, StitchMark)
+                     RefinedReport, Report, Ribbon, RibbonsReport, SidePrintReport, Source, StitchMark,
+                     ThicknessFit)
 from .frames import FaceFrames, face_frames
 from .intake import TargetMesh, check_disk, load_target
 from .mesh_io import obj_bytes
@@ -40,9 +41,9 @@ from .params import DesignParameters, SolverSettings, check_printable, check_smo
 from .placement import fit_scale, place_in_frame, registration_marks
 from .preview import render_preview
 from .refine import Refined, refine_target
-from .report import flattening_report
+from .report import flattening_report, umbilic_split
 from .ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
-from .thickness import CurvatureTable, load_curvature_table, ribbon_thickness
+from .thickness import CurvatureTable, ThicknessResult, fitting_scale, load_curvature_table, ribbon_thickness
 
 #: How far outside the layout's bounding box the registration marks sit, mm.
 MARK_OFFSET = 5.0
@@ -161,7 +162,7 @@ class _Run:
     stripes: StripeGrid = field(init=False)
     layout: RibbonLayout = field(init=False)
     ribbons: list[Ribbon] = field(init=False)
-    clamped: int = field(init=False)
+    thickness: ThicknessResult = field(init=False)
     marks: np.ndarray = field(init=False)
     front: int = field(init=False)
     parameters: Parameters = field(init=False)
@@ -293,7 +294,8 @@ def _curvature(run: _Run) -> str:
                                                   run.params.smoothing_lambda, run.solver.umbilic_tolerance,
                                                   method=run.solver.line_field)
     run.field_dev = field_dev = field_k1_deviation(lines, run.curvature)
-    return (f"{100 * lines.umbilic.mean():.1f} % of the surface umbilic, "
+    return (f"k1 undefined on {100 * lines.umbilic.mean():.1f} % of the surface (umbilic, flat, or |κ1| ≈ |κ2| "
+            "with opposite signs: the ribbon direction ambiguous), "
             + (f"field {field_dev['median']:.2f}° median off k1, " if field_dev else "")
             + f"{len(lines.singular_vertices)} singular vertices"
             + ("" if lines.aligned else "; no curvature direction anywhere: "
@@ -431,7 +433,7 @@ def _cut_ribbons(run: _Run) -> str:
     outline = shapely.Polygon(run.uv[run.target.boundary])
     run.layout = layout = layout_ribbons(run.stripes, outline, run.params)
     _check_some_ribbons(layout, run.params, run.size)
-    run.ribbons, run.clamped = _ribbons(layout, run.table)
+    run.ribbons, run.thickness = _ribbons(layout, run.table)
     try:
         run.marks = registration_marks(run.uv, run.frame, MARK_OFFSET)
     except ValueError as exc:
@@ -439,7 +441,7 @@ def _cut_ribbons(run: _Run) -> str:
     run.front = front = int(layout.front.sum())
     return (f"{layout.count} ribbons: {front} front, {layout.count - front} back; "
             f"{layout.dropped_short} dropped as too short, {layout.trimmed_angle} trimmed, "
-            f"{run.clamped} thicknesses clamped to the table")
+            f"{run.thickness.clamped_count} thicknesses clamped to the table")
 
 
 def _design_document(run: _Run) -> None:
@@ -450,12 +452,17 @@ def _design_document(run: _Run) -> None:
     report["field_k1_deviation_deg"] = Deviation(**run.field_dev) if run.field_dev else None
     report["ribbon_k1_deviation_deg"] = Deviation(**ribbon_dev) if ribbon_dev else None
     report["umbilic_pct"] = float(100.0 * np.mean(run.line_field.anisotropy <= ANISOTROPY_THRESHOLD))
+    diagonal = float(np.linalg.norm(run.V.max(axis=0) - run.V.min(axis=0)))
+    report["ambiguous_pct"] = umbilic_split(run.curvature.kappa1, run.curvature.kappa2, run.line_field.anisotropy,
+                                            ANISOTROPY_THRESHOLD, 0.1 / diagonal)["ambiguous_pct"]
     if run.refined is not None:
         report["refined"] = RefinedReport(from_faces=run.coarse_faces, faces=len(run.F), levels=run.refined.levels,
                                           method=run.refined.method, offset_pct=run.refined.offset_pct)
     report["ribbons"] = RibbonsReport(
         front=run.front, back=layout.count - run.front, dropped_short=layout.dropped_short,
-        trimmed_angle=layout.trimmed_angle, thickness_clamped=run.clamped,
+        trimmed_angle=layout.trimmed_angle, thickness_clamped=run.thickness.clamped_count,
+        thickness_clamped_flat=int(run.thickness.too_flat.sum()), thickness_clamped_curved=int(run.thickness.too_curved.sum()),
+        thickness_fit=ThicknessFit(**dict(zip(("scale", "clamped"), fitting_scale(run.thickness)))),
         **{key: Quantiles(**value) for key, value in q.items()})
     report["realization"] = _realization(run)
     run.parameters = Parameters.resolved(run.params, run.size)
@@ -627,14 +634,14 @@ def _programs(design: Design, profile: PrinterProfile) -> Programs:
         raise DesignError(f"the print programs cannot be made: {exc}") from None
 
 
-def _ribbons(layout: RibbonLayout, table: CurvatureTable) -> tuple[list[Ribbon], int]:
-    """The ``design.json`` ribbons (side by the sign of κ1, thickness from ``table``) and the
-    number of thicknesses clamped to the table's range."""
+def _ribbons(layout: RibbonLayout, table: CurvatureTable) -> tuple[list[Ribbon], ThicknessResult]:
+    """The ``design.json`` ribbons (side by the sign of κ1, thickness from ``table``) and their
+    thicknesses (which clamped to the table's range, at which end)."""
     thick = ribbon_thickness(table, layout.kappa1, layout.spacing[:, 1])
     ribbons = [Ribbon(side="front" if k > 0 else "back", points=[(float(x), float(y)) for x, y in pts],
                       thickness=float(tau), kappa1=float(k), spacing=(float(mu[0]), float(mu[1])))
                for pts, tau, k, mu in zip(layout.points, thick.thickness, layout.kappa1, layout.spacing)]
-    return ribbons, thick.clamped_count
+    return ribbons, thick
 
 
 def _deployed_files(result: DesignResult) -> dict[str, bytes]:
