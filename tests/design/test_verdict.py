@@ -242,12 +242,18 @@ def test_the_step_that_loses_the_most_is_named() -> None:
             "p5–p95 -3.0 to +1.0 %)") in line
     assert "the prediction keeps 68 %" in line
     assert f"The step to look at: the flattening ({100 - kept} % lost there" in line
-    # the metric kept, the flattening's curvature kept, the release loses it
-    line = shape_line(chain_report(0.99 * target, (-3.0, 2.0, 4.0), 0.37 * target, target))
+    # the metric kept (median within 1 %, p5–p95 within 5 %), the flattening's curvature kept: the release
+    line = shape_line(chain_report(0.99 * target, (-3.0, 0.5, 4.0), 0.37 * target, target))
     assert "The step to look at: the release (62 % lost there" in line
+    # a layout that misses its metric by 2 % comes before the release in the chain: it is named
+    line = shape_line(chain_report(0.99 * target, (-3.0, 2.0, 4.0), 0.37 * target, target))
+    assert "The step to look at: the layout (its metric off by 2.0 %" in line
+    # and so is one whose median is right but whose spread is not
+    line = shape_line(chain_report(0.99 * target, (-9.0, 0.5, 4.0), 0.37 * target, target))
+    assert "The step to look at: the layout (its metric off by 0.5 %" in line
     # a layout that misses its metric by 15 %
     line = shape_line(chain_report(target, (-20.0, -15.0, -9.0), 0.95 * target, target))
-    assert "The step to look at: the layout (15 % lost there" in line
+    assert "The step to look at: the layout (its metric off by 15.0 %" in line
 
 
 def test_a_chain_that_keeps_the_shape_names_no_step() -> None:
