@@ -197,12 +197,6 @@ def test_same_input_same_iterations_and_bits():
     assert a.iterations == b.iterations and a.uv.tobytes() == b.uv.tobytes()
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "issue 35 item 1, not met: the exact local step makes the plain iteration monotone, but the "
-    "row-count phase keeps the two R/Σ alternations, and Anderson's accept/reject path and the stop "
-    "on the mean change of σ (met while the map still creeps along a family of near-zero-energy "
-    "flattenings) still move the count under a 1e-12 nudge: deep cap 127 -> 102-131, saddle of "
-    "2,400 faces 1054 -> 1324-1376; this saddle (864 faces) 1220 -> 1105-1242 passes"))
 @pytest.mark.parametrize("surface", ["saddle", "deep_cap"])
 def test_a_1e_12_perturbation_changes_the_iterations_by_at_most_10_percent(surface):
     V, F = (surfaces.saddle(size=80.0, rings=12) if surface == "saddle"
