@@ -95,9 +95,8 @@ def _newton_on_arc(M: tuple[np.ndarray, ...], bounds: np.ndarray, ref: tuple[np.
 
     Safeguarded Newton in φ: each step keeps a bracket [lo, hi] of w by the sign of df (f' > 0:
     the maximum is at larger w), stops at its ends where Newton would leave it, and bisects it
-    where f is not concave;
-    a face stops when its step moves w by 1e-12 or less (f is then within rounding of its
-    maximum: it is quadratic there), all after ``steps``.
+    where f is not concave; a face stops when its step moves w by 1e-12 or less (f is then within
+    rounding of its maximum: it is quadratic there), all after ``steps``.
     ``ref`` (cos, sin) (m,) each; lo, hi, w (m,). Returns the rotation (cos, sin) at the end.
     """
     rc, rs = ref
