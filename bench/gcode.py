@@ -3,8 +3,9 @@
 For each example surface (torus patch, saddle, cylinder of ``examples/meshes``, default resolution)
 at two or three physical sizes (bounding-box diagonal 80 mm, 130 mm and the largest that fits the
 printer's frame), the design is made first (``design_mesh``: it is the input, not what is timed).
-Then for each side with something to print: ``plan_side`` (the ordering, with its default time
-budget of 1 s, and greedy-only with a budget of 0 s) and ``render_side`` are timed apart, and the
+Then for each side with something to print: ``plan_side`` (the ordering, with its default budget
+of ``MOVE_BUDGET`` candidate moves, and with a budget of 0: greedy and one 2-opt/Or-opt descent, no
+kick) and ``render_side`` are timed apart, and the
 travel between parts before and after ordering, the program's whole travel, its extrusion and its
 estimated time are reported; also the corrected re-render of the back side that the daemon makes
 after the flip.
@@ -37,13 +38,13 @@ from ribbond.design.format import Design  # noqa: E402
 from ribbond.design.mesh_io import write_obj  # noqa: E402
 from ribbond.design.params import DesignParameters, SizeSpec  # noqa: E402
 from ribbond.design.pipeline import design_mesh  # noqa: E402
+from ribbond.gcode.ordering import MOVE_BUDGET  # noqa: E402
 from ribbond.gcode.profiles import PrinterProfile, load_profile  # noqa: E402
 from ribbond.gcode.program import Correction, GcodeError, mirror, plan_side, render_side  # noqa: E402
 
 SURFACES = ("torus_patch", "saddle", "cylinder")
 SIZES: tuple[float | None, ...] = (80.0, 130.0, None)      # None: the largest that fits the frame
 SIDES = ("front", "back")
-TIME_BUDGET = 1.0               # plan_side's default
 RENDER_REPEATS = 3              # render times: best of this many
 CORRECTION = Correction(rotation_deg=0.5, center=(110.0, 110.0), offset=(0.3, -0.2))
 GOAL_TRAVEL = 0.20
@@ -119,12 +120,12 @@ def nearest_other_end(design: Design, side: str) -> np.ndarray:
 
 def run_side(design: Design, profile: PrinterProfile, side: str) -> SideRun | None:
     t = time.perf_counter()
-    plan = plan_side(design, profile, side, time_budget=TIME_BUDGET)
+    plan = plan_side(design, profile, side)
     plan_s = time.perf_counter() - t
     if not plan.parts:
         return None
     t = time.perf_counter()
-    greedy = plan_side(design, profile, side, time_budget=0.0)
+    greedy = plan_side(design, profile, side, move_budget=0)
     greedy_s = time.perf_counter() - t
     render_s = math.inf
     for _ in range(RENDER_REPEATS):
@@ -263,8 +264,8 @@ def main() -> int:
             if not s.passes_ok:
                 odd_passes.append(f"{d.surface} {d.size_label} {s.side}")
     print(f"parts = ribbons + registration marks (front); plan s = plan_side with its default budget of "
-          f"{TIME_BUDGET:g} s (impr = 2-opt/Or-opt moves made), greedy s = with a budget of 0 s (nearest "
-          "neighbour only); before / greedy / after = travel from the frame's corner and between parts, mm: "
+          f"{MOVE_BUDGET:g} moves weighed (impr = 2-opt/Or-opt moves made), greedy s = with a budget of 0 (nearest "
+          "neighbour, one descent, no kick); before / greedy / after = travel from the frame's corner and between parts, mm: "
           "in input order / greedy / after ordering; travel = the program's whole travel, mm (also from home, "
           "to park, and between a ribbon's passes); extrude = extrusion length, mm; btw/ext = after / extrude; "
           "tot/ext = travel / extrude; t/t_ext = estimated time / extrusion time at print speed; render s = "

@@ -38,7 +38,7 @@ from ..design.format import (Design, Faces, Parameters, PrintReport, Quantiles, 
 from ..design.params import DesignParameters
 from ..design.placement import registration_marks
 from ..design.thickness import load_curvature_table, table_curvature
-from ..gcode.ordering import order_ribbons
+from ..gcode.ordering import MOVE_BUDGET, order_ribbons
 from ..gcode.profiles import PrinterProfile, load_profile
 from ..gcode.program import (MARK_SIZE, Program, Programs, SidePlan, _empty_side, mirror, render_combined,
                              render_side)
@@ -207,7 +207,7 @@ def _passes(strokes: list[np.ndarray], width: float, height: float) -> tuple[Rib
 
 
 def plan_sheet_side(design: Design, profile: PrinterProfile, side: str, labels: dict[int, list[np.ndarray]],
-                    cuts: dict[int, list[np.ndarray]], *, time_budget: float = 1.0) -> SidePlan:
+                    cuts: dict[int, list[np.ndarray]], *, move_budget: int = MOVE_BUDGET) -> SidePlan:
     """One side's passes in print order: the ribbons (as ``gcode.program.plan_side``), on the front the
     registration marks and the crop marks, and the labels of that side's coupons (``labels``: coupon
     number -> strokes, ``cuts`` likewise, front-side coordinates), ordered together."""
@@ -246,7 +246,7 @@ def plan_sheet_side(design: Design, profile: PrinterProfile, side: str, labels: 
     start = np.array([x0, y0])
     entry = np.array([[f.entry, r.entry] for f, r in parts]).reshape(-1, 2, 2)
     exit_ = np.array([[f.exit, r.exit] for f, r in parts]).reshape(-1, 2, 2)
-    tour = order_ribbons(entry, exit_, start, time_budget=time_budget)
+    tour = order_ribbons(entry, exit_, start, move_budget=move_budget)
     return SidePlan(side=side, parts=[parts[k][int(tour.reversed[k])] for k in tour.order],
                     kind=[kind[k] for k in tour.order],
                     index=np.asarray([indices[k] for k in tour.order], dtype=np.int64), tour=tour,
@@ -286,7 +286,7 @@ def _sheet_design(spec: CalibrationSpec, profile: PrinterProfile, number: int, c
                   report=report)
 
 
-def make_plan(spec: CalibrationSpec, *, time_budget: float = 0.3) -> CalibrationPlan:
+def make_plan(spec: CalibrationSpec, *, move_budget: int = MOVE_BUDGET // 4) -> CalibrationPlan:
     """Lay out the coupons of ``spec`` and make each sheet's design and programs.
 
     Raises
@@ -312,9 +312,9 @@ def make_plan(spec: CalibrationSpec, *, time_budget: float = 0.3) -> Calibration
         marks = registration_marks(corners, profile.frame, offset=5.0)
         design = _sheet_design(spec, profile, number, mine, marks, digest, None)
         front_labels = {c.number: labels[c.number] for c in mine if c.side == "front"}
-        front = plan_sheet_side(design, profile, "front", front_labels, cuts, time_budget=time_budget)
+        front = plan_sheet_side(design, profile, "front", front_labels, cuts, move_budget=move_budget)
         back_labels = {c.number: labels[c.number] for c in mine if c.side == "back"}
-        back = plan_sheet_side(design, profile, "back", back_labels, {}, time_budget=time_budget)
+        back = plan_sheet_side(design, profile, "back", back_labels, {}, move_budget=move_budget)
         fp = render_side(front, profile)
         bp = render_side(back, profile) if back.parts else _empty_side(back, profile)
         combined = render_combined(front, back, profile)

@@ -5,15 +5,16 @@ same end when its passes come back, the far end otherwise). The tour starts at a
 is open. A greedy nearest-neighbour tour over a k-d tree of the entry points (both directions of
 every ribbon) is improved by 2-opt moves, each reversing a stretch of the tour and the direction
 of every ribbon in it, and Or-opt moves, each moving one ribbon to the best gap in the better
-direction, until neither helps; then, while the time budget lasts, the best tour is kicked (a
-random double bridge within 30 positions) and improved again, and kept if shorter (iterated local
-search). The gains of all moves from one position are computed at once (prefix sums of the link
-lengths in both directions for 2-opt).
+direction, until neither helps; then the best tour is kicked (a double bridge within 30 positions,
+drawn from a generator seeded with 0) and improved again, and kept if shorter (iterated local
+search), for a budget counted in kicks, not seconds: the same ribbons give the same tour on every run
+and every machine, so two compiles of one design write the same programs byte for byte. The gains of
+all moves from one position are computed at once (prefix sums of the link lengths in both directions
+for 2-opt).
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,8 +72,8 @@ def _greedy(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray) -> tuple[np
 
 
 def _two_opt_sweep(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: np.ndarray,
-                   start: np.ndarray, deadline: float) -> int:
-    """One pass of 2-opt over the tour positions (in place); the number of moves made."""
+                   start: np.ndarray) -> tuple[int, int]:
+    """One pass of 2-opt over the tour positions (in place); the moves made and the moves weighed."""
     R = len(order)
     moves = 0
     for i in range(-1, R - 1):                         # reverse tour[i + 1 .. j]; i = −1: from the start
@@ -99,18 +100,17 @@ def _two_opt_sweep(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_:
             rev[seg] = ~rev[seg]
             order[i + 1: jj + 1] = seg[::-1]
             moves += 1
-        if time.perf_counter() >= deadline:
-            break
-    return moves
+    return moves, R * (R + 1) // 2                             # reversals weighed: i < j
 
 
 def _or_opt_sweep(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: np.ndarray,
-                  start: np.ndarray, deadline: float) -> int:
-    """One pass of Or-opt (in place): move single ribbons to the best gap, in the better direction."""
+                  start: np.ndarray) -> tuple[int, int]:
+    """One pass of Or-opt (in place): move single ribbons to the best gap, in the better direction;
+    the moves made and the moves weighed."""
     R = len(order)
     moves = 0
     if R < 3:
-        return 0
+        return 0, 0
     for pos in range(R):
         d = rev[order].astype(int)
         e_in, e_out = entry[order, d], exit_[order, d]
@@ -137,54 +137,72 @@ def _or_opt_sweep(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: 
             order[:] = np.concatenate([rest[:best_gap], [r], rest[best_gap:]])
             rev[r] = bool(best_dir)
             moves += 1
-        if time.perf_counter() >= deadline:
-            break
-    return moves
+    return moves, 2 * R * R                                    # R ribbons × R gaps × 2 directions
 
 
 def _local_search(order: np.ndarray, rev: np.ndarray, entry: np.ndarray, exit_: np.ndarray,
-                  start: np.ndarray, deadline: float) -> int:
-    """2-opt and Or-opt sweeps (in place) until neither improves or the deadline; moves made."""
-    total = 0
-    while time.perf_counter() < deadline:
-        moved = _two_opt_sweep(order, rev, entry, exit_, start, deadline)
-        moved += _or_opt_sweep(order, rev, entry, exit_, start, deadline)
-        total += moved
-        if not moved:
+                  start: np.ndarray, max_sweeps: int) -> tuple[int, int]:
+    """2-opt and Or-opt sweeps (in place) until neither improves, at most ``max_sweeps`` of each
+    (a bound that a tour of R ribbons never reaches in practice, so that the search always ends);
+    the moves made and the moves weighed."""
+    total = weighed = 0
+    for _ in range(max_sweeps):
+        moved, w2 = _two_opt_sweep(order, rev, entry, exit_, start)
+        moved_or, w3 = _or_opt_sweep(order, rev, entry, exit_, start)
+        total, weighed = total + moved + moved_or, weighed + w2 + w3
+        if not moved + moved_or:
             break
-    return total
+    return total, weighed
+
+
+#: The default budget of the iterated local search: candidate moves weighed (2-opt reversals and
+#: Or-opt insertions); a kick and its descent weigh a few R² of them. 0.1-3.4 s of CPU for the
+#: bench designs (12-150 ribbons), whose tours it makes no longer than the median of five runs of
+#: the former 1 s time budget (bench/gcode.py; docs/benchmarks.md, "Print programs").
+MOVE_BUDGET = 5_000_000
+#: It stops earlier after this many kicks in a row without a shorter tour, or R of them if more.
+IDLE_KICKS = 20
+#: A cap on the sweeps of one descent; it ends by itself long before (each sweep shortens the tour).
+MAX_SWEEPS = 1000
 
 
 def order_ribbons(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray,
-                  time_budget: float = 1.0) -> Tour:
+                  move_budget: int = MOVE_BUDGET) -> Tour:
     """Order the ribbons and choose their directions for short travel.
+
+    Deterministic: the budget counts candidate moves, never time, so the same input gives the
+    same tour on every run and machine.
 
     Parameters
     ----------
     entry, exit_ : (R, 2, 2) entry and exit points of each ribbon printed forward ([:, 0]) and
         reversed ([:, 1]), mm.
     start : (2,) where the nozzle is before the first ribbon.
-    time_budget : seconds for the 2-opt improvement.
+    move_budget : no new kick of the iterated local search once this many candidate moves have
+        been weighed (a descent is always finished; 0: the greedy tour improved by 2-opt and
+        Or-opt to a local optimum, no kick); it stops earlier after max(IDLE_KICKS, R) kicks in
+        a row that found no shorter tour.
     """
+    if move_budget < 0:
+        raise ValueError(f"move_budget must be ≥ 0, got {move_budget}")
     R = len(entry)
     identity = np.arange(R)
     before = tour_length(identity, np.zeros(R, dtype=bool), entry, exit_, start)
     if R == 0:
         return Tour(identity, np.zeros(0, dtype=bool), 0.0, 0.0, 0)
     order, rev = _greedy(entry, exit_, start)
-    deadline = time.perf_counter() + time_budget
-    improvements = _local_search(order, rev, entry, exit_, start, deadline)
-    # iterated local search: kick the best tour (a double bridge) and descend again while time lasts
+    improvements, weighed = _local_search(order, rev, entry, exit_, start, MAX_SWEEPS)
     best = tour_length(order, rev, entry, exit_, start)
     rng = np.random.default_rng(0)
     idle = 0
-    while R >= 8 and time.perf_counter() < deadline and idle < max(20, R):   # stop when kicks stop paying
+    while R >= 8 and weighed < move_budget and idle < max(IDLE_KICKS, R):   # stop when kicks stop paying
         idle += 1
         cand_order, cand_rev = order.copy(), rev.copy()
         lo = int(rng.integers(1, R - 3))                     # a local kick: within 30 positions
         a, b, c = np.sort(rng.choice(np.arange(lo, min(lo + 30, R)), size=3, replace=False))
         cand_order[:] = np.concatenate([order[:a], order[c:], order[b:c], order[a:b]])
-        moves = _local_search(cand_order, cand_rev, entry, exit_, start, deadline)
+        moves, w = _local_search(cand_order, cand_rev, entry, exit_, start, MAX_SWEEPS)
+        weighed += w
         length = tour_length(cand_order, cand_rev, entry, exit_, start)
         if length < best - 1e-9:
             order[:], rev[:], best = cand_order, cand_rev, length

@@ -34,7 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..design.format import Design
 from .estimate import move_times
-from .ordering import Tour, order_ribbons
+from .ordering import MOVE_BUDGET, Tour, order_ribbons
 from .profiles import FrameSpec, PrinterProfile
 from .toolpath import RibbonPasses, mark_passes, ribbon_passes
 
@@ -184,7 +184,7 @@ def _stroke_passes(strokes: list[np.ndarray], width: float, height: float) -> tu
             RibbonPasses([q[::-1] for q in strokes[::-1]], layer, width, height))
 
 
-def plan_side(design: Design, profile: PrinterProfile, side: str, *, time_budget: float = 1.0) -> SidePlan:
+def plan_side(design: Design, profile: PrinterProfile, side: str, *, move_budget: int = MOVE_BUDGET) -> SidePlan:
     """Passes of ``side``'s ribbons, ordered for short travel, in that side's print coordinates; on the
     front the registration marks and the stitch marks (one layer, a nozzle wide) join the tour."""
     if side not in ("front", "back"):
@@ -221,7 +221,7 @@ def plan_side(design: Design, profile: PrinterProfile, side: str, *, time_budget
     if parts:
         entry = np.array([[f.entry, r.entry] for f, r in parts])
         exit_ = np.array([[f.exit, r.exit] for f, r in parts])
-        tour = order_ribbons(entry, exit_, start, time_budget=time_budget)
+        tour = order_ribbons(entry, exit_, start, move_budget=move_budget)
     else:
         tour = order_ribbons(np.zeros((0, 2, 2)), np.zeros((0, 2, 2)), start)
     return SidePlan(side=side, parts=[parts[k][int(tour.reversed[k])] for k in tour.order],
@@ -511,7 +511,7 @@ def render_combined(front: SidePlan, back: SidePlan, profile: PrinterProfile) ->
     return Program(text="\n".join(head + w.lines) + "\n", stats=stats)
 
 
-def make_programs(design: Design, profile: PrinterProfile, *, time_budget: float = 1.0) -> Programs:
+def make_programs(design: Design, profile: PrinterProfile, *, move_budget: int = MOVE_BUDGET) -> Programs:
     """Plan and write the three programs of ``design`` for ``profile``.
 
     Raises
@@ -519,8 +519,8 @@ def make_programs(design: Design, profile: PrinterProfile, *, time_budget: float
     GcodeError
         when a program would leave the frame rectangle or exceed the profile's maxima.
     """
-    front = plan_side(design, profile, "front", time_budget=time_budget)
-    back = plan_side(design, profile, "back", time_budget=time_budget)
+    front = plan_side(design, profile, "front", move_budget=move_budget)
+    back = plan_side(design, profile, "back", move_budget=move_budget)
     front_prog = render_side(front, profile)
     back_prog = render_side(back, profile) if back.parts else _empty_side(back, profile)
     combined = render_combined(front, back, profile)

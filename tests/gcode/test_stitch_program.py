@@ -42,8 +42,8 @@ def design_with(stitches):  # type: ignore[no-untyped-def]
 def made():  # type: ignore[no-untyped-def]
     stitches = make_stitch_marks(AT, OUTWARD, LABELS, ALLOWANCE)
     profile = load_profile(PROFILE)
-    with_marks = make_programs(design_with(stitches), profile, time_budget=0.05)
-    without = make_programs(design_with(None), profile, time_budget=0.05)
+    with_marks = make_programs(design_with(stitches), profile, move_budget=0)
+    without = make_programs(design_with(None), profile, move_budget=0)
     return stitches, profile, with_marks, without
 
 
@@ -112,4 +112,4 @@ def test_a_stroke_outside_the_frame_is_refused(made) -> None:  # type: ignore[no
     x0 = profile.frame.bounds[0]
     outside = make_stitch_marks(np.array([[x0 + 5.0, 110.0]]), np.array([[-1.0, 0.0]]), ["E1"], ALLOWANCE)
     with pytest.raises(GcodeError, match=r"front.gcode: .* outside the frame rectangle .* stitch mark 0"):
-        make_programs(design_with(outside), profile, time_budget=0.05)
+        make_programs(design_with(outside), profile, move_budget=0)
