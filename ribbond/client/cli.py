@@ -182,12 +182,13 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if updates:
         params = params.model_validate({**params.model_dump(), **updates})
     frame = load_profile(params.printer_profile).frame
+    solver = settings.solver.model_copy(update={"optimize": False}) if args.no_optimize else settings.solver
     if args.panels is not None:
-        return _design_project(args, params, settings.solver)
+        return _design_project(args, params, solver)
     progress = TerminalProgress(quiet=args.quiet)
     try:
-        result = design_mesh(args.mesh, params, settings.solver, frame=frame, progress=progress,
-                             predict=not args.no_predict)
+        result = design_mesh(args.mesh, params, solver, frame=frame, progress=progress,
+                             predict=not args.no_predict, optimize=not args.no_optimize)
         out = write_design(result, args.output, progress)
     finally:
         progress.close()
@@ -476,6 +477,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
     d.add_argument("--no-predict", action="store_true",
                    help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
+    d.add_argument("--no-optimize", action="store_true",
+                   help="the paper's forward design: the ribbons' thicknesses from the curvature table, not "
+                        "optimized against the prediction ([solver] optimize = false)")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.add_argument("--panels", metavar="auto|N", help="cut the target into panels and write a project folder "
                    "(project.json, panels.png, panel-1/ ...: each an ordinary design folder)")
