@@ -5,7 +5,7 @@ engine locally (no daemon) and writes the design folder; with ``--panels auto|N 
 it cuts the target into panels and writes the project folder (``ribbond.design.project``). The daemon commands (``submit``,
 ``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``frame-ok``, ``align``,
 ``printer``, ``stop``) are in ``ribbond.client.http``.
-``ribbonctl predict DESIGN_DIR [--table NAME] [--fine]`` predicts again the deployed shape of a
+``ribbonctl predict DESIGN_DIR [--table NAME]`` predicts again the deployed shape of a
 design folder, locally (``ribbond.design.repredict``).
 
 Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still
@@ -297,7 +297,7 @@ def _predict_job(args: argparse.Namespace) -> int:
     from .http import _client
 
     c = _client(args)
-    body: dict[str, Any] = {"fine": bool(args.fine)} | ({"table": args.table} if args.table else {})
+    body: dict[str, Any] = {"table": args.table} if args.table else {}
     job = c.request("POST", f"/jobs/{args.job}/predict", json=body)
     progress = PredictProgress(quiet=args.quiet)
     try:
@@ -335,7 +335,7 @@ def _cmd_predict(args: argparse.Namespace) -> int:
         return _predict_job(args)
     progress = PredictProgress(quiet=args.quiet)
     try:
-        done = repredict_folder(args.design_dir, table=args.table, fine=args.fine, progress=progress)
+        done = repredict_folder(args.design_dir, table=args.table, progress=progress)
     finally:
         progress.close()
     _print_prediction(args, done.deployed, done.verdict, list(done.files))
@@ -499,8 +499,6 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument("--table", metavar="NAME",
                     help="curvature table name or .toml path for the prediction (default: the design's); "
                          "recorded as report.deployed.table")
-    pr.add_argument("--fine", action="store_true",
-                    help="the ribbon-resolved model (minutes) instead of the homogenized one (seconds)")
     pr.add_argument("-q", "--quiet", action="store_true", help="print only the result")
     pr.set_defaults(func=_cmd_predict)
     add_commands(sub)

@@ -249,7 +249,7 @@ class DeployedReport(BaseModel):
     spread: Spread | None = None
     reached: bool | None = Field(default=None, description="the layout takes the target's shape (README's rule)")
     verdict: str | None = None
-    model: Literal["homogenized", "ribbon-resolved"] | None = None
+    model: Literal["homogenized"] | None = None
     table: str | None = Field(default=None, description="the curvature table of the prediction when it is "
                                                         "not parameters.curvature_table (ribbonctl predict --table)")
 
