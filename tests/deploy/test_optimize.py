@@ -97,3 +97,33 @@ def test_optimization_stops_at_its_budget(sheet):
     assert opt.stopped == "time budget" and opt.evaluations == 1
     with pytest.raises(ValueError, match="budget_s"):
         optimize_layout(uv, target, F, ribbons, forward, budget_s=0.0, **kw)
+
+
+def test_forward_design_has_no_optimization(tmp_path):
+    """``optimize=False`` (``--no-optimize``) and ``[solver] optimize = false``: the paper's forward design,
+    each ribbon's thickness the table's inverse at its κ1 and μ2, no report.optimization."""
+    from ribbond.design.mesh_io import write_obj
+    from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
+    from ribbond.design.pipeline import design_mesh
+    from ribbond.design.thickness import ribbon_thickness
+    V, F = surfaces.cylinder_patch()
+    path = tmp_path / "cylinder.obj"
+    write_obj(path, V, F)
+    params = DesignParameters(size=SizeSpec(bbox_diagonal=100.0))
+    for solver, optimize in ((SolverSettings(refine_below_faces=0), False),
+                             (SolverSettings(refine_below_faces=0, optimize=False), True)):
+        res = design_mesh(path, params, solver, optimize=optimize)
+        assert res.design.report.optimization is None and res.design.report.deployed is not None
+        assert "optimize" not in res.design.report.timings_s
+        rib = res.design.ribbons
+        tau = ribbon_thickness(TABLE, np.array([r.kappa1 for r in rib]), np.array([r.spacing[1] for r in rib]))
+        np.testing.assert_allclose([r.thickness for r in rib], tau.thickness)
+
+
+def test_the_daemon_passes_its_design_switches_to_the_compile_worker():
+    from ribbond.daemon.components.compiler import COMPILE_STAGES, worker_command
+    from ribbond.design.pipeline import STAGES
+    assert [s.name for s in STAGES] == [s for s in COMPILE_STAGES if s != "write"]
+    cmd = worker_command("py", "m.obj", "out", {}, "plans")
+    assert "--no-optimize" not in cmd and "--no-predict" not in cmd
+    assert worker_command("py", "m.obj", "out", {}, "plans", optimize=False)[-1] == "--no-optimize"
