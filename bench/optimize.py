@@ -54,7 +54,7 @@ def run(name: str) -> dict:
     from ribbond.deploy.optimize import optimize_layout
     from ribbond.deploy.predict import RELEASES, predict_deployed
     from ribbond.design.mesh_io import write_obj
-    from ribbond.design.params import DesignParameters, SizeSpec
+    from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
     from ribbond.design.pipeline import design_mesh
     from ribbond.design.thickness import load_curvature_table
     V, F, size = _mesh(name)
@@ -68,7 +68,8 @@ def run(name: str) -> dict:
     forward = predict_deployed(uv, V, F, rib, **kw)
     t0 = time.perf_counter()
     start = predict_deployed(uv, V, F, rib, releases=RELEASES[:1], **kw)     # what the stage optimize runs
-    opt = optimize_layout(uv, V, F, rib, start, **kw)
+    budget = max(SolverSettings().optimize_budget_s - (time.perf_counter() - t0), 1.0)     # as the stage
+    opt = optimize_layout(uv, V, F, rib, start, budget_s=budget, **kw)
     stage_s = time.perf_counter() - t0
     optimized = predict_deployed(uv, V, F, opt.ribbons, **kw)
     return {"surface": name, "faces": len(F), "ribbons": len(rib), "forward": forward, "optimized": optimized,

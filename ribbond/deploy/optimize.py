@@ -50,7 +50,7 @@ __all__ = ["LayoutModel", "layout_model", "Objective", "Optimization", "optimize
            "DEFAULT_BUDGET_S", "DEFAULT_FACES"]
 
 #: Wall-time budget of the optimization, s (``SolverSettings.optimize_budget_s``).
-DEFAULT_BUDGET_S = 45.0
+DEFAULT_BUDGET_S = 40.0
 #: Faces of the mesh the optimization solves on.
 DEFAULT_FACES = 1200
 #: Cap on the objective's evaluations (each a warm-started Newton solve and an adjoint solve).

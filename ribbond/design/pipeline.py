@@ -522,7 +522,7 @@ def _deployed_report(run: _Run) -> None:
 def _optimize(run: _Run) -> str:
     """The forward layout's nominal prediction, then its ribbons' thicknesses optimized against it; the
     design (ribbons, realization) is made again with them, and the stages after use them."""
-    p = run.params
+    p, t0 = run.params, time.perf_counter()
     forward = _predict(run.uv, run.V, run.F, run.ribbons, p, run.table, run.progress, releases=RELEASES[:1],
                        stage="optimize")
     calls = [0]
@@ -534,7 +534,8 @@ def _optimize(run: _Run) -> str:
     try:
         opt = optimize_layout(run.uv, run.V, run.F, run.ribbons, forward, prestretch=p.prestretch,
                               ribbon_width=p.ribbon_width, table=run.table,
-                              budget_s=run.solver.optimize_budget_s, progress=relay)
+                              budget_s=max(run.solver.optimize_budget_s - (time.perf_counter() - t0), 1.0),
+                              progress=relay)
     except ValueError as exc:
         raise DesignError(f"the layout cannot be optimized: {exc}") from None
     run.optimization = (opt, forward)
