@@ -137,6 +137,13 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         from ribbond.design.verdict import deployed_figures
         lines.append(f"deployed    {deployed_figures(dv.model_dump(exclude_none=True))} ({dv.faces} faces, "
                      f"{dv.iterations} Newton iterations, {dv.time_s:.1f} s); {out_dir}/deployed.png")
+    if r.optimization is not None:
+        o = r.optimization
+        fo, op = o.forward, o.optimized
+        lines.append(f"optimized   {', '.join(o.variables)}: predicted mean {fo.deviation_pct.mean:.2f} → "
+                     f"{op.deviation_pct.mean:.2f} %, ∫K {fo.total_gaussian_curvature.predicted:+.2f} → "
+                     f"{op.total_gaussian_curvature.predicted:+.2f} (target {op.total_gaussian_curvature.target:+.2f}); "
+                     f"{o.iterations} iterations, {o.time_s:.1f} s (--no-optimize: the forward design)")
     pr = r.print_
     if pr is not None:
         for side, sp in (("front", pr.front), ("back", pr.back)):
