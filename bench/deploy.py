@@ -11,16 +11,10 @@ subprocess designs it as ``ribbonctl design`` does (default parameters at the be
 - convergence: the nominal prediction at twice the reference resolution against the default, registered
   (Kabsch), mean distance % of the diagonal (≤ 0.5 %); the nominal release in 10, 20 and 40 steps, the
   largest mean distance between any two (≤ 0.3 %);
-- with ``--fine``, in its own subprocess (so its peak memory is its own): the ribbon-resolved prediction
-  (``predict_deployed(model="ribbon-resolved")``): time (≤ 5 min on the saddle), peak memory (≤ 2 GB),
-  its faces, ∫K, and the homogenized against it (the homogenized vertices interpolated at the fine
-  mesh's flat positions, Kabsch, mean distance % of the diagonal; ≤ 1 % on the feasible surfaces).
-  ``--uncalibrated`` gives the fine model the table's κ as its ribbons' own curvature instead of the
-  coupon calibration (``fine.ribbon_resolved_sheet(calibrate=False)``), labelled so in the output.
+Each ``deployed.png`` is written to ``--out`` (default ``bench/out/deploy``). The layout optimized
+against the prediction has its own bench: ``bench/optimize.py``.
 
-Both models' ``deployed.png`` are written to ``--out`` (default ``bench/out/deploy``).
-
-    python bench/deploy.py [--surfaces cylinder saddle] [--fine [--uncalibrated]] [--only-fine] [--out DIR]
+    python bench/deploy.py [--surfaces cylinder saddle] [--out DIR]
 """
 
 from __future__ import annotations
@@ -45,9 +39,6 @@ RESULT_TAG = "BENCH-DEPLOY "
 SURFACES = ("cylinder", "torus_patch", "saddle", "hemisphere")
 FEASIBLE = {"cylinder": True, "torus_patch": True, "saddle": True, "hemisphere": False}
 GOAL_DEPLOY_S = 30.0
-GOAL_FINE_S = 300.0
-GOAL_MB = 2048.0
-GOAL_FINE_PCT = 1.0
 GOAL_RES_PCT = 0.5
 GOAL_STEPS_PCT = 0.3
 
@@ -102,36 +93,19 @@ def _summary(p) -> dict:
             "reached": p.reached, "verdict": p.verdict}
 
 
-def child(name: str, mode: str, out: Path) -> int:
-    """Design ``name`` and run ``mode`` ("homogenized" or "fine" / "fine-uncalibrated"); print one
-    tagged JSON line."""
-    from ribbond.deploy import fine
+def child(name: str, out: Path) -> int:
+    """Design ``name`` (forward: ``design_mesh(predict=False)``), predict its layout; print one tagged JSON line."""
     from ribbond.deploy.predict import predict_deployed
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         res, kw = _design(name, Path(tmp))
     uv, V, F, rib = res.flat_uv, res.V, res.F, res.design.ribbons
     diagonal = float(np.linalg.norm(np.ptp(V, axis=0)))
-    r: dict = {"surface": name, "mode": mode, "design_faces": len(F), "ribbons": len(rib), "diagonal": diagonal}
+    r: dict = {"surface": name, "design_faces": len(F), "ribbons": len(rib), "diagonal": diagonal}
     home = predict_deployed(uv, V, F, rib, **kw)
     r["homogenized"] = _summary(home)
-    if mode == "homogenized":
-        (out / f"{name}_homogenized.png").write_bytes(home.render_png(V, F, title=f"{name}: homogenized"))
-        r["convergence"] = _convergence(uv, V, F, rib, kw, home, diagonal)
-    else:
-        if mode == "fine-uncalibrated":
-            plain = fine.ribbon_resolved_sheet
-            fine.ribbon_resolved_sheet = lambda *a, **k: plain(*a, **k, calibrate=False)
-        t0 = time.perf_counter()
-        try:
-            p = predict_deployed(uv, V, F, rib, model="ribbon-resolved", **kw)
-        except ValueError as exc:
-            r["fine_error"] = str(exc)
-        else:
-            r["fine"] = _summary(p)
-            r["fine"]["wall_s"] = time.perf_counter() - t0
-            r["fine_vs_homogenized_pct"] = registered_distance_pct(home, p, diagonal)
-            (out / f"{name}_{mode}.png").write_bytes(p.render_png(V, F, title=f"{name}: {mode}"))
+    (out / f"{name}_homogenized.png").write_bytes(home.render_png(V, F, title=f"{name}: homogenized"))
+    r["convergence"] = _convergence(uv, V, F, rib, kw, home, diagonal)
     r["peak_rss_kb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     print(RESULT_TAG + json.dumps(r), flush=True)
     return 0
@@ -151,13 +125,13 @@ def _convergence(uv, V, F, rib, kw, home, diagonal: float) -> dict:
             "steps_pct": pairs, "steps_time_s": {s: p.time_s for s, p in by_steps.items()}}
 
 
-def run_child(name: str, mode: str, out: Path) -> dict:
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", name, mode, str(out)],
+def run_child(name: str, out: Path) -> dict:
+    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", name, str(out)],
                           capture_output=True, text=True, cwd=ROOT)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(RESULT_TAG)]
     if proc.returncode != 0 or not lines:
         tail = "\n".join((proc.stderr or proc.stdout).strip().splitlines()[-25:])
-        raise RuntimeError(f"{name} ({mode}) failed (exit code {proc.returncode}):\n{tail}")
+        raise RuntimeError(f"{name} failed (exit code {proc.returncode}):\n{tail}")
     return json.loads(lines[-1][len(RESULT_TAG):])
 
 
@@ -170,61 +144,39 @@ def report(r: dict) -> None:
     name, h = r["surface"], r["homogenized"]
     dv, K = h["deviation"], h["K"]
     print(f"\n{name} ({r['design_faces']} design faces, {r['ribbons']} ribbons, diagonal {r['diagonal']:.1f} mm)")
-    if r["mode"] == "homogenized":
-        print(f"  deploy stage (homogenized, nominal + spread): {h['time_s']:.1f} s (goal ≤ {GOAL_DEPLOY_S:.0f} s: "
-              f"{_met(h['time_s'] <= GOAL_DEPLOY_S)}); {h['faces']} faces, {h['iterations']} Newton iterations, "
-              f"converged {h['converged']}")
-        print(f"  deviation mean / p99 / max {dv['mean']:.2f} / {dv['p99']:.2f} / {dv['max']:.2f} %, "
-              f"spread of the mean {h['spread_mean'][0]:.2f}-{h['spread_mean'][1]:.2f} %; "
-              f"∫K {K[0]:+.2f} / target {K[1]:+.2f}; area ratio {h['area_ratio']:.3f}; reached {h['reached']}")
-        print(f"  verdict: {h['verdict']}")
-        c = r["convergence"]
-        print(f"  2× resolution ({c['double_faces']} faces) against the default: {c['double_vs_default_pct']:.2f} % "
-              f"(goal ≤ {GOAL_RES_PCT} %: {_met(c['double_vs_default_pct'] <= GOAL_RES_PCT)})")
-        worst = max(c["steps_pct"].values())
-        print(f"  steps 10/20/40: " + ", ".join(f"{k} {v:.2f} %" for k, v in c["steps_pct"].items())
-              + f" (goal ≤ {GOAL_STEPS_PCT} %: {_met(worst <= GOAL_STEPS_PCT)}); nominal times "
-              + ", ".join(f"{k} steps {v:.1f} s" for k, v in c["steps_time_s"].items()))
-        return
-    if "fine_error" in r:
-        print(f"  {r['mode']}: FAILED: {r['fine_error']}")
-        return
-    f = r["fine"]
-    mb = r["peak_rss_kb"] / 1024
-    d = r["fine_vs_homogenized_pct"]
-    goal_s = (f"goal ≤ {GOAL_FINE_S:.0f} s: {_met(f['time_s'] <= GOAL_FINE_S)}" if name == "saddle"
-              else "the goal is the saddle's")
-    print(f"  {r['mode']}: {f['time_s']:.0f} s ({goal_s}); {f['faces']} faces, {f['iterations']} Newton iterations, "
-          f"converged {f['converged']}; peak {mb:.0f} MB (goal ≤ {GOAL_MB:.0f}: {_met(mb <= GOAL_MB)})")
-    print(f"  fine: deviation mean {f['deviation']['mean']:.2f} %, ∫K {f['K'][0]:+.2f} "
-          f"(homogenized {h['K'][0]:+.2f}, target {h['K'][1]:+.2f}); reached {f['reached']}")
-    print(f"  homogenized against fine: {d:.2f} % of the diagonal"
-          + (f" (goal ≤ {GOAL_FINE_PCT} %: {_met(d <= GOAL_FINE_PCT)})" if FEASIBLE[name] else " (reported)"))
+    print(f"  deploy stage (homogenized, nominal + spread): {h['time_s']:.1f} s (goal ≤ {GOAL_DEPLOY_S:.0f} s: "
+          f"{_met(h['time_s'] <= GOAL_DEPLOY_S)}); {h['faces']} faces, {h['iterations']} Newton iterations, "
+          f"converged {h['converged']}")
+    print(f"  deviation mean / p99 / max {dv['mean']:.2f} / {dv['p99']:.2f} / {dv['max']:.2f} %, "
+          f"spread of the mean {h['spread_mean'][0]:.2f}-{h['spread_mean'][1]:.2f} %; "
+          f"∫K {K[0]:+.2f} / target {K[1]:+.2f}; area ratio {h['area_ratio']:.3f}; reached {h['reached']}")
+    print(f"  verdict: {h['verdict']}")
+    c = r["convergence"]
+    print(f"  2× resolution ({c['double_faces']} faces) against the default: {c['double_vs_default_pct']:.2f} % "
+          f"(goal ≤ {GOAL_RES_PCT} %: {_met(c['double_vs_default_pct'] <= GOAL_RES_PCT)})")
+    worst = max(c["steps_pct"].values())
+    print(f"  steps 10/20/40: " + ", ".join(f"{k} {v:.2f} %" for k, v in c["steps_pct"].items())
+          + f" (goal ≤ {GOAL_STEPS_PCT} %: {_met(worst <= GOAL_STEPS_PCT)}); nominal times "
+          + ", ".join(f"{k} steps {v:.1f} s" for k, v in c["steps_time_s"].items()))
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--surfaces", nargs="+", default=list(SURFACES), choices=SURFACES)
-    ap.add_argument("--fine", action="store_true", help="also the ribbon-resolved model")
-    ap.add_argument("--uncalibrated", action="store_true", help="the fine model without its coupon calibration")
-    ap.add_argument("--only-fine", action="store_true", help="skip the homogenized runs")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "out" / "deploy")
-    ap.add_argument("--child", nargs=3, metavar=("SURFACE", "MODE", "OUT"), help=argparse.SUPPRESS)
+    ap.add_argument("--child", nargs=2, metavar=("SURFACE", "OUT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child is not None:
-        return child(args.child[0], args.child[1], Path(args.child[2]))
-    modes = ([] if args.only_fine else ["homogenized"]) + (
-        ["fine-uncalibrated" if args.uncalibrated else "fine"] if args.fine or args.only_fine else [])
+        return child(args.child[0], Path(args.child[1]))
     load0 = os.getloadavg()
     failures = []
     for name in args.surfaces:
-        for mode in modes:
-            print(f"[{name} {mode}] running ...", file=sys.stderr, flush=True)
-            try:
-                report(run_child(name, mode, args.out))
-            except RuntimeError as exc:
-                failures.append(str(exc))
-                print(f"\n{name} ({mode}): FAILED", flush=True)
+        print(f"[{name}] running ...", file=sys.stderr, flush=True)
+        try:
+            report(run_child(name, args.out))
+        except RuntimeError as exc:
+            failures.append(str(exc))
+            print(f"\n{name}: FAILED", flush=True)
     print(f"\nload average (1, 5, 15 min) at the start: {', '.join(f'{x:.2f}' for x in load0)}; at the end: "
           f"{', '.join(f'{x:.2f}' for x in os.getloadavg())} on {os.cpu_count()} cores "
           "(shared: read the times with it)")

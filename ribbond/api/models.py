@@ -10,7 +10,7 @@ from enum import Enum
 from typing import Annotated, Any, Literal
 
 from fastapi import Path as PathParam
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from ribbond.daemon.components.camera import SNAPSHOT_FILES
 from ribbond.daemon.components.manual import MAX_MANUAL_COMMANDS
@@ -74,7 +74,7 @@ class JobStatus(JobRecord):
                                                         "or trimmed, the prediction (ribbond.design.verdict)")
     prediction: dict[str, Any] | None = Field(
         None, description="the design's last prediction asked for (POST /jobs/{id}/predict) in this daemon's "
-        "life: state (running, done, failed), fraction 0–1, message, table, fine; when done the new "
+        "life: state (running, done, failed), fraction 0–1, message, table; when done the new "
         "report.deployed (deployed) and verdict; when failed the error")
     snapshots: list[Snapshot] = Field(default_factory=list, description="the camera's snapshots kept at each "
                                       "side's end ([camera]), front to back (GET /jobs/{id}/files/{name})")
@@ -142,11 +142,12 @@ class CameraView(BaseModel):
 
 
 class PredictRequest(BaseModel):
-    """``POST /jobs/{id}/predict``: the prediction's curvature table and model."""
+    """``POST /jobs/{id}/predict``: the prediction's curvature table (``fine``, the ribbon-resolved
+    model, was taken out (issue 34): refused, as any other unknown field)."""
 
+    model_config = ConfigDict(extra="forbid")
     table: str | None = Field(None, pattern=TABLE_NAME.pattern,
                               description="a curvature table's name (GET /tables); default the design's")
-    fine: bool = Field(False, description="the ribbon-resolved model (minutes) instead of the homogenized one")
 
 
 class JogRequest(BaseModel):

@@ -5,7 +5,7 @@ engine locally (no daemon) and writes the design folder; with ``--panels auto|N 
 it cuts the target into panels and writes the project folder (``ribbond.design.project``). The daemon commands (``submit``,
 ``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``frame-ok``, ``align``,
 ``printer``, ``stop``) are in ``ribbond.client.http``.
-``ribbonctl predict DESIGN_DIR [--table NAME] [--fine]`` predicts again the deployed shape of a
+``ribbonctl predict DESIGN_DIR [--table NAME]`` predicts again the deployed shape of a
 design folder, locally (``ribbond.design.repredict``).
 
 Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still
@@ -137,6 +137,13 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         from ribbond.design.verdict import deployed_figures
         lines.append(f"deployed    {deployed_figures(dv.model_dump(exclude_none=True))} ({dv.faces} faces, "
                      f"{dv.iterations} Newton iterations, {dv.time_s:.1f} s); {out_dir}/deployed.png")
+    if r.optimization is not None:
+        o = r.optimization
+        fo, op = o.forward, o.optimized
+        lines.append(f"optimized   {', '.join(o.variables)}: predicted mean {fo.deviation_pct.mean:.2f} → "
+                     f"{op.deviation_pct.mean:.2f} %, ∫K {fo.total_gaussian_curvature.predicted:+.2f} → "
+                     f"{op.total_gaussian_curvature.predicted:+.2f} (target {op.total_gaussian_curvature.target:+.2f}); "
+                     f"{o.iterations} iterations, {o.time_s:.1f} s (--no-optimize: the forward design)")
     pr = r.print_
     if pr is not None:
         for side, sp in (("front", pr.front), ("back", pr.back)):
@@ -201,12 +208,13 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if updates:
         params = params.model_validate({**params.model_dump(), **updates})
     frame = load_profile(params.printer_profile).frame
+    solver = settings.solver.model_copy(update={"optimize": False}) if args.no_optimize else settings.solver
     if args.panels is not None:
-        return _design_project(args, params, settings.solver)
+        return _design_project(args, params, solver)
     progress = TerminalProgress(quiet=args.quiet)
     try:
-        result = design_mesh(args.mesh, params, settings.solver, frame=frame, progress=progress,
-                             predict=not args.no_predict)
+        result = design_mesh(args.mesh, params, solver, frame=frame, progress=progress,
+                             predict=not args.no_predict, optimize=not args.no_optimize)
         out = write_design(result, args.output, progress)
     finally:
         progress.close()
@@ -315,7 +323,7 @@ def _predict_job(args: argparse.Namespace) -> int:
     from .http import _client
 
     c = _client(args)
-    body: dict[str, Any] = {"fine": bool(args.fine)} | ({"table": args.table} if args.table else {})
+    body: dict[str, Any] = {"table": args.table} if args.table else {}
     job = c.request("POST", f"/jobs/{args.job}/predict", json=body)
     progress = PredictProgress(quiet=args.quiet)
     try:
@@ -353,7 +361,7 @@ def _cmd_predict(args: argparse.Namespace) -> int:
         return _predict_job(args)
     progress = PredictProgress(quiet=args.quiet)
     try:
-        done = repredict_folder(args.design_dir, table=args.table, fine=args.fine, progress=progress)
+        done = repredict_folder(args.design_dir, table=args.table, progress=progress)
     finally:
         progress.close()
     _print_prediction(args, done.deployed, done.verdict, list(done.files))
@@ -495,6 +503,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
     d.add_argument("--no-predict", action="store_true",
                    help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
+    d.add_argument("--no-optimize", action="store_true",
+                   help="the paper's forward design: the ribbons' thicknesses from the curvature table, not "
+                        "optimized against the prediction ([solver] optimize = false)")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.add_argument("--panels", metavar="auto|N", help="cut the target into panels and write a project folder "
                    "(project.json, panels.png, panel-1/ ...: each an ordinary design folder)")
@@ -514,8 +525,6 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument("--table", metavar="NAME",
                     help="curvature table name or .toml path for the prediction (default: the design's); "
                          "recorded as report.deployed.table")
-    pr.add_argument("--fine", action="store_true",
-                    help="the ribbon-resolved model (minutes) instead of the homogenized one (seconds)")
     pr.add_argument("-q", "--quiet", action="store_true", help="print only the result")
     pr.set_defaults(func=_cmd_predict)
     add_commands(sub)

@@ -377,6 +377,8 @@ def cmd_submit(args: argparse.Namespace) -> int:
             params["solver"] = solver
     if args.size is not None:
         params["size"] = {"bbox_diagonal": args.size}
+    if args.no_optimize:                                  # the paper's forward design
+        params["solver"] = {**params.get("solver", {}), "optimize": False}
     if args.panels is not None:                          # a project: one job per panel (issue 26)
         from .projects import submit_project
         return submit_project(c, args, params)
@@ -855,6 +857,8 @@ def _job_commands(cmd: Command) -> None:
     s.add_argument("--seam-allowance", type=float, default=6.0, metavar="MM",
                    help="with --panels: fabric left around each panel for its seams (default 6 mm)")
     s.add_argument("--no-wait", action="store_true", help="print the job id and return at once")
+    s.add_argument("--no-optimize", action="store_true", help="the paper's forward design: the layout not "
+                   "optimized against the prediction (the job's [solver] optimize = false)")
     p = cmd("print", "print a plain G-code file through the daemon", cmd_print,
             "Upload a G-code program, checked line by line against the printer profile (frame, feeds, "
             "temperatures), and print it; follows the job like watch.")

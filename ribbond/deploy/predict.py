@@ -1,7 +1,7 @@
 """Predict the deployed shape of a printed layout (issues 12 and 23): the top level of ``ribbond.deploy``.
 
 ``predict_deployed`` takes the flat surface, the target and the ribbons, builds the printed sheet
-(``rest_forms``: the homogenized model, or ``fine``: every ribbon resolved), releases it along the
+(``rest_forms``: the homogenized model), releases it along the
 physical path from the flat sheet as printed (``release``), and only then registers the result onto
 the target and measures it (``compare``, ``agreement``). Nothing in the simulation reads the target:
 no start, weight, bound or stopping rule; every tolerance is a fraction of the flat sheet's size.
@@ -51,8 +51,8 @@ COARSE_FACES = 600
 RELEASES = (NOMINAL,
             Path("lifted against the curl", 1.0, -1.0),
             Path("curvature lagging the contraction", 2.0, 1.0))
-#: The models: the homogenized shell (``rest_forms``) or every ribbon resolved (``fine``).
-MODELS = ("homogenized", "ribbon-resolved")
+#: The model: the homogenized shell (``rest_forms``; docs/engine.md says why there is no other).
+MODELS = ("homogenized",)
 
 
 @dataclass(frozen=True)
@@ -153,10 +153,10 @@ class Prediction:
     deviation_pct : {"mean", "p99", "max"} in % of the target's bounding-box diagonal.
     agreement : the intrinsic measures and the spread (``agreement.Agreement``).
     releases : per release tried, its name and deviation_pct (the nominal one first).
-    model : "homogenized" or "ribbon-resolved".
+    model : "homogenized".
     iterations : Newton iterations of all releases; converged : every release reached equilibrium.
     steps : release steps of each path; time_s : wall time of the whole prediction, s; faces : len(F).
-    coverage : what the layout puts on each face of the reference mesh (None for the fine model).
+    coverage : what the layout puts on each face of the reference mesh.
     sheet : the printed sheet the nominal release was finished on (its uv and F are ``uv`` and ``F``).
     X_released : (k, 3) the nominal release's equilibrium in the flat sheet's frame, before the
         registration (what ``assembly.assemble`` places and sews).
@@ -263,12 +263,7 @@ def _release_on(sheet: Sheet, coarse: Sheet | None, path: Path, steps: int, max_
 def _sheets(uv: np.ndarray, V: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], model: str,
             target_faces: int, coarse_faces: int, kw: dict):
     """The reference mesh, the sheet on it, the coarse sheet each path is followed on (or None) and
-    the coverage (None for the ribbon-resolved model)."""
-    if model == "ribbon-resolved":
-        from .fine import ribbon_resolved_sheet
-        sheet = ribbon_resolved_sheet(uv, F, ribbons, **kw)
-        ref = ReferenceMesh(uv=sheet.uv, F=sheet.F, target=interpolate(sheet.uv, uv, F, V), coarsened=True)
-        return ref, sheet, None, None
+    the coverage."""
     ref = reference_mesh(uv, V, F, target_faces)
     sheet, cov = sheet_for_layout(ref.uv, ref.F, ribbons, **kw)
     coarse = None
@@ -314,8 +309,7 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
     coarse_faces : each release follows its path on a uniform remesh of about this many faces and is
         finished on the reference mesh (0: the whole path on the reference mesh).
     material : the material constants (``Material()``).
-    model : "homogenized" (the shell of ``rest_forms``) or "ribbon-resolved" (``fine``: every ribbon
-        a strip of its own on a mesh fine enough to resolve it; no coarse copy).
+    model : "homogenized" (the shell of ``rest_forms``), the only one.
     steps : release steps per path; releases : the paths (the first is the nominal prediction).
     max_iterations : Newton's cap per step.
     progress : called with (fraction done in [0, 1], what is being done).

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 import shapely
 from scipy import ndimage
 from scipy.spatial import cKDTree
@@ -241,6 +242,9 @@ class Coverage:
     thickness : (m,) mean plastic thickness τ near the face, mm (0 on bare faces).
     mu2 : (m,) measured spacing across, w_r / f_p, mm (inf on bare faces).
     bare : (m,) bool, no ribbon within reach.
+    ribbon_weights : (m, R) sparse, the share of ribbon r in face f's weighted means (rows sum to 1,
+        zero on bare faces): ``thickness`` is ribbon_weights @ τ, and ``kappa`` the same mean of the
+        table's signed κ(τ_r, μ2_f) (``deploy.optimize`` varies τ through it). None when not measured.
     """
 
     direction: np.ndarray
@@ -250,6 +254,7 @@ class Coverage:
     thickness: np.ndarray
     mu2: np.ndarray
     bare: np.ndarray
+    ribbon_weights: sp.csr_matrix | None = None
 
     @property
     def area_fraction(self) -> np.ndarray:
@@ -317,8 +322,11 @@ def face_coverage(uv: np.ndarray, F: np.ndarray, ribbons: Sequence[Ribbon], ribb
     bare = near.bare
     kappa[bare], tau_mean[bare], f_d[bare], f_p[bare] = 0.0, 0.0, 0.0, 0.0
     mu2[bare] = np.inf
+    share = np.where(bare[:, None], 0.0, near.w / np.where(bare, 1.0, near.wsum)[:, None])
+    weights = sp.csr_matrix((share.ravel(), (np.repeat(np.arange(m), share.shape[1]),
+                                             samples.ribbon[near.sid].ravel())), shape=(m, len(ribbons)))
     return Coverage(direction=d, f_along=f_d, f_across=f_p, kappa=kappa, thickness=tau_mean, mu2=mu2,
-                    bare=bare)
+                    bare=bare, ribbon_weights=weights)
 
 
 class _Near(NamedTuple):

@@ -423,6 +423,8 @@ class BendingQuadratic:
     g: np.ndarray
     c: float
     face_H: np.ndarray | None = None     # (m, 3, 3) per face over its edges (H = Σ_f scatter(face_H))
+    face_g: np.ndarray | None = None     # (m, 3) per face over its edges (g = Σ_f scatter(face_g))
+    face_G: np.ndarray | None = None     # (m, 3, 3) ∂face_g/∂b̄_f (face_g = face_G b̄_f: g is linear in b̄)
 
     def value(self, s: np.ndarray) -> float:
         return float(0.5 * s @ (self.H @ s) + self.g @ s + self.c)
@@ -453,7 +455,8 @@ def bending_quadratic(topo: ShellTopology, abar: np.ndarray, bbar: np.ndarray, c
     C[:, 0, 1] = 2 * hgt[:, 1]
     C[:, 2, 2] = 2 * hgt[:, 2]
     H = 2 * np.swapaxes(C, 1, 2) @ K @ C
-    g = -2 * np.einsum("kai,kab,kb->ki", C, K, bbar)
+    G = -2 * np.swapaxes(C, 1, 2) @ K                                      # g = G b̄ per face
+    g = np.einsum("kij,kj->ki", G, bbar)
     c = np.einsum("ka,kab,kb->k", bbar, K, bbar)
     free = topo.boundary_edge[topo.face_edge].astype(float)               # (m, 3)
     if free.any():
@@ -463,17 +466,19 @@ def bending_quadratic(topo: ShellTopology, abar: np.ndarray, bbar: np.ndarray, c
         HS = H @ S
         c = c - 0.5 * np.einsum("ki,kij,kj->k", g, S, g)
         g = g - np.einsum("kij,kj->ki", HS, g)
+        G = G - HS @ G
         H = H - HS @ H
         H = 0.5 * (H + np.swapaxes(H, 1, 2))
         keep = 1.0 - free                                                  # boundary entries: no s
         H = H * keep[:, :, None] * keep[:, None, :]
         g = g * keep
+        G = G * keep[:, :, None]
     fe = topo.face_edge
     rows = np.repeat(fe, 3, axis=1).ravel()
     cols = np.tile(fe, (1, 3)).ravel()
     Hs = sp.csr_matrix((H.ravel(), (rows, cols)), shape=(topo.n_edges, topo.n_edges))
     gs = np.bincount(fe.ravel(), weights=g.ravel(), minlength=topo.n_edges)
-    return BendingQuadratic(H=Hs, g=gs, c=float(c.sum()), face_H=H)
+    return BendingQuadratic(H=Hs, g=gs, c=float(c.sum()), face_H=H, face_g=g, face_G=G)
 
 
 # -- the whole energy ---------------------------------------------------------------------------------
@@ -505,8 +510,9 @@ class ShellEnergy:
         self._stretch_forms = quadratic_form(_inverse_2x2(self.abar))      # fixed: once, not per call
         self._last_hinges: tuple[np.ndarray, _HingeGeometry] | None = None  # (X, its hinges): ``_hinges``
         self.nu = float(nu)
+        self._bend_coef = np.asarray(bend_coef, dtype=float)
         self.bending = bending_quadratic(self.topo, self.abar, np.asarray(bbar, dtype=float),
-                                         np.asarray(bend_coef, dtype=float), self.nu)
+                                         self._bend_coef, self.nu)
         dof = 3 * self.F[:, :, None] + np.arange(3)                        # (m, 3, 3)
         self._fdof = dof.reshape(-1, 9)
         hd = 3 * self.topo.hinge[:, :, None] + np.arange(3)
@@ -550,6 +556,32 @@ class ShellEnergy:
         out = np.bincount(self._fdof.ravel(), weights=g.ravel(), minlength=3 * self.n)
         out += np.bincount(self._hdof.ravel(), weights=(lam[:, None] * gs).ravel(), minlength=3 * self.n)
         return out
+
+    def rest_sensitivities(self, X: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The mixed derivatives of vᵀ∇E(X) with respect to the face parameters: b̄ (m, 3) in the edge
+        basis, the stretching coefficients (m,) and the bending coefficients (m,) (``deploy.optimize``'s
+        adjoint: dJ/dp = −λᵀ ∂∇E/∂p). ∇E is linear in b̄ (E_b's g = G b̄ per face) and each face's
+        terms are linear in its coefficient, so these are exact: per face, the directional derivative
+        along v of its own terms, divided by its coefficient, and Gᵀ ds for b̄ (ds = ∂s/∂x v per edge).
+
+        Parameters
+        ----------
+        X : (n, 3) positions; v : (3n,) a direction, xyz interleaved per vertex.
+        """
+        v = np.asarray(v, dtype=float).ravel()
+        if v.shape != (3 * self.n,):
+            raise ValueError(f"v must have shape ({3 * self.n},), got {v.shape}")
+        _, g, _ = stretch_energy(X, self.F, self.abar, self.stretch_coef, self.nu, derivatives=1,
+                                 forms=self._stretch_forms)
+        d_stretch = (g * v[self._fdof]).sum(axis=1) / self.stretch_coef
+        s_h, gs, _ = hinge_tan(X, self.topo.hinge, derivatives=1)
+        ds = self._edge_values((gs * v[self._hdof]).sum(axis=1))[self.topo.face_edge]      # (m, 3)
+        s = self._edge_values(s_h)[self.topo.face_edge]
+        b = self.bending
+        face_terms = np.einsum("ki,kij,kj->k", ds, b.face_H, s) + (ds * b.face_g).sum(axis=1)
+        d_bend = face_terms / self._bend_coef
+        d_bbar = np.einsum("kij,ki->kj", b.face_G, ds)
+        return d_bbar, d_stretch, d_bend
 
     def gradient_and_hessian(self, X: np.ndarray, project: bool = True
                              ) -> tuple[np.ndarray, sp.csr_matrix]:

@@ -1,7 +1,7 @@
 """The prediction worker: one design folder predicted again, in its own process, reporting progress
 as JSON lines (as ``ribbond.design.worker`` does for a compile).
 
-    python -m ribbond.deploy.worker DESIGN_DIR [--table NAME] [--fine] [--tables DIR]
+    python -m ribbond.deploy.worker DESIGN_DIR [--table NAME] [--tables DIR]
 
 Every line on stdout is one JSON object:
 
@@ -24,7 +24,6 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m ribbond.deploy.worker", description=__doc__.split("\n\n")[0])
     parser.add_argument("design_dir", type=Path)
     parser.add_argument("--table", help="curvature table (default: the design's)")
-    parser.add_argument("--fine", action="store_true", help="the ribbon-resolved model")
     parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     args = parser.parse_args(argv)
@@ -40,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
             _emit({"event": "progress", "fraction": float(fraction), "message": message})
 
     try:
-        done = repredict_folder(args.design_dir, table=args.table, fine=args.fine, progress=progress,
+        done = repredict_folder(args.design_dir, table=args.table, progress=progress,
                                 tables_dir=args.tables)
     except ValueError as exc:
         _emit({"event": "error", "kind": "input", "message": str(exc)})

@@ -249,9 +249,30 @@ class DeployedReport(BaseModel):
     spread: Spread | None = None
     reached: bool | None = Field(default=None, description="the layout takes the target's shape (README's rule)")
     verdict: str | None = None
-    model: Literal["homogenized", "ribbon-resolved"] | None = None
+    model: Literal["homogenized"] | None = None
     table: str | None = Field(default=None, description="the curvature table of the prediction when it is "
                                                         "not parameters.curvature_table (ribbonctl predict --table)")
+
+
+class PredictedShape(BaseModel):
+    """A layout's predicted shape in ``report.optimization``: its deviation and ∫K (as ``report.deployed``)."""
+
+    model_config = _CONFIG
+    deviation_pct: DeviationPct
+    total_gaussian_curvature: GaussianCurvature
+
+
+class OptimizationReport(BaseModel):
+    """``report.optimization`` (present when the layout was optimized against the prediction): the
+    forward layout's predicted shape and the optimized one's (``report.deployed`` then describes the
+    optimized layout), what was varied, L-BFGS-B's iterations and the wall time."""
+
+    model_config = _CONFIG
+    forward: PredictedShape
+    optimized: PredictedShape
+    variables: list[str] = Field(description="what was varied per ribbon (\"thickness\")")
+    iterations: int = Field(ge=0)
+    time_s: float = Field(ge=0)
 
 
 class RefinedReport(BaseModel):
@@ -405,6 +426,8 @@ class Report(_Updatable):
     refined: RefinedReport | None = Field(None, description="the coarse target refined at intake")
     realization: RealizationReport | None = Field(None, description="the printed plastic against the "
                                                   "flattening's metric and curvature (format 4)")
+    optimization: OptimizationReport | None = Field(None, description="the layout optimized against the "
+                                                    "prediction (issue 34)")
 
 
 class Design(_Updatable):

@@ -162,6 +162,13 @@ class SolverSettings(BaseModel):
         1e-7, ge=0, description="vertices closer than this × bbox diagonal are merged")
     layout_margin: float = Field(
         10.0, ge=0, description="free border kept inside the frame around the flat layout, mm")
+    optimize: bool = Field(
+        True, description="optimize the ribbons' thicknesses against the predicted deployed shape (stage "
+        "optimize, when the shape is predicted); false: the paper's forward design")
+    optimize_budget_s: float = Field(
+        45.0, gt=0, le=3600, description="wall-time budget of the layout's optimization against the "
+        "prediction (stage optimize, the forward layout's nominal prediction included: the ribbons' "
+        "thicknesses; ribbond.deploy.optimize), s")
 
 
 def check_smoothing(params: "DesignParameters", solver: "SolverSettings") -> None:

@@ -21,6 +21,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 import shapely
 
+from ..deploy.optimize import Optimization, optimize_layout
 from ..deploy.predict import RELEASES, Prediction, predict_deployed
 from ..deploy.realization import realization
 from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
@@ -30,9 +31,9 @@ from .curvature import Curvature, face_curvature
 from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
-from .format import (DeployedReport, Deviation, Design, Faces, Parameters, PrintReport, Quantiles, RealizationReport,
-                     RefinedReport, Report, Ribbon, RibbonsReport, SidePrintReport, Source, StitchMark,
-                     ThicknessFit)
+from .format import (DeployedReport, Deviation, Design, Faces, OptimizationReport, Parameters, PrintReport,
+                     Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, SidePrintReport,
+                     Source, StitchMark, ThicknessFit)
 from .frames import FaceFrames, face_frames
 from .intake import TargetMesh, check_disk, load_target
 from .mesh_io import obj_bytes
@@ -134,6 +135,7 @@ class _Run:
     progress: DesignProgress
     predict: bool
     t_start: float
+    optimize: bool = True
     timings: dict[str, float] = field(default_factory=dict)
     flat_start: np.ndarray | None = None
     # load
@@ -169,6 +171,7 @@ class _Run:
     design: Design = field(init=False)
     # gcode, deploy, preview
     programs: Programs | None = None
+    optimization: tuple[Optimization, Prediction] | None = None      # and the forward layout's prediction
     prediction: Prediction | None = None
     deployed_png: bytes | None = None
     preview_svg: bytes = b""
@@ -202,7 +205,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
                 progress: DesignProgress | None = None, predict: bool = True,
                 tables_dir: Path | None = None, flat_start: np.ndarray | None = None,
-                finish: bool = True) -> DesignResult:
+                finish: bool = True, optimize: bool = True) -> DesignResult:
     """Run the engine's ``STAGES`` on a mesh file: load, curvature and line field, flattening, stripes,
     ribbons, G-code, the predicted deployed shape and the preview.
 
@@ -220,6 +223,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     finish : False leaves out the print programs and the pictures (``programs`` None, no previews) for
         ``finish_design`` to make once the design is complete (a project's panels get their stitch
         marks after every panel's prediction).
+    optimize : with ``predict``, optimize the ribbons' thicknesses against the prediction (stage
+        ``optimize``, ``ribbond.deploy.optimize``, within ``solver.optimize_budget_s``; also off when
+        ``solver.optimize`` is false); False: the paper's forward design.
 
     Raises
     ------
@@ -231,6 +237,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     run = _prepare(mesh_path, parameters or DesignParameters(), solver or SolverSettings(), frame,
                    progress or NoProgress(), predict, tables_dir)
     run.flat_start = flat_start
+    run.optimize = optimize and run.solver.optimize
     for stage in STAGES:
         if stage.applies(run) and (finish or stage.name not in FINISHING):
             _run_stage(run, stage)
@@ -514,6 +521,36 @@ def _deploy(run: _Run) -> str:
 def _deployed_report(run: _Run) -> None:
     assert run.prediction is not None
     run.report["deployed"] = DeployedReport(**run.prediction.report())
+    if run.optimization is not None:
+        opt, forward = run.optimization
+        run.report["optimization"] = OptimizationReport(**opt.report(forward, run.prediction))
+
+
+def _optimize(run: _Run) -> str:
+    """The forward layout's nominal prediction, then its ribbons' thicknesses optimized against it; the
+    design (ribbons, realization) is made again with them, and the stages after use them."""
+    p, t0 = run.params, time.perf_counter()
+    forward = _predict(run.uv, run.V, run.F, run.ribbons, p, run.table, run.progress, releases=RELEASES[:1],
+                       stage="optimize")
+    calls = [0]
+
+    def relay(fraction: float, message: str) -> None:
+        calls[0] += 1
+        run.progress.iteration("optimize", calls[0], fraction, 0.0)
+
+    try:
+        opt = optimize_layout(run.uv, run.V, run.F, run.ribbons, forward, prestretch=p.prestretch,
+                              ribbon_width=p.ribbon_width, table=run.table,
+                              budget_s=max(run.solver.optimize_budget_s - (time.perf_counter() - t0), 1.0),
+                              progress=relay)
+    except ValueError as exc:
+        raise DesignError(f"the layout cannot be optimized: {exc}") from None
+    run.optimization = (opt, forward)
+    run.ribbons = opt.ribbons
+    _design_document(run)
+    return (f"{len(opt.ribbons)} thicknesses, {opt.iterations} iterations ({opt.stopped}); RMS distance on its "
+            f"{opt.faces}-face mesh {100 * np.sqrt(opt.objective_forward):.2f} → {100 * np.sqrt(opt.objective):.2f} % "
+            f"of the diagonal; forward layout's mean deviation {forward.deviation_pct['mean']:.2f} %")
 
 
 def _preview(run: _Run) -> str:
@@ -572,6 +609,8 @@ STAGES = (
     _Stage("flatten", "bounded directional flattening", _flatten, after=_in_print_coordinates),
     _Stage("stripes", "ribbon spacing (Eq. 10) and the stripe patterns θ and ψ", _stripes),
     _Stage("ribbons", "staggered ribbons, sides and thicknesses", _cut_ribbons, after=_design_document),
+    _Stage("optimize", "the ribbons' thicknesses optimized against the prediction", _optimize,
+           applies=lambda run: run.predict and run.optimize),
     _Stage("gcode", "print programs for {run.profile.name}", _gcode, after=_check_extrusion),
     _Stage("deploy", f"predicting the deployed shape (the flat sheet released, {len(RELEASES)} ways)", _deploy,
            after=_deployed_report, applies=lambda run: run.predict),
@@ -613,15 +652,15 @@ def _deploy_summary(p: Prediction) -> str:
 
 
 def _predict(uv: np.ndarray, V: np.ndarray, F: np.ndarray, ribbons: list[Ribbon], params: DesignParameters,
-             table: CurvatureTable, progress: DesignProgress) -> Prediction:
+             table: CurvatureTable, progress: DesignProgress, releases=RELEASES, stage: str = "deploy") -> Prediction:
     calls = [0]
 
     def relay(fraction: float, message: str) -> None:
         calls[0] += 1
-        progress.iteration("deploy", calls[0], fraction, 0.0)
+        progress.iteration(stage, calls[0], fraction, 0.0)
 
     try:
-        return predict_deployed(uv, V, F, ribbons, prestretch=params.prestretch,
+        return predict_deployed(uv, V, F, ribbons, prestretch=params.prestretch, releases=releases,
                                 ribbon_width=params.ribbon_width, table=table, progress=relay)
     except ValueError as exc:
         raise DesignError(f"the deployed shape cannot be predicted: {exc}") from None

@@ -70,12 +70,12 @@ def _table(folder: DesignFolder, name: str | None, tables_dir: Path | None) -> C
     return table
 
 
-def _predict(folder: DesignFolder, table: CurvatureTable, fine: bool, progress: Progress) -> Prediction:
+def _predict(folder: DesignFolder, table: CurvatureTable, progress: Progress) -> Prediction:
     """The prediction of the folder's ribbons, as they are in its design.json."""
     d = folder.design
     return predict_deployed(folder.flat_V, folder.target_V, folder.target_F, list(d.ribbons or []),
                             prestretch=d.parameters.prestretch, ribbon_width=d.parameters.ribbon_width,
-                            table=table, model="ribbon-resolved" if fine else "homogenized", progress=progress)
+                            table=table, progress=progress)
 
 
 def _deployed_report(prediction: Prediction, table: CurvatureTable, design: Design) -> DeployedReport:
@@ -86,7 +86,7 @@ def _deployed_report(prediction: Prediction, table: CurvatureTable, design: Desi
     return DeployedReport(**data)
 
 
-def repredict_folder(folder: str | Path, *, table: str | None = None, fine: bool = False,
+def repredict_folder(folder: str | Path, *, table: str | None = None,
                      progress: Progress | None = None, tables_dir: Path | None = None) -> Repredicted:
     """Predict again the deployed shape of the design folder ``folder`` and replace its prediction.
 
@@ -94,7 +94,6 @@ def repredict_folder(folder: str | Path, *, table: str | None = None, fine: bool
     ----------
     folder : a design folder (``target.obj``, ``flat.obj``, ``design.json`` with ribbons).
     table : a curvature table's name or a ``.toml`` path (default: ``parameters.curvature_table``).
-    fine : the ribbon-resolved model instead of the homogenized one.
     progress : called with (fraction done in [0, 1], message) as the prediction goes.
     tables_dir : where named tables are looked up before the shipped ones (the daemon's).
 
@@ -118,10 +117,9 @@ def repredict_folder(folder: str | Path, *, table: str | None = None, fine: bool
     if not df.design.ribbons:
         raise ValueError(f"{path / 'design.json'}: no ribbons: there is nothing to predict")
     tbl = _table(df, table, tables_dir)
-    report(0.0, f"predicting the deployed shape ({'ribbon-resolved' if fine else 'homogenized'} model, "
-                f"table {tbl.name!r})")
+    report(0.0, f"predicting the deployed shape (table {tbl.name!r})")
     try:
-        prediction = _predict(df, tbl, fine, report)
+        prediction = _predict(df, tbl, report)
     except ValueError as exc:
         raise ValueError(f"{path}: the deployed shape cannot be predicted: {exc}") from None
     d = df.design
@@ -130,7 +128,7 @@ def repredict_folder(folder: str | Path, *, table: str | None = None, fine: bool
     report(1.0, "writing deployed.obj, deployed.png and design.json")
     header = (f"ribbond design: predicted deployed surface, mm, registered to target.obj "
               f"({prediction.faces} faces, its own mesh)")
-    title = f"{d.source.file}: predicted deployed shape" + (" (ribbon-resolved model)" if fine else "")
+    title = f"{d.source.file}: predicted deployed shape"
     replace_design_files(path, {
         "design.json": design_to_json(design).encode(),
         "deployed.obj": obj_bytes(prediction.V, prediction.F, header=header),

@@ -78,6 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
     parser.add_argument("--no-predict", action="store_true", help="skip the deploy stage (the daemon's "
                         "[design] predict = false)")
+    parser.add_argument("--no-optimize", action="store_true", help="skip the optimization of the layout "
+                        "against the prediction (the daemon's [design] optimize = false)")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     args = parser.parse_args(argv)
     lower_priority(args.nice)
@@ -94,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         if limited:
             solver = solver.model_copy(update={"max_faces": args.max_faces})
         result = design_mesh(args.mesh, settings.parameters, solver, predict=not args.no_predict,
-                             progress=JsonProgress(),
+                             optimize=not args.no_optimize, progress=JsonProgress(),
                              tables_dir=args.tables)
         path = write_design(result, args.out, JsonProgress())
         if args.plans is not None:

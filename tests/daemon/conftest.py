@@ -31,8 +31,9 @@ TIME_SCALE = 0.02
 BAUD = 250000
 #: Small designs: fewer ribbons, short programs.
 PARAMETERS = {"size": {"bbox_diagonal": 70}}
-#: The daemon's compiles predict the deployed shape (the default; the harness turns it off elsewhere).
-PREDICT = "[design]\npredict = true\n"
+#: The daemon's compiles predict the deployed shape (the default; the harness turns it off elsewhere),
+#: the forward layout's (the optimization against it costs up to 45 s a compile; tests/deploy/test_optimize.py)
+PREDICT = "[design]\npredict = true\noptimize = false\n"
 #: The profile's frame centre (ultimaker2-tpu): the flip is about the line x = 110.
 CENTER = (110.0, 110.0)
 #: Commands the link sends on its own (handshake, probes): not program lines.

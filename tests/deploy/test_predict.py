@@ -19,7 +19,6 @@ import pytest
 
 from ribbond.deploy import predict_deployed
 from ribbond.deploy.compare import kabsch
-from ribbond.deploy.fine import coupon_circle
 from ribbond.deploy.predict import RELEASES, interpolate
 from ribbond.design import surfaces
 from ribbond.design.mesh_io import write_obj
@@ -39,6 +38,30 @@ def _rect(nx: int, ny: int, size: tuple[float, float]):
     UV, F = surfaces.grid(nx, ny)
     uv = UV * np.array(size)
     return uv, F, np.column_stack([uv, np.zeros(len(uv))])
+
+
+def coupon_circle(X: np.ndarray, uv: np.ndarray, F: np.ndarray, size: tuple[float, float]) -> tuple[float, float]:
+    """(radius, the largest distance of a fitted vertex from the circle), mm, of a released coupon
+    rolled along x: the vertices of its middle (the central half each way), projected along the
+    cylinder's axis (the mean image of the flat y direction there), fitted by a circle (least
+    squares, Kåsa)."""
+    Xs, Ys = size
+    c = uv[F].mean(axis=1)
+    inner = (np.abs(c[:, 0] - Xs / 2) < Xs / 4) & (np.abs(c[:, 1] - Ys / 2) < Ys / 4)
+    e = np.stack([X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]], axis=2)
+    u = np.stack([uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]], axis=2)
+    axis = (e @ np.linalg.inv(u) @ np.array([0.0, 1.0]))[inner].mean(axis=0)
+    axis /= np.linalg.norm(axis)
+    mid = (np.abs(uv[:, 0] - Xs / 2) < Xs / 4) & (np.abs(uv[:, 1] - Ys / 2) < Ys / 4)
+    P = X[mid] - X[mid].mean(axis=0)
+    P -= np.outer(P @ axis, axis)
+    b1 = np.cross(axis, P[np.argmax(np.linalg.norm(P, axis=1))])
+    b1 /= np.linalg.norm(b1)
+    b2 = np.cross(axis, b1)
+    x, y = P @ b1, P @ b2
+    cx, cy, k0 = np.linalg.lstsq(np.column_stack([x, y, np.ones_like(x)]), x ** 2 + y ** 2, rcond=None)[0]
+    radius = float(np.sqrt(k0 + cx ** 2 / 4 + cy ** 2 / 4))
+    return radius, float(np.abs(np.hypot(x - cx / 2, y - cy / 2) - radius).max())
 
 
 def _jacobian_stretch(X, uv, F, direction):
@@ -115,6 +138,11 @@ def test_designed_cylinder_deploys_onto_its_target(tmp_path):
     assert p.converged
     assert p.reached and "will take the target's shape" in p.verdict
     assert abs(p.agreement.curvature_predicted) < 0.1 and abs(p.agreement.curvature_target) < 0.1
+    # optimized by default (issue 34): report.optimization, its "optimized" the deploy stage's prediction
+    o = res.design.report.optimization
+    assert o is not None and o.variables == ["thickness"] and o.iterations >= 0
+    assert o.optimized.deviation_pct == res.design.report.deployed.deviation_pct
+    assert all(TABLE.thickness[0] <= r.thickness <= TABLE.thickness[-1] for r in res.design.ribbons)
 
 
 def _bending_sign(p, ribbon_side):

@@ -142,11 +142,10 @@ async def start(service: Service, job_id: Ident) -> JobStatus:
 @router.post("/jobs/{job_id}/predict", status_code=202, response_model=JobStatus,
              responses=responses(404, 409, 422, mutating=True, body=True))
 async def predict(service: Service, job_id: Ident, body: PredictRequest | None = None) -> JobStatus:
-    """Predict the design's deployed shape again as its folder is, with another table or the
-    ribbon-resolved model: replaces deployed.obj, deployed.png and report.deployed; the job's
+    """Predict the design's deployed shape again as its folder is, with another table: replaces deployed.obj, deployed.png and report.deployed; the job's
     ``prediction`` follows it (events as the compile's)."""
     body = body or PredictRequest()
-    service.predictor.start(job_id, body.table, body.fine)
+    service.predictor.start(job_id, body.table)
     return job_status(service, service.job(job_id))
 
 

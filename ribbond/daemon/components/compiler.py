@@ -22,18 +22,20 @@ from ..store import JobRecord
 log = logging.getLogger(__name__)
 
 #: The compile's stages in order (``ribbond.design.pipeline``): a compile's progress.
-COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "gcode", "deploy", "preview", "write")
+COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "optimize", "gcode", "deploy", "preview", "write")
 
 
 def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path,
-                   tables: Path | None = None, max_faces: int | None = None, predict: bool = True) -> list[str]:
+                   tables: Path | None = None, max_faces: int | None = None, predict: bool = True,
+                   optimize: bool = True) -> list[str]:
     """The command line of one compile (``python -m ribbond.design.worker``); ``parameters`` in the
     ``--params`` layout (design parameters, an optional ``solver`` table), ``max_faces`` the
-    daemon's ``[limits] max_faces``, ``predict`` its ``[design] predict``."""
+    daemon's ``[limits] max_faces``, ``predict`` its ``[design] predict``, ``optimize`` its
+    ``[design] optimize``."""
     return [python, "-m", "ribbond.design.worker", mesh, str(out), "--params", json.dumps(parameters),
             "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else []) \
         + (["--max-faces", str(max_faces)] if max_faces is not None else []) \
-        + ([] if predict else ["--no-predict"])
+        + ([] if predict else ["--no-predict"]) + ([] if optimize else ["--no-optimize"])
 
 
 async def run_worker(command: list[str], log_path: Path, on_event: Callable[[dict[str, Any]], None],
@@ -148,7 +150,7 @@ class Compiler:
 
         return await run_worker(worker_command(self.python, job.mesh_path, folder / "design", params,
                                                folder / "plans", self.tables_dir, self.config.limits.max_faces,
-                                               self.config.design.predict),
+                                               self.config.design.predict, self.config.design.optimize),
                                 log_path, on_event, self._compiling, job.id)
 
     def _finish(self, job_id: str, code: int, last: dict[str, Any], log_path: Path) -> None:

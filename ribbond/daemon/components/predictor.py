@@ -27,11 +27,11 @@ from .compiler import run_worker
 log = logging.getLogger(__name__)
 
 
-def predict_command(python: str, design_dir: str, *, table: str | None, fine: bool,
+def predict_command(python: str, design_dir: str, *, table: str | None,
                     tables: Path | None) -> list[str]:
     """The command line of one prediction (``python -m ribbond.deploy.worker``)."""
     return [python, "-m", "ribbond.deploy.worker", design_dir] + (["--table", table] if table else []) \
-        + (["--fine"] if fine else []) + (["--tables", str(tables)] if tables is not None else [])
+        + (["--tables", str(tables)] if tables is not None else [])
 
 
 class Predictor:
@@ -54,11 +54,11 @@ class Predictor:
 
     def view(self, job_id: str) -> dict[str, Any] | None:
         """The job's last prediction in this daemon's life: ``state`` running, done or failed,
-        ``fraction``, ``message``, ``table``, ``fine``, then ``deployed`` and ``verdict`` or ``error``."""
+        ``fraction``, ``message``, ``table``, then ``deployed`` and ``verdict`` or ``error``."""
         view = self._views.get(job_id)
         return dict(view) if view is not None else None
 
-    def start(self, job_id: str, table: str | None = None, fine: bool = False) -> None:
+    def start(self, job_id: str, table: str | None = None) -> None:
         """Start predicting the job's design again (NotFound, ValueError for a bad table,
         IllegalTransition or ServiceError when the job cannot be predicted now)."""
         job = self.records.get(job_id)
@@ -74,14 +74,14 @@ class Predictor:
         if self.running(job_id):
             raise ServiceError(f"cannot predict: a prediction of job {job_id} is already running")
         self._views[job_id] = {"state": "running", "fraction": 0.0, "message": "starting", "table": table,
-                               "fine": fine, "started": time.time()}
-        self._tasks[job_id] = asyncio.create_task(self._run(job_id, job.design_dir, table, fine),
+                               "started": time.time()}
+        self._tasks[job_id] = asyncio.create_task(self._run(job_id, job.design_dir, table),
                                                   name=f"predict {job_id}")
         self.records.publish(job)
 
-    async def _run(self, job_id: str, design_dir: str, table: str | None, fine: bool) -> None:
+    async def _run(self, job_id: str, design_dir: str, table: str | None) -> None:
         try:
-            code, last = await self._worker(job_id, design_dir, table, fine)
+            code, last = await self._worker(job_id, design_dir, table)
             self._finish(job_id, code, last)
         except Exception as exc:  # noqa: BLE001 - one prediction's failure never stops the daemon
             log.exception("predicting job %s", job_id)
@@ -91,8 +91,7 @@ class Predictor:
             with contextlib.suppress(NotFound):
                 self.records.publish(self.records.get(job_id))
 
-    async def _worker(self, job_id: str, design_dir: str, table: str | None,
-                      fine: bool) -> tuple[int, dict[str, Any]]:
+    async def _worker(self, job_id: str, design_dir: str, table: str | None) -> tuple[int, dict[str, Any]]:
         """Run the prediction worker to its end, its progress published; its exit status and last event."""
         def on_event(event: dict[str, Any]) -> None:
             if event.get("event") == "progress":
@@ -100,7 +99,7 @@ class Predictor:
                 with contextlib.suppress(NotFound):
                     self.records.publish(self.records.get(job_id))
 
-        return await run_worker(predict_command(self.python, design_dir, table=table, fine=fine,
+        return await run_worker(predict_command(self.python, design_dir, table=table,
                                                 tables=self.tables_dir),
                                 self.records.dir(job_id) / "predict.log", on_event, self._procs, job_id)
 

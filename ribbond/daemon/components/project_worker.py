@@ -2,7 +2,7 @@
 process (issue 26), reporting progress as JSON lines as ``ribbond.design.worker`` does.
 
     python -m ribbond.daemon.components.project_worker MESH OUT_DIR --panels auto|N [--seam-allowance MM]
-        [--params JSON] [--plans DIR] [--tables DIR] [--max-faces N] [--no-predict]
+        [--params JSON] [--plans DIR] [--tables DIR] [--max-faces N] [--no-predict] [--no-optimize]
 
 It runs ``ribbond.design.project.design_project`` and ``write_project`` (OUT_DIR: ``project.json``,
 ``panels.png``, ``panel-1/`` …) and, with ``--plans``, writes each panel's front and back plans as
@@ -71,6 +71,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--plans", type=Path, help="also write each panel's front and back plans here")
     parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
     parser.add_argument("--no-predict", action="store_true", help="skip the deploy stage")
+    parser.add_argument("--no-optimize", action="store_true", help="skip the optimization against the prediction")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     return parser.parse_args(argv)
 
@@ -87,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
         solver = settings.solver
         if args.max_faces is not None and args.max_faces < solver.max_faces:
             solver = solver.model_copy(update={"max_faces": args.max_faces})
+        if args.no_optimize:
+            solver = solver.model_copy(update={"optimize": False})
         result = design_project(args.mesh, settings.parameters, solver, panels=args.panels,
                                 seam_allowance=args.seam_allowance, progress=JsonProgress(),
                                 predict=not args.no_predict, tables_dir=args.tables)

@@ -134,7 +134,8 @@ class Projects:
                    str(folder / "project"), "--panels", project.panels_requested, "--seam-allowance",
                    str(project.seam_allowance_mm), "--params", json.dumps(params), "--plans", str(folder / "plans"),
                    "--tables", str(self.tables_dir), "--max-faces", str(self.config.limits.max_faces)] \
-            + ([] if self.config.design.predict else ["--no-predict"])
+            + ([] if self.config.design.predict else ["--no-predict"]) \
+            + ([] if self.config.design.optimize else ["--no-optimize"])
 
         def on_event(event: dict[str, Any]) -> None:
             if event.get("event") == "stage" and event.get("stage") != self.records.project(project_id).stage:
