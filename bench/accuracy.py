@@ -106,7 +106,11 @@ def design_cases() -> list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]:
 
 def ribbons_vs_exact(folder, V: np.ndarray, exact: Exact) -> tuple[np.ndarray, np.ndarray]:
     """The design folder's ribbon segments carried back onto the target (scaled back to the
-    generator's V) against the exact k1 on anisotropic faces: angles (k,) in degrees, lengths (k,)."""
+    generator's V, the mesh the engine designed on: target.obj is it centred and scaled) against the
+    exact k1 on anisotropic faces: angles (k,) in degrees, lengths (k,)."""
+    if len(V) != len(folder.target_V):
+        raise ValueError(f"ribbons_vs_exact: V has {len(V)} vertices, target.obj {len(folder.target_V)}: "
+                         "pass the mesh the engine designed on (refined at intake?)")
     Vt = folder.target_V
     c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
     P, D, L = ribbon_segments_on_target(folder)
@@ -296,13 +300,18 @@ def coarse_table(cases, refine_to: list[int | None]) -> None:
     from ribbond.design.mesh_io import write_obj
     from ribbond.design.params import DesignParameters, SolverSettings
     from ribbond.design.pipeline import design_mesh, write_design
+    from ribbond.design.mesh_io import read_mesh
+    from ribbond.design.refine import levels_for, refine
 
     def figures(V: np.ndarray, F: np.ndarray, exact: Exact, solver: SolverSettings, d: Path) -> tuple[float, ...]:
         d.mkdir()
         write_obj(d / "m.obj", V, F)
         result = design_mesh(d / "m.obj", DesignParameters(), solver, predict=False)
         folder = read_design_folder(write_design(result, d / "design"))
-        dev, w = ribbons_vs_exact(folder, V, exact)
+        # a refined target's vertices are not the file's: map the ribbons back through the mesh
+        # the engine designed on (the same refinement of the same file), not through the file's
+        levels = levels_for(len(F), solver.refine_below_faces, solver.refine_to_faces, solver.max_faces)
+        dev, w = ribbons_vs_exact(folder, refine(*read_mesh(d / "m.obj"), levels).V, exact)
         rep = folder.design.report
         return (len(result.F), weighted_quantile(dev, w, .5), weighted_quantile(dev, w, .95),
                 rep.ribbons.spacing_error_across_pct.median, result.design.report.time_s)
