@@ -348,6 +348,35 @@ def coarse_table(cases, refine_to: list[int | None]) -> None:
                       f"{secs:>6.1f} | {tail}", flush=True)
 
 
+def refined_field_table(cases) -> None:
+    """The refined surface itself: the engine's per-face k1 (``face_curvature``, before the line
+    field) against the exact one on anisotropic faces, and |κ1| against the exact, on each coarse
+    mesh as given and refined as at intake (no design: seconds)."""
+    from ribbond.design.params import SolverSettings
+    from ribbond.design.refine import levels_for, refine
+
+    def errors(V: np.ndarray, F: np.ndarray, exact: Exact) -> tuple[float, float, float, float]:
+        fr = face_frames(V, F)
+        c = face_curvature(V, F, fr)
+        E = exact(V[F].mean(axis=1))
+        d = np.cos(c.angle)[:, None] * fr.e1 + np.sin(c.angle)[:, None] * fr.e2
+        t = E.direction1 - np.einsum("ij,ij->i", E.direction1, fr.n)[:, None] * fr.n
+        t /= np.linalg.norm(t, axis=1, keepdims=True)
+        dev = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, t)), 0, 1)))[E.anisotropy > 0.3]
+        k = 100 * np.abs(c.kappa1 - E.kappa1) / np.abs(E.kappa1).max()
+        return np.median(dev), np.percentile(dev, 95), np.median(k), np.percentile(k, 95)
+
+    s = SolverSettings()
+    print(f"\n{'per-face k1 of the surface':<34} {'faces':>6} | {'as given: k1 median':>19} {'p95':>5} "
+          f"{'|κ1| % median':>13} {'p95':>5} | {'refined: k1 median':>18} {'p95':>5} {'|κ1| % median':>13} {'p95':>5}")
+    for name, build, (coarse, _), exact in cases:
+        V, F = build(coarse)
+        r = refine(V, F, levels_for(len(F), s.refine_below_faces, s.refine_to_faces, s.max_faces))
+        a, b = errors(V, F, exact), errors(r.V, r.F, exact)
+        print(f"{name:<34} {len(F):>6} | {a[0]:>19.2f} {a[1]:>5.2f} {a[2]:>13.2f} {a[3]:>5.2f} | "
+              f"{b[0]:>18.2f} {b[1]:>5.2f} {b[2]:>13.2f} {b[3]:>5.2f}", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="two resolutions instead of three")
@@ -356,12 +385,13 @@ def main() -> int:
                     help="[solver] spacing_integrability_weight values to run the designs with")
     ap.add_argument("--sweep", action="store_true", help="also the torus patch at seven resolutions, "
                     "without the row-count phase (weight 0) and with the settings' own")
-    ap.add_argument("--coarse", action="store_true", help="only the coarse-mesh table: ~900 faces (as given "
-                    "and refined at intake) against ~40k (issue 23)")
+    ap.add_argument("--coarse", action="store_true", help="only the coarse-mesh tables: the refined surface's "
+                    "per-face k1, then designs at ~900 faces (as given and refined at intake) against ~40k (issue 23)")
     ap.add_argument("--refine-to", type=int, nargs="+", default=None, metavar="N",
                     help="with --coarse: [solver] refine_to_faces values to refine with (default: the settings' own)")
     args = ap.parse_args()
     if args.coarse:
+        refined_field_table(coarse_cases() + scan_cases())
         coarse_table(coarse_cases() + scan_cases(), args.refine_to or [None])
         return 0
     if not args.ribbons_only:
