@@ -368,7 +368,8 @@ def refined_field_table(cases) -> None:
 
     s = SolverSettings()
     print(f"\n{'per-face k1 of the surface':<34} {'faces':>6} | {'as given: k1 median':>19} {'p95':>5} "
-          f"{'|κ1| % median':>13} {'p95':>5} | {'refined: k1 median':>18} {'p95':>5} {'|κ1| % median':>13} {'p95':>5}")
+          f"{'|κ1| % median':>13} {'p95':>5} | {'refined: k1 median':>18} {'p95':>5} "
+          f"{'|κ1| % median':>13} {'p95':>5}")
     for name, build, (coarse, _), exact in cases:
         V, F = build(coarse)
         r = refine(V, F, levels_for(len(F), s.refine_below_faces, s.refine_to_faces, s.max_faces))

@@ -27,18 +27,20 @@ is the blend of the fits, off the file's by their residual (the noise). The boun
 coarse boundary vertices in order with 2^levels − 1 new ones between neighbours; the corners
 (``CORNER_DEG``) stay where they were, up to that residual.
 
-Why this and not another scheme (measured in ``tests/design/test_refine.py`` and
-``bench/accuracy.py --coarse``): the previous scheme, midpoint subdivision lifted onto quadric fits
-blended with the coarse faces' barycentric weights, kept the file's vertices but its weights have
-corners along the coarse edges, so wherever two fits disagreed the surface creased there: on
-scan-like meshes with 0.02 mm noise its per-face k1 ran 4–10° median, 20–51° p95 off the exact one
-(the meshes as given: 0.2–1.9°, 0.7–5.9°). Loop subdivision alone is smooth but follows the
-triangulation: on irregular meshes its curvature is off by 5–10 % (median), its k1 by 2–3°.
-Blending the fits with Loop's limit weights over the midpoint positions (the file's vertices
-kept) still creases: 2.6–2.9° median on the garment top. Quadric fits over three rings measured
-k1 to 0.05–1.2° median, cubic fits over four rings to 0.01–0.8°; the weak ridge on the cubic terms
-(``CUBIC_RIDGE``) keeps the one-sided fits at the boundary from extrapolating (κ p95 12 % instead
-of 25 % on the noisy torus patch).
+Why this and not another scheme (per-face k1 of the refined surface against the exact one, on
+``bench/accuracy.py --coarse``'s ~900-face meshes; ``tests/design/test_refine.py``): the previous
+scheme, midpoint subdivision lifted onto two-ring quadric fits blended with the coarse faces'
+barycentric weights, kept the file's vertices, but its weights have corners along the coarse edges,
+so wherever two fits disagreed the surface creased there: on scan-like meshes with 0.02 mm noise
+its k1 ran 1.5–9.8° median, 5–52° p95 off the exact one (the meshes as given: 0.2–1.9°, 0.7–5.9°;
+this scheme: 0.15–0.65°, 0.6–3.1°), and it flipped faces. Loop subdivision alone is smooth but
+follows the triangulation: its |κ1| was 4–10 % off (median), its k1 1.7–2.7°. Loop's weights over
+the midpoint positions (the file's vertices kept) still crease: 2.6–2.9° median on the garment top.
+Quadric fits over three rings gave 0.02–1.2° median, cubic fits over four rings 0.01–0.7°; the weak
+ridge on the cubic terms (``CUBIC_RIDGE``) keeps the one-sided fits at the boundary from
+extrapolating (|κ1| p95 12 % instead of 25 % on the noisy torus patch). The ribbons do not follow
+all of it (docs/benchmarks.md, "Coarse targets refined at intake"): better on the noisy torus patch
+and shoulder, worse on the saddles and the garment top, where the line field decides them.
 
 A fit's lift is capped at ``MAX_LIFT`` × the distance to its vertex, so a spike or a fold in a
 scan cannot throw new vertices far off the coarse surface; ``Refined.offset_pct`` reports the
