@@ -17,9 +17,9 @@ Method: local cubic fits of the coarse surface blended with Loop subdivision's s
    two-ring of vertex k.
 3. The refined vertex is Σ w_k Q_k(p), Q_k(p) the point of vertex k's fit above p's tangential
    position in k's frame. Every Q_k is a smooth function of p and the weights are smooth, so the
-   surface is: where the fits agree (a quadric or a cubic sampled exactly) it is the fitted
-   surface, and where they disagree (noise, a fit's error) the disagreement is spread smoothly
-   instead of folding along the coarse edges.
+   surface is: where the fits agree (a smooth surface sampled without noise: the fits are right to
+   third order) it is the fitted surface, and where they disagree (noise, a fit's error) the
+   disagreement is spread smoothly instead of folding along the coarse edges.
 
 The file's vertices move: each slides along the surface to its Loop limit position (by up to a
 third of an edge on irregular triangulations; on a straight boundary it stays on it) and its height
@@ -77,7 +77,7 @@ CORNER_DEG = 30.0
 
 #: The fits' data: the vertex and its rings up to this one, weighted exp(−(r/ρ)²), ρ the points'
 #: RMS distance (about three rings' worth): a scan's noise averages out over some 60 points while
-#: a cubic sampled exactly is still fitted exactly. Measured on ``bench/accuracy.py``'s coarse and
+#: a smooth surface is still fitted to third order. Measured on ``bench/accuracy.py``'s coarse and
 #: scan-like meshes against rings 2–4, widths 1–1.5, quadrics and cubics.
 RING = 4
 
