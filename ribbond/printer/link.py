@@ -330,7 +330,8 @@ class PrinterLink:
             before = any(isinstance(event, codec.Position) for event in answer.events)
             after = False
             if answer.ok.position is None and not before:
-                mark = len(seen)  # (everything seen so far came before the ok)
+                # the report may have come already: it follows the ok itself in what was seen
+                mark = next((i + 1 for i, event in enumerate(seen) if event is answer.ok), len(seen))
                 after = await self._wait_for(lambda: any(isinstance(e, codec.Position) for e in seen[mark:]),
                                              _POSITION_AFTER_OK_S)
         finally:
