@@ -88,11 +88,11 @@ async def test_send_and_queries(make_sim) -> None:
 async def test_a_position_on_the_ok_line_is_taken(make_sim, advanced_ok: bool) -> None:
     """Smoothieware answers M114 with ``ok C: X:… Y:… Z:… E:…`` (no position line before it, no
     N/P/B fields): the position is taken from the ok, the ok acknowledges the M114 (not a line
-    after it), and the capabilities learn where the firmware puts it."""
+    after it), and the capabilities learn at connect where the firmware puts it."""
     sim = make_sim(m114_on_ok=True, advanced_ok=advanced_ok)
     link = link_for(sim)
     await link.connect()
-    assert link.capabilities.position_report == "line", "not known before the first M114"
+    assert link.capabilities.position_report == "ok", "learned at connect from an M114's answer"
     await link.send("G28")
     await link.send("G1 X12.5 Y7 Z3 F6000")
     position = await asyncio.wait_for(link.query_position(grace_s=0.0), 5)
@@ -491,8 +491,8 @@ async def test_recover_after_a_halt(make_sim) -> None:
     assert link.state is LinkState.READY
     await link.send("G28")
     assert sim.halted_at is None
-    after_restart = [(c.line, c.command) for c in sim.commands()][-4:]
-    assert after_restart == [(0, "M110 N0"), (1, "M115"), (2, "M155 S2"), (3, "G28")]
+    after_restart = [(c.line, c.command) for c in sim.commands()][-5:]
+    assert after_restart == [(0, "M110 N0"), (1, "M115"), (2, "M114"), (3, "M155 S2"), (4, "G28")]
     await link.close()
 
 

@@ -326,7 +326,11 @@ class PrinterLink:
         seen: list[codec.Event] = []
         self._event_collectors.append(seen)
         try:
-            answer = await asyncio.wait_for(sender.send("M114"), self.timeouts.default_s * 2)
+            try:  # best effort, as M115's: a printer that does not answer keeps its dialect's row
+                answer = await asyncio.wait_for(sender.send("M114"), self.timeouts.default_s * 2)
+            except asyncio.TimeoutError:
+                log.warning("no answer to M114 at connect within %.1f s", self.timeouts.default_s * 2)
+                return
             before = any(isinstance(event, codec.Position) for event in answer.events)
             after = False
             if answer.ok.position is None and not before:

@@ -263,6 +263,7 @@ class Sender:
         self._solo: int | None = None  # plain-ok firmware: a re-sent line sent alone until its ok
         self._resent_proof: _ResentProof | None = None  # its ok did not come: the position decides
         self._skip_oks = 0  # Repetier: oks due after "skip N" lines, which acknowledge nothing
+        self._tail_oks = 0  # Marlin 2.x: oks due after cut tails run as unknown commands
         self._last_query = -1  # the last line a query's answer acknowledged by name
         self._proofs: RunProofs[_Line] = RunProofs()  # where ok means "received" (proof.py)
         self._run_hold: _Line | None = None  # a program M400 whose run the program waits for
@@ -325,7 +326,7 @@ class Sender:
         self._acked_through = -1
         self._resend_ok_due = False
         self._pending_resend = self._unproven = self._solo = self._resent_proof = None
-        self._skip_oks = 0
+        self._skip_oks = self._tail_oks = 0
         self._last_query = -1
         self._run_hold = None
         for line in self._proofs.clear():  # a reset or a new handshake: they will never be proven
@@ -404,6 +405,10 @@ class Sender:
         elif isinstance(event, codec.Wait):
             self._on_wait()
         else:
+            if isinstance(event, codec.UnknownCommand) and "*" in event.command:
+                # the tail of a line cut by a flush (a checksum; the link never sends a "*"
+                # otherwise): its plain ok is no line's, even once the resend went out
+                self._tail_oks += 1
             if isinstance(event, codec.Error):
                 self._on_line_error(event)
             # Output comes before the ok of the command it answers, or, where ok means "received",
@@ -456,6 +461,10 @@ class Sender:
         if self._skip_oks and plain and ok.line is None:
             self._skip_oks -= 1
             return  # the ok Repetier prints after each "skip N"
+        if self._tail_oks and plain and ok.line is None:
+            self._tail_oks -= 1
+            if not self.capabilities.advanced_ok and self._hold is None:
+                return  # (during the hold the resend's floor already keeps it from counting)
         if ok.advanced:
             if ok.line is not None:
                 self._ack_through(ok.line, ok)
@@ -575,6 +584,11 @@ class Sender:
                                      f"the history of {self._history_size} lines"))
             return
         self._note_asked_past(number)
+        if self._solo is not None and number > self._solo:
+            # Its line-number check refused the copy: the printer took the line in the first
+            # pass, with the lines after it, whose oks the hold did not count (Marlin runs what
+            # it takes; the silence probe's answer acknowledges them).
+            self._solo = None
         if refused is not None and number > refused:
             # The request that answers an error asks past the line the error refused: the printer
             # marked that line received without running it.
@@ -705,8 +719,13 @@ class Sender:
         """Line ``number`` is sent again to plain-ok firmware: it goes alone, so that the next ``ok``
         is its own and, when none comes, the printer's position tells whether it ran (a firmware
         that times out after a resend request marks the re-sent line received without running it,
-        and its later lines' plain oks would count it as done). The lines numbered after it are not
-        in the printer (it asked for ``number``): they give their numbers back and go again later."""
+        and its later lines' plain oks would count it as done)."""
+        self._solo = number
+
+    def _give_back_numbers_after(self, number: int) -> None:
+        """The lines numbered after the silent re-sent line ``number`` are not in the printer (it
+        asked for ``number``, and answered none of them): they give their numbers back and go again
+        after the proof, which takes the numbers right after ``number``."""
         program = self._program
         for n in range(self._next_number - 1, number, -1):
             line = self._history.pop(n, None)
@@ -719,8 +738,7 @@ class Sender:
             elif line.future is not None:
                 self._singles.appendleft(line)
             # (a probe or a follow-up query: made again if still needed)
-        self._next_number = number + 1
-        self._solo = number
+        self._next_number = self._cursor = number + 1
 
     def _on_resent_silence(self, silent: float) -> None:
         """The re-sent line drew no ``ok`` in its time: prove by the position that it ran, or stop."""
@@ -737,7 +755,7 @@ class Sender:
         expected = None
         if line is not None and line.program_index is not None and program is not None:
             expected = expected_position(program.commands, line.program_index)
-        if line is None or expected is None or self._cursor != self._next_number:
+        if line is None or expected is None or any(queued.number > self._solo for queued in self._inflight):
             self._fail(ProtocolError(
                 f"printer gave no ok for line {self._solo}{where}, which it had asked for again and was sent "
                 f"again: that line may never have run (a firmware that times out after a resend request marks "
@@ -745,6 +763,7 @@ class Sender:
                 f"with line {self._acked_through} the last acknowledged; resume from the line after it"))
             return
         log.warning("no ok for re-sent line %d; proving it ran with M400 + M114", self._solo)
+        self._give_back_numbers_after(self._solo)
         for command in ("M400", "M114"):
             query = _Line(self._next_number, command, codec.encode(self._next_number, command))
             self._history[query.number] = query
