@@ -138,8 +138,10 @@ def _step(position: dict[str, float | None], relative: bool, command: str) -> bo
             if not values or axis in values:
                 position[axis] = values.get(axis)
     elif word == "G28":
+        match = _WORD.match(command)
+        named = {axis for axis in _AXES if axis in command[match.end():].upper()} if match else set()
         for axis in _AXES:
-            if not values or axis in values:
+            if not named or axis in named:  # G28 X homes X alone (its letters carry no value)
                 position[axis] = None
     elif word in ("G29", "G30", "G33", "G34", "M48", "G53", "G54", "G55", "G56", "G57", "G58", "G59"):
         for axis in _AXES:
