@@ -409,10 +409,11 @@ class PrinterLink:
 
     def _report_grace_s(self) -> float:
         """How long a query's report may follow its ``ok``: a moment where the ``ok`` means
-        "processed", as long as the commands before it take where it means "received" (Repetier)."""
-        if self.capabilities.ok_means == "processed" and self.capabilities.position_report != "after_ok":
-            return _POSITION_AFTER_OK_S
-        return self.timeouts.default_s
+        "processed", as long as the commands before it take where it means "received" (Repetier) or
+        where this printer was seen to print the report after the ``ok`` (learned at connect)."""
+        if self.capabilities.ok_means == "received" or self.capabilities.position_report == "after_ok":
+            return self.timeouts.default_s
+        return _POSITION_AFTER_OK_S
 
     async def query_temperatures(self) -> codec.Temperatures:
         """Ask for the temperatures (``M105``): on the ``ok`` line (Marlin, RepRapFirmware,

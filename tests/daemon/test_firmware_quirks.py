@@ -145,6 +145,24 @@ def test_a_swallowed_resent_line_interrupts_the_job_naming_it_and_resume_prints_
 # ---------------------------------------------------------------------------------- issue 36
 
 
+def test_a_marlin_named_firmware_printing_the_position_after_its_ok_homes_and_jogs(tmp_path: Path) -> None:
+    """A build that names itself Marlin 2 but prints M114's report after its ok (OctoPrint's virtual
+    printer: okBeforeCommandOutput): ribbonctl home, goto and jog report the printer's position, and
+    the printer's own report, asked again, agrees."""
+    with quirky_printer(tmp_path / "state", "--dialect", "marlin2", "--ok-before-output") as (sim, daemon):
+        assert daemon.client is not None
+        assert daemon.client.get("/printer").json()["firmware"].startswith("Marlin 2.")
+        homed = ribbonctl(daemon, "home")
+        assert homed["position"][:3] == [0.0, 0.0, 0.0], homed
+        went = ribbonctl(daemon, "goto", "60", "70")
+        assert went["position"][:2] == [60.0, 70.0], went
+        jogged = ribbonctl(daemon, "jog", "1.5", "-2")
+        assert jogged["position"][:2] == [61.5, 68.0], jogged
+        status = daemon.client.get("/printer", params={"refresh": "true"}).json()
+        assert status["position"][:2] == [61.5, 68.0], status
+        assert [c for c in sim.commands() if c["command"] == "M114"], "the positions came from M114"
+
+
 def test_a_resent_line_never_run_on_plain_ok_firmware_interrupts_a_two_sided_job_and_resume_ends_it_done(
         tmp_path: Path, meshes: dict[str, Path]) -> None:
     """Plain-ok Marlin that times out after a resend request: it refuses line N, asks for it,
