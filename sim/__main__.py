@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--m114-on-ok", action=argparse.BooleanOptionalAction, default=None,
                    help="answer M114 on the ok line, as Smoothieware does: "
                         "'ok C: X:10.0000 Y:20.0000 Z:0.0000 E:0.0000' (default: the dialect's)")
+    g.add_argument("--ok-before-output", action="store_true",
+                   help="print a command's ok before its output (M114's position, M115's report), as "
+                        "OctoPrint's virtual printer does with okBeforeCommandOutput")
     g.add_argument("--rx-buffer", type=int, default=d.rx_buffer,
                    help="serial receive buffer in bytes; overflow is lost (default %(default)s)")
     g.add_argument("--bufsize", type=int, default=None,
@@ -101,6 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="buggy firmware, once after N accepted numbered lines: ask for the next line "
                         "again, take the re-sent line without running or answering it, lose the line "
                         "after it, and later ask for the one after the swallowed line")
+    g.add_argument("--ignore-resent-after-lines", type=int, default=None, metavar="N",
+                   help="firmware that times out after a resend request, once after N accepted numbered "
+                        "lines: ask for the next line again, then mark the re-sent line received without "
+                        "running or answering it; the lines after it run as usual")
     g.add_argument("--reset-after-lines", type=int, default=None, metavar="N",
                    help="reboot after N accepted numbered lines")
     g.add_argument("--disconnect-after-lines", type=int, default=None, metavar="N",
@@ -140,6 +147,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         advanced_ok=args.advanced_ok,
         ok_after_resend=args.ok_after_resend,
         m114_on_ok=args.m114_on_ok,
+        ok_before_output=args.ok_before_output,
         rx_buffer=args.rx_buffer,
         bufsize=args.bufsize,
         planner_blocks=args.planner_blocks,
@@ -158,6 +166,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
             slow_delay_s=args.slow_delay,
             skip_refused=args.skip_refused,
             swallow_resent_after_lines=args.swallow_resent_after_lines,
+            ignore_resent_after_lines=args.ignore_resent_after_lines,
             reset_after_lines=args.reset_after_lines,
             disconnect_after_lines=args.disconnect_after_lines,
             runaway_after_lines=args.runaway_after_lines,

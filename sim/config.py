@@ -54,6 +54,11 @@ class FaultConfig:
     refused as if corrupted (``Resend: N``); the re-sent N is then marked received but neither run
     nor answered, and the line after it is lost without a word (flushed with it), so the printer
     later asks for N + 1 with N never run nor acknowledged."""
+    ignore_resent_after_lines: int | None = None
+    """A firmware that times out after a resend request (OctoPrint's virtual printer simulates one),
+    once after that many accepted numbered lines: the next numbered line N is refused as if
+    corrupted (``Resend: N`` + ``ok``); the re-sent N is then marked received (its number is the last
+    line) but neither run nor answered, and the lines after it run and are answered as usual."""
     skip_refused: bool = False
     """A buggy firmware: a line refused for its checksum is marked received without running, so
     the resend request asks for the line after it (that line is then missing)."""
@@ -66,7 +71,7 @@ class FaultConfig:
                      "unsolicited_rate", "slow_rate"):
             _check_rate(name, getattr(self, name))
         for name in ("reset_after_lines", "disconnect_after_lines", "runaway_after_lines",
-                     "mintemp_after_lines", "swallow_resent_after_lines"):
+                     "mintemp_after_lines", "swallow_resent_after_lines", "ignore_resent_after_lines"):
             _check_trigger(name, getattr(self, name))
         if self.slow_delay_s < 0:
             raise ValueError("slow_delay_s must be >= 0")
@@ -116,6 +121,9 @@ class SimConfig:
     """Answer ``M114`` on the ``ok`` line, as Smoothieware does (``ok C: X:10.0000 Y:20.0000
     Z:0.0000 E:0.0000``, without ADVANCED_OK's fields), instead of Marlin's position line + ``ok``.
     None: the dialect's."""
+    ok_before_output: bool = False
+    """Print a command's ``ok`` before its output (``M114``'s position, ``M115``'s report), as some
+    firmware builds do (OctoPrint's virtual printer: ``okBeforeCommandOutput``)."""
     rx_buffer: int = 128
     """Serial receive ring buffer in bytes (RX_BUFFER_SIZE); bytes beyond it are lost."""
     bufsize: int | None = None

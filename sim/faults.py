@@ -97,6 +97,14 @@ class FaultInjector:
         self._fired.add("swallow")
         return True
 
+    def ignore_due(self) -> bool:
+        """Whether the ignore_resent fault starts on the numbered line now arriving (once)."""
+        after = self.config.ignore_resent_after_lines
+        if after is None or "ignore" in self._fired or self._accepted < after:
+            return False
+        self._fired.add("ignore")
+        return True
+
     def line_accepted(self) -> list[str]:
         """Count an accepted numbered line; return the one-shot triggers that fire now."""
         self._accepted += 1

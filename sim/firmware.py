@@ -199,6 +199,7 @@ class Firmware:
         self._flush_until: float | None = None  # bytes arriving by then go with the last flush
         self._swallow: int | None = None  # swallow_resent: the line to take silently when re-sent
         self._lose_next = False  # swallow_resent: the line after the swallowed one is lost
+        self._ignore: int | None = None  # ignore_resent: the line to mark received when re-sent
         self._last_rx = 0.0  # when bytes last arrived (Repetier's "wait" counts from it)
         self._next_wait = 0.0
         self._waiting_resend = -1  # Repetier: stale lines still to skip after a resend request
@@ -267,6 +268,7 @@ class Firmware:
         self._flush_until = None
         self._swallow = None
         self._lose_next = False
+        self._ignore = None
 
     def _stop_motion(self) -> None:
         partial = self.planner.quickstop(self.t)
@@ -589,7 +591,7 @@ class Firmware:
                     return
                 self._line_error(ERR_CHECKSUM)
                 return
-            if self._swallow_resent(number):
+            if self._swallow_resent(number) or self._ignore_resent(number):
                 return
             self.last_n = number
             m = _N_DIGITS.match(text)
@@ -746,6 +748,21 @@ class Firmware:
             return True
         return False
 
+    def _ignore_resent(self, number: int) -> bool:
+        """The ignore_resent fault on a numbered line that passed the checks: True when the line
+        was taken by it (refused as corrupted, or marked received without running or answering)."""
+        if self._ignore == number:
+            self._ignore = None
+            self.last_n = number  # the next line expected is number + 1; this one never runs
+            self.stats.ignored_resent_line = number
+            return True
+        if self.faults.ignore_due():
+            self._ignore = number
+            self.stats.checksum_errors += 1
+            self._line_error(ERR_CHECKSUM)
+            return True
+        return False
+
     def _after_numbered_line(self) -> None:
         if self.faults.spurious_resend():
             self.stats.spurious_resends += 1
@@ -832,14 +849,22 @@ class Firmware:
     def _finish(self, cmd: QueuedCommand) -> None:
         """ok_to_send(), then free the slot (Repetier acknowledged the line on receipt)."""
         if not cmd.skip_ok:
-            if self.config.advanced_ok:
-                n = f" N{cmd.n_text}" if cmd.n_text is not None else ""
-                self.emit(f"ok{n} P{self.planner.moves_free()} "
-                          f"B{self.config.bufsize - len(self.queue)}", True)
-            else:
-                self.emit("ok", True)
+            self._emit_ok(cmd)
         if self.queue and self.queue[0] is cmd:
             self.queue.popleft()
+
+    def _emit_ok(self, cmd: QueuedCommand) -> None:
+        if self.config.advanced_ok:
+            n = f" N{cmd.n_text}" if cmd.n_text is not None else ""
+            self.emit(f"ok{n} P{self.planner.moves_free()} B{self.config.bufsize - len(self.queue)}", True)
+        else:
+            self.emit("ok", True)
+
+    def _ok_first(self, cmd: QueuedCommand) -> None:
+        """``ok_before_output``: the command's ok now, before its output, and none when it ends."""
+        if self.config.ok_before_output and not cmd.skip_ok:
+            self._emit_ok(cmd)
+            cmd.skip_ok = True
 
     # --- motion ----------------------------------------------------------------------
 
@@ -1032,9 +1057,11 @@ class Firmware:
             cmd.skip_ok = True
             self.emit("ok " + position_report(DIALECTS["smoothieware"], self.position, counts), True)
             return
+        self._ok_first(cmd)
         self.emit(position_report(self.spec, self.position, counts))
 
     def _m115(self, g: GCode, cmd: QueuedCommand) -> None:
+        self._ok_first(cmd)
         for line in self.spec.m115:
             self.emit(line)
 

@@ -36,6 +36,8 @@ class Stats:
     skipped_lines: int = 0
     swallowed_line: int = -1
     """The line number the swallow_resent fault took without running it (-1: none)."""
+    ignored_resent_line: int = -1
+    """The line number the ignore_resent fault marked received without running it (-1: none)."""
     cut_tails_queued: int = 0
     """Tails of flushed lines queued as unnumbered commands (cut_tail "marlin2")."""
     unsolicited_lines: int = 0

@@ -46,7 +46,7 @@ def pytest_report_header(config: pytest.Config) -> str | None:
 
 
 #: Commands the link sends on its own: the handshake and its probes. Test programs use none of them.
-HOST_COMMANDS = ("M110", "M115", "M155", "M105")
+HOST_COMMANDS = ("M110", "M115", "M155", "M105", "M114")
 
 
 @pytest.fixture

@@ -88,11 +88,11 @@ async def test_send_and_queries(make_sim) -> None:
 async def test_a_position_on_the_ok_line_is_taken(make_sim, advanced_ok: bool) -> None:
     """Smoothieware answers M114 with ``ok C: X:… Y:… Z:… E:…`` (no position line before it, no
     N/P/B fields): the position is taken from the ok, the ok acknowledges the M114 (not a line
-    after it), and the capabilities learn where the firmware puts it."""
+    after it), and the capabilities learn at connect where the firmware puts it."""
     sim = make_sim(m114_on_ok=True, advanced_ok=advanced_ok)
     link = link_for(sim)
     await link.connect()
-    assert link.capabilities.position_report == "line", "not known before the first M114"
+    assert link.capabilities.position_report == "ok", "learned at connect from an M114's answer"
     await link.send("G28")
     await link.send("G1 X12.5 Y7 Z3 F6000")
     position = await asyncio.wait_for(link.query_position(grace_s=0.0), 5)
@@ -491,8 +491,8 @@ async def test_recover_after_a_halt(make_sim) -> None:
     assert link.state is LinkState.READY
     await link.send("G28")
     assert sim.halted_at is None
-    after_restart = [(c.line, c.command) for c in sim.commands()][-4:]
-    assert after_restart == [(0, "M110 N0"), (1, "M115"), (2, "M155 S2"), (3, "G28")]
+    after_restart = [(c.line, c.command) for c in sim.commands()][-5:]
+    assert after_restart == [(0, "M110 N0"), (1, "M115"), (2, "M114"), (3, "M155 S2"), (4, "G28")]
     await link.close()
 
 
@@ -529,3 +529,64 @@ async def test_the_default_window_loses_nothing_on_a_64_byte_board(make_sim) -> 
     assert executed_program(sim) == program
     assert sim.stats().dropped_bytes == 0 and result.resends == 0
     await link.close()
+
+
+# ---- issue 36: a firmware that times out after a resend request; the report after the ok
+
+@pytest.mark.parametrize("ok_before_output", [False, True])
+async def test_a_resent_line_marked_received_without_running_stops_the_stream(make_sim, ok_before_output) -> None:
+    """Plain-ok firmware refuses line N, asks for it, never answers the re-sent N (marked received,
+    never run) and takes N + 1 next. Its later lines' plain oks would count N as done: instead
+    N goes alone, its silence draws M400 + M114, and the position (where line N - 1 left the
+    head, not where N would) stops the stream naming N; N never ran and nothing after it went.
+    With ``ok_before_output`` the firmware names itself Marlin and prints M114's report after its
+    ok: learned at connect, the proof reads it there."""
+    sim = make_sim(faults=FaultConfig(ignore_resent_after_lines=300), advanced_ok=False,
+                   ok_before_output=ok_before_output)
+    link = link_for(sim)
+    await link.connect()
+    assert link.capabilities.position_report == ("after_ok" if ok_before_output else "line")
+    program = moves(1500, seed=4)
+    with pytest.raises(ProtocolError, match=r"line (\d+) \(program line (\d+): .*\) never ran") as caught:
+        await link.stream(program)
+    ignored = sim.stats().ignored_resent_line
+    message = str(caught.value)
+    assert re.search(r"line (\d+) \(program", message).group(1) == str(ignored)
+    index = int(re.search(r"program line (\d+)", message).group(1)) - 1
+    assert program[index] in message
+    assert ignored not in [c.line for c in sim.commands()], "the named line never ran"
+    executed = executed_program(sim)
+    assert executed[:index] == program[:index], "everything before it ran, once, in order"
+    assert program[index] not in executed and program[index + 1] not in executed, "nothing from it on ran"
+    assert link.state is LinkState.READY
+    await link.close()
+
+
+async def test_a_position_report_after_its_ok_on_a_marlin_named_firmware(make_sim) -> None:
+    """Issue 36 item 2: a build that names itself Marlin prints M114's report after its ok. The link
+    learns it at connect and takes the report there: the position is the move's target."""
+    sim = make_sim(ok_before_output=True, dialect="marlin2")
+    link = link_for(sim)
+    await link.connect()
+    assert link.capabilities.firmware_name.startswith("Marlin")
+    assert link.capabilities.position_report == "after_ok"
+    for x, y in ((12.5, 30.0), (40.25, 7.5)):
+        await link.send(f"G1 X{x} Y{y} F6000")
+        await link.send("M400")
+        pos = await link.query_position()
+        assert (pos.x, pos.y) == (x, y)
+    await link.close()
+
+
+def test_stream_command_exits_non_zero_naming_a_resent_line_that_never_ran(make_sim, tmp_path: Path) -> None:
+    sim = make_sim(faults=FaultConfig(ignore_resent_after_lines=200), advanced_ok=False)
+    program = moves(600)
+    path = tmp_path / "part.gcode"
+    path.write_text("\n".join(program) + "\n")
+    done = run_cli("stream", "--port", sim.port, "--baud", str(sim.config.baud), "--boot-wait", "1",
+                   "--timeout", "1", "-q", str(path))
+    ignored = sim.stats().ignored_resent_line
+    assert ignored > 0
+    assert done.returncode == 1, done.stdout
+    assert re.search(rf"line {ignored} \(program line \d+: .*\) never ran", done.stderr), done.stderr
+    assert "lines acknowledged" not in done.stdout

@@ -454,3 +454,95 @@ async def test_no_nudge_behind_a_command_expected_to_be_silent() -> None:
     feed(sender, "ok")
     assert (await asyncio.wait_for(done, 1)).lines == 1
     sender.stop(StreamCancelled("test over"))
+
+
+# ---- issue 36: a re-sent line on plain-ok firmware is proven run, or the stream stops
+
+def moves(n: int) -> list[str]:
+    """Absolute moves, each 1 mm further along X than the one before (so each proves it ran)."""
+    return ["G90"] + [f"G1 X{10 + i} Y5 F3000" for i in range(n)]
+
+
+def plain_resend(sender: Sender, wire: Wire, asked: int) -> None:
+    """Line ``asked`` refused (checksum) by plain-ok Marlin: the request and its ok, then one
+    request per stale line behind it."""
+    last = wire.numbers()[-1]
+    feed(sender, f"Error:checksum mismatch, Last Line: {asked - 1}", f"Resend: {asked}", "ok")
+    for _ in range(asked + 1, last + 1):
+        feed(sender, f"Error:Line Number is not Last Line Number+1, Last Line: {asked - 1}",
+             f"Resend: {asked}", "ok")
+
+
+async def test_a_resent_line_goes_alone_until_its_ok_on_plain_ok_firmware() -> None:
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10))
+    commands = moves(8)
+    done = sender.stream(commands)
+    feed(sender, "ok", "ok")  # lines 0, 1
+    plain_resend(sender, wire, 2)
+    assert wire.numbers()[-1] == 2, "only the re-sent line is out"
+    await asyncio.sleep(0.01)
+    assert wire.numbers()[-1] == 2
+    feed(sender, "ok")  # line 2's own ok: the window opens again
+    assert wire.numbers()[-1] > 2
+    while not done.done():
+        feed(sender, "ok")
+        await asyncio.sleep(0.01)
+    assert done.result().lines == len(commands)
+    resent = [i for i, (n, _) in enumerate(wire.lines) if n == 2][1]
+    assert wire.lines[resent:] == list(enumerate(commands))[2:], "after it, every line once, in order"
+
+
+async def proof_episode(order: str, report_x: float) -> tuple[Sender, Wire, asyncio.Future, list[str]]:
+    """Line 2 (program line 3: G1 X11 Y5) asked for again, sent again, and then no ok: the sender
+    proves it with M400 + M114; the printer answers with the report at ``report_x``, before its
+    ``ok`` ("line", Marlin) or after it ("after_ok")."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10, default_s=0.1, nudge_s=0))
+    sender.capabilities.position_report = order
+    sender.start()
+    commands = moves(8)
+    done = sender.stream(commands)
+    feed(sender, "ok", "ok")
+    plain_resend(sender, wire, 2)
+    deadline = asyncio.get_running_loop().time() + 2
+    while wire.lines[-1][1] != "M114":
+        assert asyncio.get_running_loop().time() < deadline, "no proof sent"
+        await asyncio.sleep(0.02)
+    assert wire.lines[-2:] == [(3, "M400"), (4, "M114")], "the proof goes right behind the silent line"
+    report = f"X:{report_x:.2f} Y:5.00 Z:0.00 E:0.00 Count X:0 Y:0 Z:0"
+    feed(sender, "ok", *((report, "ok") if order == "line" else ("ok", report)))
+    return sender, wire, done, commands
+
+
+@pytest.mark.parametrize("order", ["line", "after_ok"])
+async def test_a_silent_resent_move_proven_by_the_position_counts_once(order: str) -> None:
+    sender, wire, done, commands = await proof_episode(order, 11.0)  # where line 2 leaves the printer
+    assert sender.last_acknowledged_line == 4
+    while not done.done():
+        feed(sender, "ok")
+        await asyncio.sleep(0.01)
+    assert done.result().lines == len(commands)
+    resent = [i for i, (n, _) in enumerate(wire.lines) if n == 2][1]
+    after = wire.lines[resent:]
+    assert after[:3] == [(2, commands[2]), (3, "M400"), (4, "M114")]
+    assert [c for _, c in after[3:]] == commands[3:], "then every later line once, in order"
+
+
+@pytest.mark.parametrize("order", ["line", "after_ok"])
+async def test_a_silent_resent_move_that_did_not_run_stops_the_stream_naming_it(order: str) -> None:
+    sender, wire, done, commands = await proof_episode(order, 10.0)  # still where line 1 left it
+    with pytest.raises(ProtocolError, match=rf"line 2 \(program line 3: {re.escape(commands[2])}\) never ran"):
+        await asyncio.wait_for(done, 1)
+    assert sender.last_acknowledged_line == 1
+    assert wire.lines[-1] == (4, "M114"), "nothing after the proof went out"
+
+
+async def test_a_silent_resent_line_that_is_not_a_move_stops_the_stream() -> None:
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10, default_s=0.1, nudge_s=0))
+    sender.start()
+    commands = ["G90", "G1 X10 Y5", "M104 S200", "G1 X11 Y5"]
+    done = sender.stream(commands)
+    feed(sender, "ok", "ok")
+    plain_resend(sender, wire, 2)
+    with pytest.raises(ProtocolError, match=r"no ok for line 2 \(program line 3: M104 S200\).*not a move"):
+        await asyncio.wait_for(done, 2)
+    assert "M114" not in [c for _, c in wire.lines] and sender.last_acknowledged_line == 1

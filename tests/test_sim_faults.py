@@ -204,3 +204,24 @@ def test_triggers_reset_runaway_disconnect_and_reconnect() -> None:
         with PtyHost(sim.port) as host:  # plugged back in: a fresh boot
             host.wait_banner()
             assert host.command("M105")[0].startswith("ok T:")
+
+
+def test_ignore_resent_marks_the_resent_line_received_without_running_or_answering_it() -> None:
+    """A firmware that times out after a resend request (issue 36): it asks for line 2 again,
+    takes the re-sent 2 as its last line without running or answering it, and runs 3 next."""
+    with connected(faulty(ignore_resent_after_lines=1)) as (sim, host):
+        assert host.command("G90", 1) == ["ok N1 P15 B3"]
+        assert host.command("M117 two", 2) == ["Error:checksum mismatch, Last Line: 1", "Resend: 2", "ok"]
+        host.send("M117 two", 2)
+        assert host.read_quiet() == [], "the re-sent line draws no answer"
+        assert host.command("M117 three", 3) == ["ok N3 P15 B3"], "and the next line is taken as 3"
+        assert [(c.line, c.command) for c in sim.commands()] == [(1, "G90"), (3, "M117 three")]
+        assert sim.stats().ignored_resent_line == 2
+
+
+def test_ok_before_output_prints_the_ok_first() -> None:
+    config = SimConfig(ok_before_output=True, advanced_ok=False)
+    with connected(config) as (sim, host):
+        host.send("M114", 1)
+        answer = host.read_quiet()
+        assert answer[0] == "ok" and answer[1].startswith("X:0.00 Y:0.00 Z:0.00") and len(answer) == 2

@@ -162,9 +162,10 @@ class Capabilities(BaseModel):
     planner_blocks: int | None = None
     # ---- set by the dialect (see Dialect for what each means)
     ok_after_resend: bool = True
-    #: Also learned from the first answer to ``M114``: such an ``ok`` carries no ``N``/``P``/``B``,
-    #: and the sender takes it as ``M114``'s own.
-    position_report: Literal["line", "ok"] = "line"
+    #: Learned at connect from the answer to ``M114`` (``learn_position_report``), whatever the
+    #: firmware's name says: some builds print a command's output after its ``ok`` ("after_ok").
+    #: An ``ok`` with the position carries no ``N``/``P``/``B``, and the sender takes it as ``M114``'s own.
+    position_report: Literal["line", "ok", "after_ok"] = "line"
     ok_means: Literal["processed", "received"] = "processed"
     answers_empty_line: bool = False
     bad_lines: Literal["resend", "discarded"] = "resend"
@@ -217,6 +218,16 @@ class Capabilities(BaseModel):
     def learn_capability(self, cap: codec.Capability) -> None:
         """Take one ``Cap:`` line of ``M115``."""
         self.reported = {**self.reported, cap.name: cap.enabled}
+
+    def learn_position_report(self, before_ok: bool, on_ok: bool, after_ok: bool) -> None:
+        """Where the answer to an ``M114`` put the position: on a line before its ``ok``, on the
+        ``ok`` line, or on a line after it (nowhere: the dialect's row stays)."""
+        if on_ok:
+            self.position_report = "ok"
+        elif before_ok:
+            self.position_report = "line"
+        elif after_ok:
+            self.position_report = "after_ok"
 
     def learn_ok(self, ok: codec.Ok) -> None:
         """Take what an acknowledgement tells about the firmware (ADVANCED_OK and slot counts,

@@ -24,6 +24,10 @@ from .transport import SerialTransport
 
 log = logging.getLogger(__name__)
 
+#: How long a query's report may follow its ``ok`` where the ``ok`` means "processed" (the report is
+#: printed right after it, as a firmware prints a command's output once it has run).
+_POSITION_AFTER_OK_S = 1.0
+
 
 class LinkState(enum.Enum):
     DISCONNECTED = "disconnected"
@@ -309,9 +313,37 @@ class PrinterLink:
                 self.capabilities.learn_firmware(event)
             elif isinstance(event, codec.Capability):
                 self.capabilities.learn_capability(event)
+        await self._learn_position_report(sender)
         if not self.capabilities.firmware_name:
             log.warning("the printer on %s did not name its firmware (M115): speaking to it as %s",
                         self.port, self.capabilities.spec.label)
+
+    async def _learn_position_report(self, sender: Sender) -> None:
+        """Where this printer puts ``M114``'s report: before its ``ok``, on it, or after it. Not
+        from the firmware's name: builds that name themselves Marlin may print a command's output
+        after its ``ok`` (OctoPrint's virtual printer: ``okBeforeCommandOutput``). The sender's
+        proof of a re-sent line needs to know which ``ok`` is the ``M114``'s."""
+        seen: list[codec.Event] = []
+        self._event_collectors.append(seen)
+        try:
+            try:  # best effort, as M115's: a printer that does not answer keeps its dialect's row
+                answer = await asyncio.wait_for(sender.send("M114"), self.timeouts.default_s * 2)
+            except asyncio.TimeoutError:
+                log.warning("no answer to M114 at connect within %.1f s", self.timeouts.default_s * 2)
+                return
+            before = any(isinstance(event, codec.Position) for event in answer.events)
+            after = False
+            if answer.ok.position is None and not before:
+                # the report may have come already: it follows the ok itself in what was seen
+                mark = next((i + 1 for i, event in enumerate(seen) if event is answer.ok), len(seen))
+                after = await self._wait_for(lambda: any(isinstance(e, codec.Position) for e in seen[mark:]),
+                                             _POSITION_AFTER_OK_S)
+        finally:
+            self._event_collectors.remove(seen)
+        self.capabilities.learn_position_report(before, answer.ok.position is not None, after)
+        if not (before or after or answer.ok.position is not None):
+            log.warning("the printer on %s answered M114 without a position within %.1f s of its ok",
+                        self.port, _POSITION_AFTER_OK_S)
 
     @staticmethod
     async def _wait_for(condition: Callable[[], bool], timeout: float) -> bool:
@@ -377,8 +409,11 @@ class PrinterLink:
 
     def _report_grace_s(self) -> float:
         """How long a query's report may follow its ``ok``: a moment where the ``ok`` means
-        "processed", as long as the commands before it take where it means "received" (Repetier)."""
-        return 1.0 if self.capabilities.ok_means == "processed" else self.timeouts.default_s
+        "processed", as long as the commands before it take where it means "received" (Repetier) or
+        where this printer was seen to print the report after the ``ok`` (learned at connect)."""
+        if self.capabilities.ok_means == "received" or self.capabilities.position_report == "after_ok":
+            return self.timeouts.default_s
+        return _POSITION_AFTER_OK_S
 
     async def query_temperatures(self) -> codec.Temperatures:
         """Ask for the temperatures (``M105``): on the ``ok`` line (Marlin, RepRapFirmware,

@@ -58,7 +58,7 @@ from pydantic import BaseModel, Field
 from . import codec
 from .capabilities import Capabilities
 from .errors import LinkError, PrinterSilent, ProtocolError, StreamCancelled
-from .proof import RunProofs
+from .proof import RunProofs, at_position, expected_position
 from .window import WindowGovernor
 
 log = logging.getLogger(__name__)
@@ -184,6 +184,17 @@ class _Line:
 
 
 @dataclass
+class _ResentProof:
+    """``M400`` + ``M114`` sent behind a re-sent line that drew no ``ok`` (plain-ok firmware):
+    the report says whether the printer is where the program is after that line."""
+
+    line: _Line
+    query: int  # the M114's line number
+    expected: dict[str, float]
+    report: codec.Position | None = None
+
+
+@dataclass
 class _Program:
     commands: Sequence[str]
     progress: Callable[[StreamProgress], None] | None
@@ -249,7 +260,10 @@ class Sender:
         self._pending_resend: int | None = None  # lowest line asked for and not yet acknowledged
         self._refused: int | None = None  # the line the last line-check Error refused
         self._unproven: int | None = None  # a re-sent line the printer asked past, unacknowledged
+        self._solo: int | None = None  # plain-ok firmware: a re-sent line sent alone until its ok
+        self._resent_proof: _ResentProof | None = None  # its ok did not come: the position decides
         self._skip_oks = 0  # Repetier: oks due after "skip N" lines, which acknowledge nothing
+        self._tail_oks = 0  # Marlin 2.x: oks due after cut tails run as unknown commands
         self._last_query = -1  # the last line a query's answer acknowledged by name
         self._proofs: RunProofs[_Line] = RunProofs()  # where ok means "received" (proof.py)
         self._run_hold: _Line | None = None  # a program M400 whose run the program waits for
@@ -282,6 +296,7 @@ class Sender:
         self._inflight.clear()
         self._inflight_bytes = 0
         self._singles.clear()
+        self._solo = self._resent_proof = None
         if self._program is not None and not self._program.done.done():
             self._program.done.set_exception(reason)
         self._program = None
@@ -310,8 +325,8 @@ class Sender:
         self._cursor = 0
         self._acked_through = -1
         self._resend_ok_due = False
-        self._pending_resend = self._unproven = None
-        self._skip_oks = 0
+        self._pending_resend = self._unproven = self._solo = self._resent_proof = None
+        self._skip_oks = self._tail_oks = 0
         self._last_query = -1
         self._run_hold = None
         for line in self._proofs.clear():  # a reset or a new handshake: they will never be proven
@@ -378,6 +393,8 @@ class Sender:
             self._probes_outstanding = 0
         elif _keeps_alive(event):
             self._last_heard = time.monotonic()
+        if self._resent_proof is not None and self._on_proof_event(event):
+            return
         if isinstance(event, codec.Ok):
             self._refused = None  # no request followed the error
             self._on_ok(event)
@@ -388,6 +405,10 @@ class Sender:
         elif isinstance(event, codec.Wait):
             self._on_wait()
         else:
+            if isinstance(event, codec.UnknownCommand) and "*" in event.command:
+                # the tail of a line cut by a flush (a checksum; the link never sends a "*"
+                # otherwise): its plain ok is no line's, even once the resend went out
+                self._tail_oks += 1
             if isinstance(event, codec.Error):
                 self._on_line_error(event)
             # Output comes before the ok of the command it answers, or, where ok means "received",
@@ -440,6 +461,10 @@ class Sender:
         if self._skip_oks and plain and ok.line is None:
             self._skip_oks -= 1
             return  # the ok Repetier prints after each "skip N"
+        if self._tail_oks and plain and ok.line is None:
+            self._tail_oks -= 1
+            if not self.capabilities.advanced_ok and self._hold is None:
+                return  # (during the hold the resend's floor already keeps it from counting)
         if ok.advanced:
             if ok.line is not None:
                 self._ack_through(ok.line, ok)
@@ -523,6 +548,8 @@ class Sender:
             self._nudge_behind = None  # read (and ignored) right after that line
         if self._pending_resend is not None and self._pending_resend <= number:
             self._pending_resend = None
+        if self._solo is not None and self._solo <= number:
+            self._solo = None  # the re-sent line acknowledged: the window opens again
 
         self._count_program_lines(program_lines)
         self._forget_old_history()
@@ -557,6 +584,11 @@ class Sender:
                                      f"the history of {self._history_size} lines"))
             return
         self._note_asked_past(number)
+        if self._solo is not None and number > self._solo:
+            # Its line-number check refused the copy: the printer took the line in the first
+            # pass, with the lines after it, whose oks the hold did not count (Marlin runs what
+            # it takes; the silence probe's answer acknowledges them).
+            self._solo = None
         if refused is not None and number > refused:
             # The request that answers an error asks past the line the error refused: the printer
             # marked that line received without running it.
@@ -669,8 +701,120 @@ class Sender:
         # acknowledgements counted by line number never run ahead of what the printer processed.
         target = max(target, min(self._acked_through + 1, self._next_number))
         self._cursor = target
+        if self._plain_ok and target < self._next_number:
+            self._send_alone(target)
         self._pump()
         self._maybe_finish_program()
+
+    # ------------------------------------------------------------------ re-sent lines, plain ok
+
+    @property
+    def _plain_ok(self) -> bool:
+        """Whether acknowledgements name no line: a re-sent line's ``ok`` cannot be told from a
+        later line's (firmware that checks line numbers and processes before its ``ok``)."""
+        return (not self.capabilities.advanced_ok and self.capabilities.ok_means == "processed"
+                and self.capabilities.bad_lines == "resend")
+
+    def _send_alone(self, number: int) -> None:
+        """Line ``number`` is sent again to plain-ok firmware: it goes alone, so that the next ``ok``
+        is its own and, when none comes, the printer's position tells whether it ran (a firmware
+        that times out after a resend request marks the re-sent line received without running it,
+        and its later lines' plain oks would count it as done)."""
+        self._solo = number
+
+    def _give_back_numbers_after(self, number: int) -> None:
+        """The lines numbered after the silent re-sent line ``number`` are not in the printer (it
+        asked for ``number``, and answered none of them): they give their numbers back and go again
+        after the proof, which takes the numbers right after ``number``."""
+        program = self._program
+        for n in range(self._next_number - 1, number, -1):
+            line = self._history.pop(n, None)
+            if line is None:
+                continue
+            line.number, line.data, line.offset = -1, b"", None
+            line.events.clear()
+            if line.program_index is not None and program is not None:
+                program.next_index = min(program.next_index, line.program_index)
+            elif line.future is not None:
+                self._singles.appendleft(line)
+            # (a probe or a follow-up query: made again if still needed)
+        self._next_number = self._cursor = number + 1
+
+    def _on_resent_silence(self, silent: float) -> None:
+        """The re-sent line drew no ``ok`` in its time: prove by the position that it ran, or stop."""
+        assert self._solo is not None
+        line = self._history.get(self._solo)
+        where = self._where(self._solo)
+        if self._resent_proof is not None:
+            self._fail(ProtocolError(
+                f"no answer for {silent:.1f} s to M400 + M114 sent to prove that line {self._solo}{where} ran "
+                f"(the printer had asked for it again, and gave no ok when it was sent again). Stopped with "
+                f"line {self._acked_through} the last acknowledged; resume from the line after it"))
+            return
+        program = self._program
+        expected = None
+        if line is not None and line.program_index is not None and program is not None:
+            expected = expected_position(program.commands, line.program_index)
+        if line is None or expected is None or any(queued.number > self._solo for queued in self._inflight):
+            self._fail(ProtocolError(
+                f"printer gave no ok for line {self._solo}{where}, which it had asked for again and was sent "
+                f"again: that line may never have run (a firmware that times out after a resend request marks "
+                f"it received without running it), and it is not a move whose position proves it ran. Stopped "
+                f"with line {self._acked_through} the last acknowledged; resume from the line after it"))
+            return
+        log.warning("no ok for re-sent line %d; proving it ran with M400 + M114", self._solo)
+        self._give_back_numbers_after(self._solo)
+        for command in ("M400", "M114"):
+            query = _Line(self._next_number, command, codec.encode(self._next_number, command))
+            self._history[query.number] = query
+            self._next_number += 1
+            self._cursor += 1
+            self._transmit(query)
+        self._resent_proof = _ResentProof(line, self._next_number - 1, expected)
+        self._last_heard = time.monotonic()
+
+    def _on_proof_event(self, event: codec.Event) -> bool:
+        """An event while a re-sent line's proof is out; True when it is the proof's own. Its oks
+        (the M400's and M114's, and a late one of the line) acknowledge nothing: the report decides,
+        once the M114's ok is in too (before or after the report: ``Capabilities.position_report``)."""
+        proof = self._resent_proof
+        assert proof is not None
+        if isinstance(event, codec.Resend):
+            self._fail(ProtocolError(
+                f"printer asked for line {event.line} while M400 + M114 were proving that line "
+                f"{proof.line.number}{self._where(proof.line.number)} ran: stopped with line "
+                f"{self._acked_through} the last acknowledged; resume from the line after it"))
+            return True
+        if isinstance(event, codec.Position):
+            proof.report = event
+            if self.capabilities.position_report == "after_ok":
+                self._conclude_proof(proof)
+            return False  # (still recorded as output)
+        if not isinstance(event, codec.Ok):
+            return False
+        if event.position is not None:
+            proof.report = event.position
+        if proof.report is not None:
+            self._conclude_proof(proof)
+        return True
+
+    def _conclude_proof(self, proof: _ResentProof) -> None:
+        report = proof.report
+        assert report is not None
+        self._resent_proof = None
+        number = proof.line.number
+        if at_position((report.x, report.y, report.z), proof.expected):
+            log.info("re-sent line %d proven run by the position (%s)", number, proof.expected)
+            self._ack_through(proof.query, codec.Ok())
+            self._pump()
+            return
+        found = ", ".join(f"{axis}{value:g}" for axis, value in zip("XYZ", (report.x, report.y, report.z)))
+        wanted = ", ".join(f"{axis}{value:g}" for axis, value in proof.expected.items())
+        self._fail(ProtocolError(
+            f"line {number}{self._where(number)} never ran: the printer had asked for it again, gave no ok "
+            f"when it was sent again, and after M400 it is at {found}, not at {wanted} where that line "
+            f"leaves the program. Stopped with line {self._acked_through} the last acknowledged; resume "
+            f"from the line after it"))
 
     # ------------------------------------------------------------------ transmitting
 
@@ -707,6 +851,8 @@ class Sender:
         if self._failure is not None or self._hold is not None:
             return
         while True:
+            if self._solo is not None and self._cursor > self._solo:
+                return  # a re-sent line goes alone until its ok, or its proof, comes
             if self._cursor < self._next_number:
                 line = self._history[self._cursor]
             else:
@@ -833,6 +979,9 @@ class Sender:
                 # newlines would pile up in a receive buffer the firmware is not reading)
                 self._maybe_nudge(silent)
             if silent < limit:
+                continue
+            if self._solo is not None:
+                self._on_resent_silence(silent)
                 continue
             if self._probes_outstanding >= self.timeouts.probes:
                 oldest = self._inflight[0]

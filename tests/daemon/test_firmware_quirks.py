@@ -142,6 +142,75 @@ def test_a_swallowed_resent_line_interrupts_the_job_naming_it_and_resume_prints_
         assert front[index] in rerun, "the resumed run printed the line that never ran"
 
 
+# ---------------------------------------------------------------------------------- issue 36
+
+
+def test_a_marlin_named_firmware_printing_the_position_after_its_ok_homes_and_jogs(tmp_path: Path) -> None:
+    """A build that names itself Marlin 2 but prints M114's report after its ok (OctoPrint's virtual
+    printer: okBeforeCommandOutput): ribbonctl home, goto and jog report the printer's position, and
+    the printer's own report, asked again, agrees."""
+    with quirky_printer(tmp_path / "state", "--dialect", "marlin2", "--ok-before-output") as (sim, daemon):
+        assert daemon.client is not None
+        assert daemon.client.get("/printer").json()["firmware"].startswith("Marlin 2.")
+        homed = ribbonctl(daemon, "home")
+        assert homed["position"][:3] == [0.0, 0.0, 0.0], homed
+        went = ribbonctl(daemon, "goto", "60", "70")
+        assert went["position"][:2] == [60.0, 70.0], went
+        jogged = ribbonctl(daemon, "jog", "1.5", "-2")
+        assert jogged["position"][:2] == [61.5, 68.0], jogged
+        status = daemon.client.get("/printer", params={"refresh": "true"}).json()
+        assert status["position"][:2] == [61.5, 68.0], status
+        assert [c for c in sim.commands() if c["command"] == "M114"], "the positions came from M114"
+
+
+def test_a_resent_line_never_run_on_plain_ok_firmware_interrupts_a_two_sided_job_and_resume_ends_it_done(
+        tmp_path: Path, meshes: dict[str, Path]) -> None:
+    """Plain-ok Marlin that times out after a resend request: it refuses line N, asks for it,
+    marks the re-sent N received without running or answering it, and takes N + 1 next. The job
+    is interrupted naming N and its program line (N never ran, nothing after it ran either); a
+    resume reprinting the part prints N, the job goes on through the flip to ``done``, and every
+    extruding move of both sides was laid down once, except the reprinted part's (then again)."""
+    from .deposits import executed, outcome, program_parts
+    from .test_daemon_e2e import flip_and_align
+
+    with quirky_printer(tmp_path / "state", "--no-advanced-ok", "--ignore-resent-after-lines", "500") as (sim, daemon):
+        api = daemon.client
+        assert api is not None
+        job = submit(api, meshes["two_sided"], start=True)
+        stopped = wait_for(api, job, "interrupted", timeout=120)
+        ignored = sim.request({"cmd": "stats"})["stats"]["ignored_resent_line"]
+        assert ignored > 0, "the fault must have fired"
+        match = re.search(r"line (\d+) \(program line (\d+): ([^)]*)\)", stopped["error"] or "")
+        assert match, stopped["error"]
+        assert int(match.group(1)) == ignored
+        front_text = Path(stopped["design_dir"], "front.gcode").read_text(encoding="utf-8")
+        front = prepare_program(front_text.splitlines())
+        index = int(match.group(2)) - 1
+        assert front[index] == match.group(3)
+        assert ignored not in [c["line"] for c in sim.commands()], "line N never ran"
+        assert front[index + 1] not in [c["command"] for c in sim.commands()], "nor anything after it"
+        assert stopped["last_acked_line"] < index + 1, "nothing from the line named on counts as done"
+        before = len(sim.commands())
+
+        r = api.post(f"/jobs/{job}/resume", json={"partial": "reprint"})
+        assert r.status_code == 200, r.text
+        wait_for(api, job, "awaiting_check", timeout=60, until=lambda j: j["waits_for_operator"])
+        assert api.post(f"/jobs/{job}/frame-ok", json={"keep_alignment": False}).status_code == 200
+        wait_for(api, job, "awaiting_flip", timeout=120)
+        assert front[index] in [c["command"] for c in sim.commands()[before:]], "the resume printed line N"
+        marks = api.get(f"/jobs/{job}/files/design.json").json()["registration_marks"]
+        answers = flip_and_align(api, sim, job, marks, (0.4, -0.3, 0.6))
+        assert all(a.status_code == 200 for a in answers), [a.text for a in answers]
+        wait_for(api, job, "done", timeout=150)
+        back_text = (daemon.state_dir / "jobs" / job / "back-corrected.gcode").read_text(encoding="utf-8")
+        segments = sim.segments()
+        front_parts, back_parts = program_parts(front_text), program_parts(back_text)
+        front_result = [outcome(p, executed(segments, "front")) for p in front_parts]
+        back_result = [outcome(p, executed(segments, "back")) for p in back_parts]
+        assert all(o == "full" for o in back_result), back_result
+        assert front_result.count("over") <= 1 and set(front_result) <= {"full", "over"}, front_result
+
+
 # ---------------------------------------------------------------------------------- item 10
 
 
