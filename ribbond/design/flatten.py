@@ -166,12 +166,11 @@ def exact_rotation_stretch(JRt: tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     if len(wide):
         cos[wide], sin[wide] = _wide_arcs(tuple(x[wide] for x in JRt), bounds, e1c[wide], e1s[wide],
                                           np.arctan2(sd[wide], cd[wide]))
-    f_new = _stretch_terms(A, B, C, D, cos, sin, bounds)[0]
-    f_start = _stretch_terms(A, B, C, D, sc, ss, bounds)[0]
+    f_new, _, _, sigma1, sigma2 = _stretch_terms(A, B, C, D, cos, sin, bounds)
+    f_start, _, _, start1, start2 = _stretch_terms(A, B, C, D, sc, ss, bounds)
     keep = f_start > f_new                                      # only ever a rounding's difference
-    cos, sin = np.where(keep, sc, cos), np.where(keep, ss, sin)
-    _, _, _, sigma1, sigma2 = _stretch_terms(A, B, C, D, cos, sin, bounds)
-    return cos, sin, sigma1, sigma2
+    return (np.where(keep, sc, cos), np.where(keep, ss, sin), np.where(keep, start1, sigma1),
+            np.where(keep, start2, sigma2))
 
 
 def _wide_arcs(M: tuple[np.ndarray, ...], bounds: np.ndarray, e1c: np.ndarray, e1s: np.ndarray,
