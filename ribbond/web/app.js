@@ -837,9 +837,8 @@ function renderVerdict(j) {
 /** The picture's caption: what it shows, and whether the shape is reached; the figures are in the card. */
 function deployedCaption(d) {
   if (!d) return "Predicted deployed shape";
-  const model = d.model === "ribbon-resolved" ? " (ribbon-resolved model)" : "";
-  if (d.reached === undefined) return `Predicted deployed shape${model}`;
-  return `Predicted deployed shape${model}: ${d.reached ? "takes" : "does NOT take"} the target's shape`;
+  if (d.reached === undefined) return "Predicted deployed shape";
+  return `Predicted deployed shape: ${d.reached ? "takes" : "does NOT take"} the target's shape`;
 }
 
 const range = (r, d = 1) => (Array.isArray(r) ? `${mm(r[0], d)}–${mm(r[1], d)}` : "–");
@@ -916,7 +915,7 @@ function reloadDesign(j) {
 $("pr-run").addEventListener("click", async () => {
   const id = state.route.id;
   const key = `predict:${id}`;
-  const body = { fine: $("pr-fine").checked };
+  const body = {};
   if ($("pr-table").value) body.table = $("pr-table").value;
   state.busy.add(key);
   $("pr-run").disabled = true;
