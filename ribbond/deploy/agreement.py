@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["total_gaussian_curvature", "surface_area", "Agreement", "reached", "verdict"]
+__all__ = ["total_gaussian_curvature", "angle_defects", "surface_area", "Agreement", "reached", "verdict"]
 
 #: Reached: mean deviation at most this, % of the target's diagonal.
 REACHED_MEAN_PCT = 2.0
@@ -49,8 +49,12 @@ def total_gaussian_curvature(V: np.ndarray, F: np.ndarray) -> float:
     F = np.asarray(F, dtype=np.int64)
     if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
         raise ValueError(f"V must be (n, 3) and F (m, 3), got {V.shape} and {F.shape}")
-    n = len(V)
-    total = np.bincount(F.ravel(), weights=_angles(V, F).ravel(), minlength=n)
+    return angle_defects(F, len(V), _angles(V, F))
+
+
+def angle_defects(F: np.ndarray, n: int, corner: np.ndarray) -> float:
+    """Σ over the interior vertices of 2π − Σ of their corner angles ``corner`` (m, 3): ∫K (dimensionless)."""
+    total = np.bincount(F.ravel(), weights=corner.ravel(), minlength=n)
     e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
     key = e[:, 0] * n + e[:, 1]
     uniq, count = np.unique(key, return_counts=True)

@@ -33,7 +33,7 @@ import shapely
 from ribbond.design.format import Ribbon
 from ribbond.design.thickness import CurvatureTable, table_curvature
 
-from .agreement import total_gaussian_curvature
+from .agreement import angle_defects, total_gaussian_curvature
 from .rest_forms import Coverage, contraction, face_coverage, layout_raster
 
 __all__ = ["Realization", "realization", "plastic_share", "metric_total_curvature"]
@@ -66,21 +66,7 @@ def metric_total_curvature(uv: np.ndarray, F: np.ndarray, abar: np.ndarray) -> f
     ang = np.empty(L.shape)
     for c, (x, y, z) in enumerate(((la, lb, lc), (lb, lc, la), (lc, la, lb))):
         ang[:, c] = np.arccos(np.clip((y * y + z * z - x * x) / np.maximum(2 * y * z, 1e-300), -1.0, 1.0))
-    return _interior_defects(F, len(uv), ang)
-
-
-def _interior_defects(F: np.ndarray, n: int, corner: np.ndarray) -> float:
-    """Σ over the interior vertices of 2π − Σ of their corner angles ``corner`` (m, 3)."""
-    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    key = e[:, 0] * n + e[:, 1]
-    uniq, count = np.unique(key, return_counts=True)
-    interior = np.zeros(n, dtype=bool)
-    interior[F.ravel()] = True
-    b = uniq[count == 1]
-    interior[b // n] = False
-    interior[b % n] = False
-    per_vertex = np.bincount(F.ravel(), weights=corner.ravel(), minlength=n)
-    return float((2.0 * np.pi - per_vertex[interior]).sum())
+    return angle_defects(F, len(uv), ang)
 
 
 def intended_metric(sigma: np.ndarray, direction: np.ndarray) -> np.ndarray:

@@ -345,7 +345,7 @@ class PrintReport(BaseModel):
     back: SidePrintReport
 
 
-class Spread(BaseModel):
+class Percentiles(BaseModel):
     """p5, median and p95 of a per-face figure, %."""
 
     model_config = _CONFIG
@@ -375,13 +375,13 @@ class RealizationReport(BaseModel):
     and curvature (README, "The design format")."""
 
     model_config = _CONFIG
-    along_pct: Spread | None = Field(None, description="100 (c_realized σ1 − 1) along the ribbons, interior faces")
-    across_pct: Spread | None = Field(None, description="100 (c_realized σ2 − 1) across them, interior faces")
-    along_pct_outline: Spread | None = Field(None, description="along, faces near the outline")
-    across_pct_outline: Spread | None = Field(None, description="across, faces near the outline")
+    along_pct: Percentiles | None = Field(None, description="100 (c_realized σ1 − 1) along the ribbons, interior faces")
+    across_pct: Percentiles | None = Field(None, description="100 (c_realized σ2 − 1) across them, interior faces")
+    along_pct_outline: Percentiles | None = Field(None, description="along, faces near the outline")
+    across_pct_outline: Percentiles | None = Field(None, description="across, faces near the outline")
     plastic_pct: PlasticShare
     bare_pct: float = Field(ge=0, le=100, description="% of faces with no plastic within one μ2")
-    curvature_pct: Spread | None = Field(None, description="100 (κ_rest / |κ1| − 1) where the table allows")
+    curvature_pct: Percentiles | None = Field(None, description="100 (κ_rest / |κ1| − 1) where the table allows")
     clamped_pct: float = Field(ge=0, le=100, description="% of ribbons at the table's τ limits")
     total_gaussian_curvature: IntendedCurvature
 
