@@ -143,7 +143,7 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         lines.append(f"optimized   {', '.join(o.variables)}: predicted mean {fo.deviation_pct.mean:.2f} → "
                      f"{op.deviation_pct.mean:.2f} %, ∫K {fo.total_gaussian_curvature.predicted:+.2f} → "
                      f"{op.total_gaussian_curvature.predicted:+.2f} (target {op.total_gaussian_curvature.target:+.2f}); "
-                     f"{o.iterations} iterations, {o.time_s:.1f} s (--no-optimize: the forward design)")
+                     f"{o.iterations} iterations, {o.time_s:.1f} s (without --optimize: the forward design)")
     pr = r.print_
     if pr is not None:
         for side, sp in (("front", pr.front), ("back", pr.back)):
@@ -208,13 +208,13 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if updates:
         params = params.model_validate({**params.model_dump(), **updates})
     frame = load_profile(params.printer_profile).frame
-    solver = settings.solver.model_copy(update={"optimize": False}) if args.no_optimize else settings.solver
+    solver = settings.solver if args.optimize else settings.solver.model_copy(update={"optimize": False})
     if args.panels is not None:
         return _design_project(args, params, solver)
     progress = TerminalProgress(quiet=args.quiet)
     try:
         result = design_mesh(args.mesh, params, solver, frame=frame, progress=progress,
-                             predict=not args.no_predict, optimize=not args.no_optimize)
+                             predict=not args.no_predict, optimize=args.optimize)
         out = write_design(result, args.output, progress)
     finally:
         progress.close()
@@ -503,9 +503,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
     d.add_argument("--no-predict", action="store_true",
                    help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
-    d.add_argument("--no-optimize", action="store_true",
-                   help="the paper's forward design: the ribbons' thicknesses from the curvature table, not "
-                        "optimized against the prediction ([solver] optimize = false)")
+    d.add_argument("--optimize", action="store_true",
+                   help="optimize the ribbons' thicknesses against the prediction (stage optimize; off by default: "
+                        "an optimized saddle was released onto another branch, its ribbons bending against their "
+                        "side); without it the paper's forward design")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.add_argument("--panels", metavar="auto|N", help="cut the target into panels and write a project folder "
                    "(project.json, panels.png, panel-1/ ...: each an ordinary design folder)")

@@ -133,7 +133,7 @@ class DesignSettings(BaseModel):
     # leave it to `ribbonctl predict --job` (POST /jobs/{id}/predict), asked for when wanted.
     predict: bool = Field(True, strict=True, description="predict the deployed shape in every compile "
                           "(deployed.obj, deployed.png, report.deployed); false: compile without it")
-    optimize: bool = Field(True, strict=True, description="optimize each layout's ribbon thicknesses against "
+    optimize: bool = Field(False, strict=True, description="optimize each layout's ribbon thicknesses against "
                            "the prediction (up to [solver] optimize_budget_s, 45 s by default; with predict); "
                            "false: the paper's forward design for every job")
 

@@ -205,7 +205,7 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
                 progress: DesignProgress | None = None, predict: bool = True,
                 tables_dir: Path | None = None, flat_start: np.ndarray | None = None,
-                finish: bool = True, optimize: bool = True) -> DesignResult:
+                finish: bool = True, optimize: bool = False) -> DesignResult:
     """Run the engine's ``STAGES`` on a mesh file: load, curvature and line field, flattening, stripes,
     ribbons, G-code, the predicted deployed shape and the preview.
 

@@ -129,11 +129,11 @@ def test_the_daemon_passes_its_design_switches_to_the_compile_worker():
     assert worker_command("py", "m.obj", "out", {}, "plans", optimize=False)[-1] == "--no-optimize"
 
 
-def test_the_command_lines_take_no_optimize():
+def test_the_command_lines_take_the_optimization_as_asked():
     from ribbond.client.cli import build_parser
     parser = build_parser()
-    assert parser.parse_args(["design", "m.obj", "-o", "out", "--no-optimize"]).no_optimize
-    assert not parser.parse_args(["design", "m.obj", "-o", "out"]).no_optimize
+    assert parser.parse_args(["design", "m.obj", "-o", "out", "--optimize"]).optimize
+    assert not parser.parse_args(["design", "m.obj", "-o", "out"]).optimize             # off by default
     assert parser.parse_args(["submit", "m.obj", "--no-optimize"]).no_optimize
     with pytest.raises(SystemExit):
         parser.parse_args(["predict", "folder", "--fine"])          # the ribbon-resolved model is gone

@@ -177,10 +177,8 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert set(deployed["spread"]) == {"mean", "max", "releases"}
     assert ("deployed    reached yes" if deployed["reached"] else "deployed    reached NO") in proc.stdout
     assert deployed["verdict"] in proc.stdout
-    # optimized against the prediction by default (issue 34): its "optimized" is what report.deployed says
-    o = d["report"]["optimization"]
-    assert o["optimized"]["deviation_pct"] == deployed["deviation_pct"] and o["variables"] == ["thickness"]
-    assert f"optimized   thickness: predicted mean {o['forward']['deviation_pct']['mean']:.2f} → " in proc.stdout
+    # the forward design unless --optimize (off by default: docs/designing.md)
+    assert "optimization" not in d["report"] and "optimized   " not in proc.stdout
     Vd, Fd = read_mesh(out / "deployed.obj")
     assert len(Fd) == deployed["faces"] and Vd.shape[1] == 3
 
