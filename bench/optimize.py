@@ -5,7 +5,8 @@ For each surface (a cylinder patch 100 mm, the torus patch of Fig. 2 120 mm, a s
 half-angle 30°) 100 mm; sizes are bounding-box diagonals, ~10k faces each) it designs the forward
 layout as ``ribbonctl design --no-optimize`` does (``design_mesh(predict=False)``), predicts it
 (every release), optimizes its thicknesses (``optimize_layout``, the default budget), predicts the
-optimized layout again from the flat sheet, and prints, each against the issue's goal:
+optimized layout again from the flat sheet, says whether the stage keeps it (``optimization_kept``:
+its prediction better than the forward one's), and prints, each against the issue's goal:
 
 - the predicted mean deviation, forward → optimized (≤ 1.0 %; ≤ 0.6 × the forward's where that is above 1 %);
 - ∫K predicted / target, forward → optimized (within 10 %);
@@ -72,7 +73,9 @@ def run(name: str) -> dict:
     opt = optimize_layout(uv, V, F, rib, start, budget_s=budget, **kw)
     stage_s = time.perf_counter() - t0
     optimized = predict_deployed(uv, V, F, opt.ribbons, **kw)
-    return {"surface": name, "faces": len(F), "ribbons": len(rib), "forward": forward, "optimized": optimized,
+    from ribbond.design.pipeline import optimization_kept
+    kept, why = optimization_kept(forward, optimized)
+    return {"kept": kept, "why": why, "surface": name, "faces": len(F), "ribbons": len(rib), "forward": forward, "optimized": optimized,
             "opt": opt, "stage_s": stage_s}
 
 
@@ -97,6 +100,9 @@ def report(r: dict) -> None:
           f"{opt.evaluations} evaluations, {opt.newton_iterations} Newton iterations, {opt.stopped}; "
           f"RMS {100 * np.sqrt(opt.objective_forward):.2f} → {100 * np.sqrt(opt.objective):.2f} % on {opt.faces} faces; "
           f"τ {opt.thickness.min():.2f}-{opt.thickness.max():.2f} mm")
+    design = o if r["kept"] else f
+    print(f"  {'kept' if r['kept'] else 'NOT kept'} ({r['why']}); the design's predicted mean "
+          f"{design.deviation_pct['mean']:.2f} %, reached {design.reached}")
 
 
 def main() -> int:

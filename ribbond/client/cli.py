@@ -143,7 +143,8 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         lines.append(f"optimized   {', '.join(o.variables)}: predicted mean {fo.deviation_pct.mean:.2f} → "
                      f"{op.deviation_pct.mean:.2f} %, ∫K {fo.total_gaussian_curvature.predicted:+.2f} → "
                      f"{op.total_gaussian_curvature.predicted:+.2f} (target {op.total_gaussian_curvature.target:+.2f}); "
-                     f"{o.iterations} iterations, {o.time_s:.1f} s (without --optimize: the forward design)")
+                     f"{o.iterations} iterations, {o.time_s:.1f} s; "
+                     + (f"kept ({o.reason})" if o.kept else f"NOT kept, the forward layout is the design: {o.reason}"))
     pr = r.print_
     if pr is not None:
         for side, sp in (("front", pr.front), ("back", pr.back)):
@@ -503,10 +504,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
     d.add_argument("--no-predict", action="store_true",
                    help="skip the prediction of the deployed shape (deployed.obj, deployed.png)")
-    d.add_argument("--optimize", action="store_true",
-                   help="optimize the ribbons' thicknesses against the prediction (stage optimize; off by default: "
-                        "an optimized saddle was released onto another branch, its ribbons bending against their "
-                        "side); without it the paper's forward design")
+    d.add_argument("--no-optimize", dest="optimize", action="store_false",
+                   help="the paper's forward design: the ribbons' thicknesses not optimized against the prediction "
+                        "(stage optimize, on by default with the prediction; up to [solver] optimize_budget_s, and "
+                        "kept only where the optimized layout's own prediction is better)")
     d.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     d.add_argument("--panels", metavar="auto|N", help="cut the target into panels and write a project folder "
                    "(project.json, panels.png, panel-1/ ...: each an ordinary design folder)")

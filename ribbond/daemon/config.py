@@ -133,8 +133,9 @@ class DesignSettings(BaseModel):
     # leave it to `ribbonctl predict --job` (POST /jobs/{id}/predict), asked for when wanted.
     predict: bool = Field(True, strict=True, description="predict the deployed shape in every compile "
                           "(deployed.obj, deployed.png, report.deployed); false: compile without it")
-    optimize: bool = Field(False, strict=True, description="optimize each layout's ribbon thicknesses against "
-                           "the prediction (up to [solver] optimize_budget_s, 45 s by default; with predict); "
+    optimize: bool = Field(True, strict=True, description="optimize each layout's ribbon thicknesses against "
+                           "the prediction (up to [solver] optimize_budget_s, 45 s by default; with predict; kept "
+                           "only where the optimized layout's own prediction is better); "
                            "false: the paper's forward design for every job")
 
 

@@ -273,6 +273,10 @@ class OptimizationReport(BaseModel):
     variables: list[str] = Field(description="what was varied per ribbon (\"thickness\")")
     iterations: int = Field(ge=0)
     time_s: float = Field(ge=0)
+    kept: bool = Field(True, description="whether the optimized layout is the design's (absent in older "
+                       "folders: it always was); false: its prediction was not better than the forward "
+                       "layout's, whose ribbons and prediction the design keeps")
+    reason: str | None = Field(None, description="why it was kept or not, in words")
 
 
 class RefinedReport(BaseModel):

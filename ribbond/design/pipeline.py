@@ -171,7 +171,8 @@ class _Run:
     design: Design = field(init=False)
     # gcode, deploy, preview
     programs: Programs | None = None
-    optimization: tuple[Optimization, Prediction] | None = None      # and the forward layout's prediction
+    # the optimization, the forward and the optimized layouts' predictions, whether it was kept and why
+    optimization: tuple[Optimization, Prediction, Prediction, bool, str] | None = None
     prediction: Prediction | None = None
     deployed_png: bytes | None = None
     preview_svg: bytes = b""
@@ -513,8 +514,10 @@ def _check_extrusion(run: _Run) -> None:
 
 
 def _deploy(run: _Run) -> str:
-    """The predicted deployed shape (``ribbond.deploy``)."""
-    run.prediction = _predict(run.uv, run.V, run.F, run.ribbons, run.params, run.table, run.progress)
+    """The predicted deployed shape (``ribbond.deploy``): the stage optimize's when it ran (it predicted
+    the layout it kept), else made here."""
+    if run.prediction is None:
+        run.prediction = _predict(run.uv, run.V, run.F, run.ribbons, run.params, run.table, run.progress)
     return _deploy_summary(run.prediction)
 
 
@@ -522,16 +525,17 @@ def _deployed_report(run: _Run) -> None:
     assert run.prediction is not None
     run.report["deployed"] = DeployedReport(**run.prediction.report())
     if run.optimization is not None:
-        opt, forward = run.optimization
-        run.report["optimization"] = OptimizationReport(**opt.report(forward, run.prediction))
+        opt, forward, optimized, kept, why = run.optimization
+        run.report["optimization"] = OptimizationReport(**opt.report(forward, optimized), kept=kept, reason=why)
 
 
 def _optimize(run: _Run) -> str:
-    """The forward layout's nominal prediction, then its ribbons' thicknesses optimized against it; the
-    design (ribbons, realization) is made again with them, and the stages after use them."""
+    """The forward layout's prediction (every release), then its ribbons' thicknesses optimized against
+    it and the optimized layout predicted from the flat sheet as printed; the optimized layout is kept
+    only where that prediction is better (``optimization_kept``), and the design (ribbons,
+    realization) is made again with it. Either prediction is the one the stage deploy reports."""
     p, t0 = run.params, time.perf_counter()
-    forward = _predict(run.uv, run.V, run.F, run.ribbons, p, run.table, run.progress, releases=RELEASES[:1],
-                       stage="optimize")
+    forward = _predict(run.uv, run.V, run.F, run.ribbons, p, run.table, run.progress, stage="optimize")
     calls = [0]
 
     def relay(fraction: float, message: str) -> None:
@@ -545,12 +549,32 @@ def _optimize(run: _Run) -> str:
                               progress=relay)
     except ValueError as exc:
         raise DesignError(f"the layout cannot be optimized: {exc}") from None
-    run.optimization = (opt, forward)
-    run.ribbons = opt.ribbons
-    _design_document(run)
-    return (f"{len(opt.ribbons)} thicknesses, {opt.iterations} iterations ({opt.stopped}); RMS distance on its "
-            f"{opt.faces}-face mesh {100 * np.sqrt(opt.objective_forward):.2f} → {100 * np.sqrt(opt.objective):.2f} % "
-            f"of the diagonal; forward layout's mean deviation {forward.deviation_pct['mean']:.2f} %")
+    optimized = _predict(run.uv, run.V, run.F, opt.ribbons, p, run.table, run.progress, stage="optimize")
+    kept, why = optimization_kept(forward, optimized)
+    run.optimization = (opt, forward, optimized, kept, why)
+    run.prediction = optimized if kept else forward
+    if kept:
+        run.ribbons = opt.ribbons
+        _design_document(run)
+    return (f"{len(opt.ribbons)} thicknesses, {opt.iterations} iterations ({opt.stopped}); predicted mean "
+            f"{forward.deviation_pct['mean']:.2f} → {optimized.deviation_pct['mean']:.2f} %: "
+            f"{'kept' if kept else 'the forward layout kept'} ({why})")
+
+
+def optimization_kept(forward: Prediction, optimized: Prediction) -> tuple[bool, str]:
+    """Whether the optimized layout replaces the forward one, and why: its prediction (released from
+    the flat sheet, every release) must be closer to the target on the mean and no worse on the
+    worst release, and keep ``reached`` where the forward one has it. The optimization itself follows
+    one release on a coarser mesh: a layout that it improves can settle elsewhere when released."""
+    fm, om = forward.deviation_pct["mean"], optimized.deviation_pct["mean"]
+    fw, ow = forward.agreement.spread_mean[1], optimized.agreement.spread_mean[1]
+    if om >= fm:
+        return False, f"its predicted mean {om:.2f} % is not below the forward layout's {fm:.2f} %"
+    if ow > fw:
+        return False, f"its worst release {ow:.2f} % is above the forward layout's {fw:.2f} %"
+    if forward.reached and not optimized.reached:
+        return False, "the forward layout is reached (predicted to take the shape) and the optimized one is not"
+    return True, f"predicted mean {fm:.2f} → {om:.2f} %, worst release {fw:.2f} → {ow:.2f} %"
 
 
 def _preview(run: _Run) -> str:

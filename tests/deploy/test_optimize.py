@@ -132,8 +132,27 @@ def test_the_daemon_passes_its_design_switches_to_the_compile_worker():
 def test_the_command_lines_take_the_optimization_as_asked():
     from ribbond.client.cli import build_parser
     parser = build_parser()
-    assert parser.parse_args(["design", "m.obj", "-o", "out", "--optimize"]).optimize
-    assert not parser.parse_args(["design", "m.obj", "-o", "out"]).optimize             # off by default
+    assert parser.parse_args(["design", "m.obj", "-o", "out"]).optimize                # on by default
+    assert not parser.parse_args(["design", "m.obj", "-o", "out", "--no-optimize"]).optimize
     assert parser.parse_args(["submit", "m.obj", "--no-optimize"]).no_optimize
     with pytest.raises(SystemExit):
         parser.parse_args(["predict", "folder", "--fine"])          # the ribbon-resolved model is gone
+
+
+def _prediction(mean: float, worst: float, reached: bool):
+    """A stand-in with the three figures ``optimization_kept`` reads (a Prediction's own names)."""
+    from types import SimpleNamespace
+    return SimpleNamespace(deviation_pct={"mean": mean}, agreement=SimpleNamespace(spread_mean=(mean, worst)),
+                           reached=reached)
+
+
+@pytest.mark.parametrize("forward, optimized, kept, words", [
+    ((2.0, 2.5, False), (1.2, 1.4, False), True, "2.00 → 1.20"),
+    ((2.0, 2.5, False), (2.0, 2.2, False), False, "not below"),            # no better on the mean
+    ((2.0, 2.5, False), (1.2, 8.0, False), False, "worst release 8.00"),   # another branch on one release
+    ((1.0, 1.1, True), (0.9, 1.0, False), False, "reached"),               # keeps ``reached``
+])
+def test_the_optimized_layout_is_kept_only_where_its_own_prediction_is_better(forward, optimized, kept, words):
+    from ribbond.design.pipeline import optimization_kept
+    ok, why = optimization_kept(_prediction(*forward), _prediction(*optimized))
+    assert ok is kept and words in why

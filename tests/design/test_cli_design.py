@@ -177,8 +177,13 @@ def test_cylinder_writes_a_valid_folder(cylinder: dict[str, Any]) -> None:
     assert set(deployed["spread"]) == {"mean", "max", "releases"}
     assert ("deployed    reached yes" if deployed["reached"] else "deployed    reached NO") in proc.stdout
     assert deployed["verdict"] in proc.stdout
-    # the forward design unless --optimize (off by default: docs/designing.md)
-    assert "optimization" not in d["report"] and "optimized   " not in proc.stdout
+    # optimized by default, kept only where its own prediction is better; deployed is the kept layout's
+    o = d["report"]["optimization"]
+    assert o["variables"] == ["thickness"] and isinstance(o["kept"], bool) and o["reason"]
+    assert "optimized   thickness" in proc.stdout and o["reason"] in proc.stdout
+    kept = o["optimized"] if o["kept"] else o["forward"]
+    assert deployed["deviation_pct"] == kept["deviation_pct"]
+    assert (o["optimized"]["deviation_pct"]["mean"] < o["forward"]["deviation_pct"]["mean"]) or not o["kept"]
     Vd, Fd = read_mesh(out / "deployed.obj")
     assert len(Fd) == deployed["faces"] and Vd.shape[1] == 3
 

@@ -45,7 +45,7 @@ def made(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("predict")
     V, F = surfaces.cylinder_patch(40.0, 120.0, 60.0, n_around=16, n_along=8)
     write_obj(d / "cyl.obj", V, F)
-    r = ribbonctl("design", str(d / "cyl.obj"), "-o", str(d / "design"), "--size", "70", "-q")
+    r = ribbonctl("design", str(d / "cyl.obj"), "-o", str(d / "design"), "--size", "70", "-q", "--no-optimize")
     assert r.returncode == 0, r.stderr
     return d / "design"
 
