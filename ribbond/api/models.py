@@ -64,6 +64,9 @@ class JobStatus(JobRecord):
     ribbons: int | None = Field(None, description="ribbons on the side being printed")
     print_side: str | None = Field(None, description="the side printed now or next")
     waits_for_operator: bool = Field(False, description="nothing happens until the operator acts")
+    waiting_for: str | None = Field(None, description="while waits_for_operator: what the job waits for, in "
+                                    "a few words (the flip, mark 2 of 3, the frame check, …; next says what to do); eta_s is then "
+                                    "None")
     fit: dict[str, Any] | None = Field(None, description="in state fitted: the alignment's fit under review "
                                                          "(rotation_deg, offset, rms_mm, max_residual_mm)")
     alignment: dict[str, Any] | None = Field(None, description="in state aligning: the registration marks "
