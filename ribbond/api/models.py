@@ -128,6 +128,13 @@ class ProjectStatus(ProjectRecord):
     panels: list[ProjectPanel] = Field(default_factory=list, description="the panel map, by panel")
     seams: list[ProjectSeam] = Field(default_factory=list)
     report: dict[str, Any] | None = Field(None, description="project.json's report")
+    reached: bool | None = Field(None, description="the sewn panels are predicted to take the target's shape "
+                                 "(every panel's prediction does and the sewn one lands within 2 % on average); "
+                                 "None before the compile or without predictions")
+    verdict: list[str] = Field(default_factory=list, description="the project's verdict, one sentence per line "
+                               "(ribbond.design.verdict.project_verdict_lines); empty before the compile")
+    has_deployed: bool = Field(False, description="the sewn prediction's picture exists (GET "
+                               "/projects/{id}/files/deployed.png)")
     next: NextStep
 
 

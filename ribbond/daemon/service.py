@@ -538,7 +538,8 @@ class RibbonService:
         elif s is JobState.AWAITING_CHECK:
             text = self._check_guidance(job)
         elif s is JobState.DONE:
-            text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
+            text = self.projects.done_instruction(job) or \
+                f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
         else:
             text, cmds = _ended_guidance(job)
         return {"instruction": text, "commands": cmds if cmds is not None else [f"ribbonctl {c} {j}"

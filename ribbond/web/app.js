@@ -338,6 +338,22 @@ function renderProjectPage() {
   const img = state.files.get(`project:${p.id}`);
   $("pj-fig").hidden = !img;
   if (img && $("pj-img").src !== img) $("pj-img").src = img;
+  renderProjectPrediction(p);
+}
+
+/** The project's verdict (the bad lines in red) and the sewn prediction's picture (issue 36). */
+function renderProjectPrediction(p) {
+  const lines = p.verdict || [];
+  $("pj-prediction").hidden = !lines.length;
+  $("pj-verdict").innerHTML = lines.map((l) => `<li class="${/NOT|not known/.test(l) ? "bad" : ""}">${esc(l)}</li>`).join("");
+  const key = `project-deployed:${p.id}`;
+  if (p.has_deployed && !state.files.has(key)) {
+    state.files.set(key, null);
+    quiet(api.fileURL(p.id, "deployed.png", "projects").then((u) => { state.files.set(key, u); renderProjectPage(); }));
+  }
+  const img = state.files.get(key);
+  $("pj-dfig").hidden = !img;
+  if (img && $("pj-dimg").src !== img) $("pj-dimg").src = img;
 }
 
 $("pj-actions").addEventListener("click", async (e) => {
