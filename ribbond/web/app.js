@@ -100,7 +100,7 @@ const frameText = (f) => (!f ? "" : f.state === "fresh" ? "Frame: fresh (nothing
 
 /** The head's position per axis; an axis not homed says so (as Mainsail does): its number means nothing. */
 function positionText(pos, homed) {
-  if (!pos && !homed?.length) return homed ? "x not homed  y not homed  z not homed" : "–";
+  if (!pos && (!homed || homed.length === 3)) return "–";         // not known (halted, disconnected)
   return ["x", "y", "z"].map((a, i) => (homed && !homed.includes(a) ? `${a} not homed`
     : pos ? `${a} ${mm(pos[i], 2)}` : `${a} –`)).join("  ") + (pos && (!homed || homed.length) ? " mm" : "");
 }
