@@ -64,6 +64,9 @@ class JobStatus(JobRecord):
     ribbons: int | None = Field(None, description="ribbons on the side being printed")
     print_side: str | None = Field(None, description="the side printed now or next")
     waits_for_operator: bool = Field(False, description="nothing happens until the operator acts")
+    waiting_for: str | None = Field(None, description="while waits_for_operator: what the job waits for, in "
+                                    "a few words (the flip, mark 2 of 3, the frame check, …; next says what to do); eta_s is then "
+                                    "None")
     fit: dict[str, Any] | None = Field(None, description="in state fitted: the alignment's fit under review "
                                                          "(rotation_deg, offset, rms_mm, max_residual_mm)")
     alignment: dict[str, Any] | None = Field(None, description="in state aligning: the registration marks "
@@ -125,6 +128,13 @@ class ProjectStatus(ProjectRecord):
     panels: list[ProjectPanel] = Field(default_factory=list, description="the panel map, by panel")
     seams: list[ProjectSeam] = Field(default_factory=list)
     report: dict[str, Any] | None = Field(None, description="project.json's report")
+    reached: bool | None = Field(None, description="the sewn panels are predicted to take the target's shape "
+                                 "(every panel's prediction does and the sewn one lands within 2 % on average); "
+                                 "None before the compile or without predictions")
+    verdict: list[str] = Field(default_factory=list, description="the project's verdict, one sentence per line "
+                               "(ribbond.design.verdict.project_verdict_lines); empty before the compile")
+    has_deployed: bool = Field(False, description="the sewn prediction's picture exists (GET "
+                               "/projects/{id}/files/deployed.png)")
     next: NextStep
 
 

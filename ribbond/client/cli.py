@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from ribbond.design.errors import DesignError, MeshError
+from ribbond.design.verdict import project_verdict_lines
 from .http import ClientError, add_commands, add_global_options
 
 if TYPE_CHECKING:
@@ -270,6 +271,9 @@ def project_summary(project: dict[str, Any], out: Path) -> str:
         lines.append(f"deployed    deviation mean {dev.get('mean', 0):.2f} %, p99 {dev.get('p99', 0):.2f} %, "
                      f"max {dev.get('max', 0):.2f} % of the diagonal")
     lines.append(f"panel map   {out / 'panels.png'}; seam allowance {project.get('seam_allowance_mm', 0):g} mm")
+    if (out / "deployed.png").is_file():
+        lines.append(f"sewn        {out / 'deployed.png'} (the panels as predicted, sewn and registered on the target)")
+    lines += [f"verdict     {line}" for line in project_verdict_lines(project)]
     return "\n".join(lines)
 
 

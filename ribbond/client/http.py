@@ -241,6 +241,9 @@ def bar_text(fraction: float, label: str = "", text: str = "", width: int = 24) 
 def progress_text(info: dict[str, Any], kind: str | None = None) -> str:
     """``front  ribbon 3/8  elapsed 0:12  ETA 0:20`` from a job status or a progress event (of a job
     of ``kind``: a plain G-code job's side is named ``program``, it has no front or back)."""
+    if info.get("waiting_for") and info.get("state") not in ENDED:
+        # a wait for a person is not progress: what it waits for, no side printing, no time left
+        return f"waiting for {info['waiting_for']}"
     parts = []
     side = info.get("print_side") or info.get("side")
     if (kind or info.get("kind")) == "gcode":
@@ -300,6 +303,8 @@ def _detail(job: dict[str, Any], printer: dict[str, Any] | None = None, verdict:
         # last_acked_line counts the lines of ``program`` the printer acknowledged (a resumed side's
         # program is not the whole side: its name says so)
         program = job.get("program") or job.get("side") or "front"
+        if job.get("kind") == "gcode":
+            program = "program"                 # a plain program has no front
         more = f"{program}: line {max(job.get('last_acked_line', -1), 0)} of {job['lines_total']}" + (
             f"  {more}" if more else "")
     if more:
@@ -654,8 +659,7 @@ def cmd_align(args: argparse.Namespace) -> int:
 def _printer_text(status: dict[str, Any]) -> str:
     heaters = ", ".join(f"{k} {v['current']:.0f}/{v.get('target') or 0:.0f} °C"
                         for k, v in (status.get("heaters") or {}).items())
-    pos = status.get("head") or status.get("position")
-    where = f"head at x {pos[0]:.2f} y {pos[1]:.2f} z {pos[2]:.2f}" if pos else ""
+    where = _head_text(status.get("head") or status.get("position"), status.get("homed"), 2)
     note = status.get("note") or ""
     return "  ".join(p for p in (status.get("state"), status.get("firmware") or "", heaters, where, note,
                                  _frame_text(status.get("frame"))) if p)
@@ -684,9 +688,18 @@ def cmd_printer(args: argparse.Namespace) -> int:
     return 0
 
 
+def _head_text(pos: list[float] | None, homed: list[str] | None, digits: int) -> str:
+    """``head at x 10.00 y 20.00 z 5.00``; an axis not homed (``homed``: the axes that are; None
+    from an older daemon: every one) says so, as Mainsail does: its number means nothing."""
+    if not pos and not (homed is not None and len(homed) < 3):
+        return ""
+    axes = [f"{a} not homed" if homed is not None and a not in homed else
+            f"{a} {pos[i]:.{digits}f}" if pos else f"{a} ?" for i, a in enumerate("xyz")]
+    return "head at " + " ".join(axes)
+
+
 def _position(status: dict[str, Any]) -> str:
-    pos = status.get("position")
-    return f"head at x {pos[0]:.3f} y {pos[1]:.3f} z {pos[2]:.3f}" if pos else "done"
+    return _head_text(status.get("position"), status.get("homed"), 3) or "done"
 
 
 def cmd_home(args: argparse.Namespace) -> int:

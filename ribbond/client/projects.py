@@ -41,6 +41,7 @@ def project_detail(p: dict[str, Any]) -> str:
         target = (s.get("length_mm") or {}).get("target")
         length = f", {target:.0f} mm" if isinstance(target, (int, float)) else ""
         lines.append(f"    seam {s['label']}: panels {' and '.join(map(str, s['panels']))}{length}")
+    lines += [f"  verdict     {line}" for line in p.get("verdict") or []]
     if p.get("error"):
         lines.append(f"  error: {p['error']}")
     lines.append(f"  next: {p['next']['instruction']}")
@@ -74,7 +75,9 @@ def submit_project(c: Client, args: argparse.Namespace, params: dict[str, Any]) 
             p = c.request("GET", f"/projects/{p['id']}")
     finally:
         bar.close()
-    _out(args, p, project_detail(p) + f"\n  panel map: {c.url}/projects/{p['id']}/files/panels.png")
+    files = f"\n  panel map: {c.url}/projects/{p['id']}/files/panels.png" + (
+        f"\n  sewn prediction: {c.url}/projects/{p['id']}/files/deployed.png" if p.get("has_deployed") else "")
+    _out(args, p, project_detail(p) + files)
     return 1 if p["state"] in ("failed", "cancelled") else 0
 
 

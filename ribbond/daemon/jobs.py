@@ -24,7 +24,9 @@ verb resumes a ``paused`` one) goes to ``awaiting_check``: the printer is homed,
 and the job waits for the operator to check the frame (``frame-ok``). Then the side it stood on is
 printed from the first part (ribbon, registration mark) not proven printed: ``heating`` →
 ``printing_front`` (then the flip and the back as usual), or, for the back, ``aligning`` again (the
-marks re-measured; ``frame-ok --keep-alignment`` takes the stored correction instead and goes to
+marks re-measured; a job whose front is printed and whose frame was never turned over (no
+``flip-done``) goes from ``awaiting_check`` straight to ``awaiting_flip``: the flip step, told and
+notified as after a front printed in one go; ``frame-ok --keep-alignment`` takes the stored correction instead and goes to
 ``heating`` → ``printing_back``). A part is proven printed when the ``M400`` after it was
 acknowledged; the part that had begun and was not proven (at most one per interruption) is skipped
 or printed again as ``resume --partial`` says. A job interrupted after its front was printed resumes
@@ -110,7 +112,8 @@ TRANSITIONS: dict[JobState, frozenset[JobState]] = {
     # (and a compile the daemon's stop interrupted is made again)
     # (or the print is resumed where it was proven to stand: the frame is checked first)
     _J.INTERRUPTED: frozenset({_J.READY, _J.SUBMITTED, _J.CANCELLED, _J.AWAITING_CHECK, _J.DONE}),
-    _J.AWAITING_CHECK: frozenset({_J.HEATING, _J.ALIGNING}) | _ENDS | {_J.INTERRUPTED},
+    # (or, the front printed and the frame never turned over: the flip step)
+    _J.AWAITING_CHECK: frozenset({_J.HEATING, _J.ALIGNING, _J.AWAITING_FLIP}) | _ENDS | {_J.INTERRUPTED},
 }
 
 #: What a person can do with a job in each state: ribbonctl's commands (``ribbonctl CMD JOB``).
@@ -138,6 +141,14 @@ _VERB = {_J.HEATING: "start", _J.READY: "start", _J.PAUSED: "pause", _J.CANCELLE
          _J.AWAITING_CHECK: "resume"}
 
 
+def state_name(state: JobState, kind: str | None = None) -> str:
+    """The state as people read it: a plain G-code job (``kind`` ``gcode``) prints one program, it
+    has no front (``printing_front`` is ``printing (the program)``); else the state's value."""
+    if kind == "gcode" and state is JobState.PRINTING_FRONT:
+        return "printing (the program)"
+    return state.value
+
+
 class IllegalTransition(Exception):
     """A request the job's state does not allow.
 
@@ -150,8 +161,14 @@ class IllegalTransition(Exception):
     allowed_states : the states the table allows next.
     """
 
+    @classmethod
+    def of(cls, job: object, requested: JobState | str, **kw: str | None) -> IllegalTransition:
+        """The refusal of ``requested`` for ``job`` (a record with ``state`` and ``kind``): its
+        state named as people read it (``state_name``)."""
+        return cls(getattr(job, "state"), requested, kind=getattr(job, "kind", None), **kw)
+
     def __init__(self, current: JobState, requested: JobState | str, *, command: str | None = None,
-                 hint: str | None = None) -> None:
+                 hint: str | None = None, kind: str | None = None) -> None:
         self.current = current
         self.requested = requested
         if command is None:
@@ -161,7 +178,7 @@ class IllegalTransition(Exception):
         self.allowed = list(COMMANDS[current])
         self.allowed_states = sorted(s.value for s in TRANSITIONS[current])
         possible = ", ".join(self.allowed) or "nothing"
-        super().__init__(f"cannot {command}: the job is {current.value}; possible now: {possible}"
+        super().__init__(f"cannot {command}: the job is {state_name(current, kind)}; possible now: {possible}"
                          + (f" ({hint})" if hint else ""))
 
 

@@ -1,7 +1,7 @@
 """``ribbond``: the daemon. One asyncio loop owns the printer link, the job store, the HTTP API and
 the compile queue (compiles run in worker processes); this module only wires them together.
 
-    ribbond [--config FILE]
+    ribbond [--config FILE] [--simulate [--sim-args ARGS]]
 
 Configuration: ``--config``, else ``$RIBBOND_CONFIG``, else ``/etc/ribbond/ribbond.toml`` (missing:
 defaults). Under systemd (``Type=notify``) it sends READY=1 once the API listens, STATUS lines, and
@@ -32,9 +32,10 @@ from ribbond.gcode.profiles import load_profile
 from ribbond.printer.capabilities import Capabilities
 from ribbond.printer.errors import LinkError
 from ribbond.printer.link import LinkState, PrinterLink
-from .config import DaemonConfig, load_config, protection, resolve_token
+from .config import CONFIG_ENV, DaemonConfig, load_config, protection, resolve_token
 from .sdnotify import Notifier
 from .service import RibbonService
+from .simulated import SIM_STATE_DIR, start_simulator, stop_simulator
 from .store import JobStore
 
 log = logging.getLogger("ribbond")
@@ -180,10 +181,34 @@ async def _close(service: RibbonService, link: PrinterLink, store: JobStore, sta
     os.close(lock)
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ribbond", description="the ribbond daemon")
     parser.add_argument("--config", type=Path, help="configuration file (TOML)")
-    args = parser.parse_args(argv)
+    parser.add_argument("--simulate", action="store_true",
+                        help="run on the simulated printer: start `python -m sim` as a child and use its pty as "
+                             "[serial] port (without --config, the jobs are kept in "
+                             f"{SIM_STATE_DIR}, never a real printer's store)")
+    parser.add_argument("--sim-args", default="", metavar="ARGS",
+                        help="with --simulate: options of python -m sim, one string (e.g. --sim-args=\"--time-scale 0.1\" "
+                             "to run 10x faster, \"--dialect prusa\")")
+    return parser
+
+
+def _simulated(config: DaemonConfig, explicit_config: bool, sim_args: str) -> tuple[DaemonConfig, object]:
+    """The configuration on a simulator started now (its pty as the serial port), and the child."""
+    proc, port = start_simulator(config.serial.baud, sim_args)
+    update: dict[str, object] = {"serial": config.serial.model_copy(update={"port": port})}
+    if not explicit_config:
+        update["state_dir"] = SIM_STATE_DIR
+    log.info("simulated printer on %s (python -m sim, pid %d)", port, proc.pid)
+    return config.model_copy(update=update), proc
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.sim_args and not args.simulate:
+        print("ribbond: --sim-args goes with --simulate", file=sys.stderr)
+        return 2
     try:
         config = load_config(args.config)
     except ValueError as exc:
@@ -191,11 +216,18 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     logging.basicConfig(level=config.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    sim = None
     try:
+        if args.simulate:
+            explicit = args.config is not None or bool(os.environ.get(CONFIG_ENV))
+            config, sim = _simulated(config, explicit, args.sim_args)
         return asyncio.run(run(config))
     except ValueError as exc:
         print(f"ribbond: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if sim is not None:
+            stop_simulator(sim)  # type: ignore[arg-type]
 
 
 if __name__ == "__main__":  # pragma: no cover

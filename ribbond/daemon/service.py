@@ -100,6 +100,12 @@ def mesh_file_name(name: str) -> str:
     return f"{stem}-{hashlib.sha256(name.encode('utf-8', errors='surrogatepass')).hexdigest()[:8]}{suffix}"
 
 
+#: Job states of a print under way in which a person acts (the flip, the marks, the fit, a pause,
+#: the frame check of a resume): the time left is not told, nothing prints until they act.
+PERSON_STATES = frozenset({JobState.AWAITING_FLIP, JobState.ALIGNING, JobState.FITTED, JobState.PAUSED,
+                           JobState.AWAITING_CHECK})
+
+
 #: How often the printer's status is checked for a change worth an event (seconds).
 PRINTER_EVENT_S = 0.5
 
@@ -369,7 +375,7 @@ class RibbonService:
         if job.state.terminal:
             return self._start_again(job)
         if job.state is not JobState.READY:
-            raise IllegalTransition(job.state, "start")
+            raise IllegalTransition.of(job, "start")
         if job.start_when_ready:
             return job                                        # already queued
         self.records.check_queue()
@@ -406,7 +412,7 @@ class RibbonService:
     async def cancel(self, job_id: str) -> JobRecord:
         job = self.job(job_id)
         if JobState.CANCELLED not in TRANSITIONS[job.state]:
-            raise IllegalTransition(job.state, "cancel")
+            raise IllegalTransition.of(job, "cancel")
         if self.compiler.stop(job_id):
             return await self.records.wait_state(job_id, lambda s: s is not JobState.COMPILING, 30)
         run = self.state.current(job_id)
@@ -424,7 +430,7 @@ class RibbonService:
         job = self.job(job_id)
         if job.state.holds_printer or job.state in (JobState.SUBMITTED, JobState.COMPILING) \
                 or self.state.current(job_id) is not None:
-            raise IllegalTransition(job.state, "delete", hint=f"cancel it first: ribbonctl cancel {job_id}")
+            raise IllegalTransition.of(job, "delete", hint=f"cancel it first: ribbonctl cancel {job_id}")
         if self.predictor.running(job_id):
             raise ServiceError(f"cannot delete job {job_id} while its design is being predicted again; "
                                "delete it once the prediction ends")
@@ -461,11 +467,12 @@ class RibbonService:
         if s in (JobState.READY, JobState.SUBMITTED):
             out.update(progress=0.0, eta_s=total * rate)
         elif s in (JobState.AWAITING_FLIP, JobState.ALIGNING, JobState.FITTED):
-            out.update(progress=min(1.0, front / total), eta_s=totals.get("back", 0.0) * rate, print_side="back")
+            # the back is next, but nothing prints until the operator acts: no time left is told
+            out.update(progress=min(1.0, front / total), print_side="back")
         elif done_side is not None:
             done = (front if side == "back" else 0.0) + done_side
             out["progress"] = min(1.0, done / total)
-            if not s.terminal:
+            if not s.terminal and s not in PERSON_STATES:
                 out["eta_s"] = max(0.0, total - done) * rate
         if run is not None:
             out["elapsed_s"] = time.time() - run.started
@@ -531,7 +538,8 @@ class RibbonService:
         elif s is JobState.AWAITING_CHECK:
             text = self._check_guidance(job)
         elif s is JobState.DONE:
-            text = f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
+            text = self.projects.done_instruction(job) or \
+                f"done; print it again with ribbonctl start {j}, or remove it: ribbonctl delete {j}"
         else:
             text, cmds = _ended_guidance(job)
         return {"instruction": text, "commands": cmds if cmds is not None else [f"ribbonctl {c} {j}"
@@ -563,6 +571,10 @@ class RibbonService:
         j, run = job.id, self.state.current(job.id)
         plan = run.resume if run is not None and run.resume is not None else self.state.resumes.get(j)
         side = plan.side if plan is not None else job.side or "front"
+        if plan is not None and plan.flip:
+            return ("resuming at the flip: the front is printed and the frame was never turned over; the "
+                    "heaters are being set, then you are told to turn the frame over (ribbonctl flip-done "
+                    f"{j}), and the registration marks are measured")
         keep = f"; if the frame was not moved, ribbonctl frame-ok {j} --keep-alignment takes the " \
             "stored alignment" if job.side == "back" and job.correction else ""
         return (f"resuming: check the frame is seated, {side} side up, and nothing is in the way, then "
@@ -574,7 +586,8 @@ class RibbonService:
         data = job.model_dump(mode="json")
         info = self.progress(job)
         data.update(progress=info.pop("progress"), **info, next=self.guidance(job),
-                    compile_progress=job.progress, waits_for_operator=self._waits(job))
+                    compile_progress=job.progress, waits_for_operator=self._waits(job),
+                    waiting_for=self._waiting_for(job))
         run = self.state.current(job.id)
         if job.state is JobState.FITTED and run is not None and run.alignment is not None:
             data["fit"] = run.alignment.fit
@@ -585,6 +598,20 @@ class RibbonService:
         data["prediction"] = self.predictor.view(job.id)
         data["snapshots"] = self.camera.snapshots(self.job_dir(job.id))
         return data
+
+    def _waiting_for(self, job: JobRecord) -> str | None:
+        """What the job waits for while it waits for a person (``_waits``), in a few words; None
+        when it does not wait (issue 36: a wait is not shown as progress with a time left)."""
+        if not self._waits(job):
+            return None
+        s, run = job.state, self.state.current(job.id)
+        if s is JobState.READY:
+            return "a fresh frame" if waits_at_gate(job) else "you to start it"
+        if s is JobState.ALIGNING and run is not None and run.alignment is not None:
+            return f"mark {run.alignment.current} of {len(run.alignment.expected)}"
+        # (what to do is the job's ``next``: here only what it waits for, the same words on every client)
+        return {JobState.AWAITING_FLIP: "the flip", JobState.FITTED: "your review of the fit",
+                JobState.PAUSED: "resume", JobState.AWAITING_CHECK: "the frame check"}.get(s)
 
     def _waits(self, job: JobRecord) -> bool:
         """Nothing happens until the operator acts (a ready job nobody started, the flip, a mark

@@ -576,7 +576,7 @@ def _panel_entry(k: int, panel: PanelDesign, check: PanelCheck, V: np.ndarray) -
             "centroid_3d": np.round(V[panel.vertex_index].mean(axis=0), 2).tolist(),
             "deployed": (None if report.deployed is None
                          else {"deviation_pct": report.deployed.deviation_pct.model_dump(),
-                               "verdict": report.deployed.verdict})}
+                               "reached": report.deployed.reached, "verdict": report.deployed.verdict})}
 
 
 def _seam_entry(seam: Seam) -> dict:

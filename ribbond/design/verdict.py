@@ -305,3 +305,58 @@ def verdict_lines(design: dict[str, Any]) -> list[str]:
     if ribbons:
         lines += _ribbon_lines(ribbons, parameters)
     return lines + _shape_line(report) + _prediction_line(report)
+
+
+#: The sewn prediction lands within this mean deviation, % of the whole target's diagonal, for a
+#: project to be told it takes the target's shape: the one sheet's rule (``agreement.REACHED_MEAN_PCT``,
+#: kept equal by tests/design/test_verdict.py; not imported: this module imports nothing of the engine).
+SEWN_REACHED_MEAN_PCT = 2.0
+
+
+def _panel_reached(panel: dict[str, Any]) -> bool | None:
+    """A panel's prediction takes its target's shape (``deployed.reached``; an older project.json:
+    its verdict's words), None without a prediction."""
+    deployed = panel.get("deployed") or {}
+    if deployed.get("reached") is not None:
+        return bool(deployed["reached"])
+    text = deployed.get("verdict") or ""
+    return True if text.startswith("will take") else False if text.startswith("will NOT") else None
+
+
+def project_reached(project: dict[str, Any]) -> bool | None:
+    """A project (``project.json`` as a dict) takes the target's shape: every panel's prediction
+    does, and the panels as predicted and sewn land within ``SEWN_REACHED_MEAN_PCT`` of the whole
+    target on average. None when it was compiled without predictions."""
+    panels = [_panel_reached(q) for q in project.get("panels") or []]
+    sewn = ((project.get("report") or {}).get("deployed") or {}).get("deviation_pct")
+    if not panels or any(r is None for r in panels) or not sewn:
+        return None
+    return all(panels) and float(sewn["mean"]) <= SEWN_REACHED_MEAN_PCT
+
+
+def project_verdict_lines(project: dict[str, Any]) -> list[str]:
+    """The verdict of a project (``project.json`` as a dict), one sentence per line: reached or not,
+    the panels predicted NOT to take their shape (each with its verdict), the sewn prediction's
+    deviation. The same lines in ``ribbonctl design --panels``, ``ribbonctl submit --panels``, ``GET
+    /projects/{id}`` (``verdict``) and the project page (issue 36 item 7)."""
+    reached = project_reached(project)
+    panels = project.get("panels") or []
+    if reached is None:
+        return ["reached: not known: compiled without a prediction of the deployed shape (whether the sewn "
+                "panels take the target's shape is not predicted)"]
+    missed = [q for q in panels if _panel_reached(q) is False]
+    dev = project["report"]["deployed"]["deviation_pct"]
+    sewn = (f"the {len(panels)} panels predicted and sewn land {float(dev['mean']):.2f} % of the diagonal from the "
+            f"target on average (p99 {float(dev['p99']):.2f} %, max {float(dev['max']):.2f} %)")
+    if reached:
+        lines = [f"reached: yes: the sewn panels will take the target's shape: every panel will take its shape, "
+                 f"and {sewn}"]
+    else:
+        why = [f"panel{'s' if len(missed) > 1 else ''} {', '.join(str(q['index']) for q in missed)} will NOT take "
+               f"{'their' if len(missed) > 1 else 'its'} shape"] if missed else []
+        if float(dev["mean"]) > SEWN_REACHED_MEAN_PCT:
+            why.append(f"sewn, they land more than {SEWN_REACHED_MEAN_PCT:g} % from the target on average")
+        lines = [f"reached: NO: the sewn panels will NOT take the target's shape: {'; '.join(why)}", sewn]
+    lines += [f"panel {q['index']}: {(q.get('deployed') or {}).get('verdict')}" for q in missed
+              if (q.get("deployed") or {}).get("verdict")]
+    return lines

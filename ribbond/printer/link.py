@@ -524,6 +524,9 @@ class PrinterLink:
         """After a halt: ask the firmware to restart (``M999``) and shake hands again."""
         self._require(LinkState.HALTED)
         assert self._transport is not None
+        if self._rehandshake is not None and not self._rehandshake.done():
+            # a reset's handshake still under way (a banner came, then the halt again): this one replaces it
+            self._rehandshake.cancel()
         self._set_state(LinkState.CONNECTING)
         self._boot_seen = asyncio.Event()
         self._transport.write(codec.encode_unnumbered("M999"))

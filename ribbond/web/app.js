@@ -12,6 +12,8 @@ const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
 const ENDED = new Set(["done", "cancelled", "failed", "interrupted"]);
 const STREAMS = new Set(["heating", "printing_front", "printing_back"]);
+/** States of a print under way in which a person acts: no side is printing, no time left is told. */
+const PERSON = new Set(["awaiting_flip", "aligning", "fitted", "paused", "awaiting_check"]);
 const STAGES = ["load", "curvature", "flatten", "stripes", "ribbons", "gcode", "deploy", "preview", "write"];
 const LABEL = { submitted: "submitted", compiling: "compiling", ready: "ready", heating: "heating",
   printing_front: "printing front", awaiting_flip: "flip the frame", aligning: "aligning", fitted: "check the fit",
@@ -96,6 +98,13 @@ function heater(h) {
 const frameText = (f) => (!f ? "" : f.state === "fresh" ? "Frame: fresh (nothing printed on it since it was loaded)"
   : `Frame: used${f.waiting_job ? ": a job waits for a fresh one" : ""}`);
 
+/** The head's position per axis; an axis not homed says so (as Mainsail does): its number means nothing. */
+function positionText(pos, homed) {
+  if (!pos && (!homed || homed.length === 3)) return "–";         // not known (halted, disconnected)
+  return ["x", "y", "z"].map((a, i) => (homed && !homed.includes(a) ? `${a} not homed`
+    : pos ? `${a} ${mm(pos[i], 2)}` : `${a} –`)).join("  ") + (pos && (!homed || homed.length) ? " mm" : "");
+}
+
 function renderPrinter() {
   const p = state.printer;
   const s = p ? p.state : "unknown";
@@ -104,8 +113,7 @@ function renderPrinter() {
   conn.className = `pill ${s}`;
   $("p-state").textContent = s;
   $("p-firmware").textContent = p?.firmware || "–";
-  const pos = p?.head || p?.position;
-  $("p-position").textContent = pos ? `x ${mm(pos[0], 2)}  y ${mm(pos[1], 2)}  z ${mm(pos[2], 2)} mm` : "–";
+  $("p-position").textContent = positionText(p?.head || p?.position, p?.homed);
   $("t-nozzle").textContent = heater(p?.heaters?.T);
   $("t-bed").textContent = heater(p?.heaters?.B);
   $("p-note").textContent = [p?.note, frameText(p?.frame)].filter(Boolean).join(" · ");
@@ -204,7 +212,7 @@ function jogPad(container) {
     chain = chain.then(async () => {
       try {
         const r = await api.post("/printer/jog", body);
-        if (state.printer && r.position) state.printer.head = r.position;
+        if (state.printer && r.position) Object.assign(state.printer, { head: r.position, homed: r.homed });
         renderPrinter();
       } catch (err) { toast(`Jog: ${err.message}`, "error"); }
       finally { container.dataset.pending = String(Number(container.dataset.pending) - 1); }
@@ -330,6 +338,22 @@ function renderProjectPage() {
   const img = state.files.get(`project:${p.id}`);
   $("pj-fig").hidden = !img;
   if (img && $("pj-img").src !== img) $("pj-img").src = img;
+  renderProjectPrediction(p);
+}
+
+/** The project's verdict (the bad lines in red) and the sewn prediction's picture (issue 36). */
+function renderProjectPrediction(p) {
+  const lines = p.verdict || [];
+  $("pj-prediction").hidden = !lines.length;
+  $("pj-verdict").innerHTML = lines.map((l) => `<li class="${/NOT|not known/.test(l) ? "bad" : ""}">${esc(l)}</li>`).join("");
+  const key = `project-deployed:${p.id}`;
+  if (p.has_deployed && !state.files.has(key)) {
+    state.files.set(key, null);
+    quiet(api.fileURL(p.id, "deployed.png", "projects").then((u) => { state.files.set(key, u); renderProjectPage(); }));
+  }
+  const img = state.files.get(key);
+  $("pj-dfig").hidden = !img;
+  if (img && $("pj-dimg").src !== img) $("pj-dimg").src = img;
 }
 
 $("pj-actions").addEventListener("click", async (e) => {
@@ -485,10 +509,14 @@ function progressText(j) {
     parts.push(`compiling: ${j.stage || "…"}`);
     const it = state.compileInfo.get(j.id);
     if (it && it.iteration !== undefined) parts.push(`iteration ${it.iteration}`);
+  } else if (j.waiting_for && !ENDED.has(j.state)) {
+    // a wait for a person is not progress: what it waits for, no side printing, no time left
+    parts.push(`waiting for ${j.waiting_for}`, percent(j));
   } else {
-    // a resumed side names its program (its lines are not the whole side's)
-    if (j.program && j.program.includes("resumed") && j.print_side === j.side && STREAMS.has(j.state)) parts.push(j.program);
-    else if (j.print_side && j.kind === "design") parts.push(`${j.print_side} side`);
+    // the program being printed: a plain job's program, a resumed side's (its lines are not the whole side's)
+    if (j.kind === "gcode" && STREAMS.has(j.state)) parts.push("program");
+    else if (j.program && j.program.includes("resumed") && j.print_side === j.side && STREAMS.has(j.state)) parts.push(j.program);
+    else if (j.print_side && j.kind === "design" && !PERSON.has(j.state)) parts.push(`${j.print_side} side`);
     parts.push(percent(j));
     if (j.ribbon && j.ribbons) parts.push(`ribbon ${j.ribbon} of ${j.ribbons}`);
     if (j.eta_s !== null && j.eta_s !== undefined && !ENDED.has(j.state)) parts.push(`${duration(j.eta_s)} left`);

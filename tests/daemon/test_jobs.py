@@ -90,7 +90,7 @@ LIFE_CYCLE: dict[JobState, set[JobState]] = {
     J.FAILED: {J.READY},
     # a new run, a compile made again, cancelled, resumed (the frame checked first), or nothing left
     J.INTERRUPTED: {J.READY, J.SUBMITTED, J.CANCELLED, J.AWAITING_CHECK, J.DONE},
-    J.AWAITING_CHECK: {J.HEATING, J.ALIGNING} | _ON_PRINTER,      # the front heats; the back is aligned
+    J.AWAITING_CHECK: {J.HEATING, J.ALIGNING, J.AWAITING_FLIP} | _ON_PRINTER,   # the front heats; the back is aligned, or flipped first
 }
 
 

@@ -280,7 +280,7 @@ def test_the_flip_and_a_jog_driven_alignment(api: httpx.Client, shared_sim: Sim,
     flip = wait_for(api, job, "awaiting_flip", timeout=90)
     assert flip["waits_for_operator"] and flip["next"]["commands"][0] == f"ribbonctl flip-done {job}"
     assert "about its y axis" in flip["next"]["instruction"] and "x = 110" in flip["next"]["instruction"]
-    assert 0 < flip["progress"] < 1 and flip["eta_s"] > 0
+    assert 0 < flip["progress"] < 1 and flip["eta_s"] is None and flip["waiting_for"] == "the flip"   # issue 36
     r = api.post(f"/jobs/{job}/resume")
     assert r.status_code == 409
     assert r.json()["detail"] == "cannot resume: the job is awaiting_flip; possible now: flip-done, cancel"

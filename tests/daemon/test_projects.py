@@ -143,7 +143,7 @@ def test_a_three_panel_project_end_to_end(api: httpx.Client, shared_sim: Sim, sh
         done = print_panel(api, shared_sim, job)
         assert done["state"] == "done"
     p = wait_project(api, pid, lambda p: p["state"] == "done")
-    assert p["panels_done"] == 3 and "sew them along the seams" in p["next"]["instruction"]
+    assert p["panels_done"] == 3 and "in this order: A (panels" in p["next"]["instruction"]
     later = [api.get(f"/jobs/{j}/transitions").json() for j in jobs]
     starts = [next(t["at"] for t in ts if t["to_state"] == "heating") for ts in later]
     assert starts == sorted(starts)                                  # printed in order

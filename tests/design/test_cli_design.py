@@ -575,5 +575,8 @@ def test_panels_write_a_project_folder(tmp_path: Path) -> None:
         folder = read_design_folder(out / q["folder"])
         assert folder.design.stitch_marks                       # pinned mark to mark along the seam
     assert "seam A" in r.stdout and "panels 1 and 2" in r.stdout and "stitch marks" in r.stdout
+    # the project's verdict, as every project is shown (issue 36): without a prediction, not known
+    assert "verdict     reached: not known: compiled without a prediction" in r.stdout, r.stdout
+    assert "deployed.png" not in r.stdout and not (out / "deployed.png").exists()
     bad = run_design(mesh, tmp_path / "x", "--panels", "0")
     assert bad.returncode != 0 and "panels" in bad.stderr

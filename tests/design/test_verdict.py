@@ -286,3 +286,56 @@ def test_the_shape_line_comes_before_the_prediction_and_bounds_status_is_bracket
     lines = verdict_lines({"report": report})
     assert lines[-1].startswith("prediction") and lines[-2].startswith("where the shape is lost")
     assert "(OUTSIDE the bounds on 40.0 % of faces: the fabric cannot give all of it)" in lines[-2]
+
+
+# ---------------------------------------------------------------------------------- a project (issue 36 item 7)
+
+
+def _project(panels: list[bool | None], sewn_mean: float | None) -> dict[str, Any]:
+    """A project.json with each panel's ``deployed.reached`` (None: compiled without a prediction)
+    and the sewn prediction's mean deviation."""
+    def panel(k: int, reached: bool | None) -> dict[str, Any]:
+        deployed = None if reached is None else {
+            "deviation_pct": {"mean": 1.0, "p99": 2.0, "max": 3.0}, "reached": reached,
+            "verdict": ("will take" if reached else "will NOT take") + " the target's shape: …"}
+        return {"index": k, "deployed": deployed}
+    report = {"deployed": None if sewn_mean is None else
+              {"deviation_pct": {"mean": sewn_mean, "p99": 2 * sewn_mean, "max": 3 * sewn_mean}}}
+    return {"panels": [panel(k, r) for k, r in enumerate(panels, start=1)], "report": report}
+
+
+def test_the_sewn_rule_is_the_one_sheet_rule() -> None:
+    from ribbond.deploy.agreement import REACHED_MEAN_PCT
+    from ribbond.design.verdict import SEWN_REACHED_MEAN_PCT
+    assert SEWN_REACHED_MEAN_PCT == REACHED_MEAN_PCT
+
+
+@pytest.mark.parametrize("panels, mean, reached", [
+    ([True, True, True], 0.5, True),
+    ([True, False, True], 0.5, False),        # one panel that will not take its shape: the project will not
+    ([True, True], 2.5, False),               # every panel does, but sewn they land too far on average
+    ([True, None], 0.5, None),                # a panel without a prediction: not known
+    ([True, True], None, None),               # no sewn prediction: not known
+])
+def test_a_project_is_reached_only_when_every_panel_and_the_sewn_shape_are(
+        panels: list[bool | None], mean: float | None, reached: bool | None) -> None:
+    from ribbond.design.verdict import project_reached, project_verdict_lines
+    project = _project(panels, mean)
+    assert project_reached(project) is reached
+    lines = project_verdict_lines(project)
+    first = {True: "reached: yes: ", False: "reached: NO: ", None: "reached: not known: "}[reached]
+    assert lines[0].startswith(first), lines
+    missed = [k for k, r in enumerate(panels, start=1) if r is False]
+    if missed:
+        assert f"panel {missed[0]} will NOT take its shape" in lines[0]
+        assert any(line.startswith(f"panel {missed[0]}: will NOT take") for line in lines[1:]), lines
+    if reached is False and not missed:
+        assert "more than 2 % from the target" in lines[0]
+
+
+def test_an_older_project_json_is_judged_by_its_verdicts_words() -> None:
+    from ribbond.design.verdict import project_reached
+    project = _project([True, False], 0.5)
+    for q in project["panels"]:
+        del q["deployed"]["reached"]                  # written before the field existed
+    assert project_reached(project) is False

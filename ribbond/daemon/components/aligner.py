@@ -74,12 +74,15 @@ class Aligner:
         assert run is not None
         if not flipped:
             await self.await_flip(job_id)
+            # the frame is turned over: a resume from here on aligns, it does not ask for the flip again
+            self.records.store.checkpoint(job_id, "flipped", self.state.acked)
         run.alignment = al = MarkCheck(expected=expected)
         self.records.transition(job_id, JobState.ALIGNING, stage="aligning")
         # the front program ended with the motors off (M84) and the frame was handled: home again
         async with self.head.lock:
             await link.send("G28", timeout=300)
             self.head.forget()
+            self.head.ran(["G28"])
         run.check()
         await self._go_to_mark(1)
         while True:
@@ -151,7 +154,7 @@ class Aligner:
         job = self.records.get(job_id)
         run = self.state.current(job_id)
         if job.state is not JobState.AWAITING_FLIP or run is None:
-            raise IllegalTransition(job.state, "flip-done")
+            raise IllegalTransition.of(job, "flip-done")
         run.flip.set()
         return await self.records.wait_state(job_id, lambda s: s is not JobState.AWAITING_FLIP, 30)
 
@@ -165,7 +168,7 @@ class Aligner:
         run = self.state.current(job_id)
         job = self.records.get(job_id)
         if job.state is not JobState.ALIGNING or run is None or run.alignment is None:
-            raise IllegalTransition(job.state, "align")
+            raise IllegalTransition.of(job, "align")
         al = run.alignment
         k = len(al.expected)
         if al.current == 0 and (here or mark is None):
@@ -236,7 +239,7 @@ class Aligner:
         run = self.state.current(job_id)
         job = self.records.get(job_id)
         if job.state is not JobState.FITTED or run is None or run.alignment is None:
-            raise IllegalTransition(job.state, command)
+            raise IllegalTransition.of(job, command)
         return run
 
     async def accept_fit(self, job_id: str) -> JobRecord:

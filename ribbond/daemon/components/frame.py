@@ -20,7 +20,7 @@ import contextlib
 import logging
 from typing import Any
 
-from ..jobs import JobState
+from ..jobs import JobState, state_name
 from ..records import JobRecords, ServiceError
 from ..store import FRAME_FRESH, FRAME_USED, JobRecord
 from .heaters import Heaters
@@ -74,7 +74,7 @@ class FrameGate:
         holding = [j for j in self.records.store.active() if j.state.holds_printer]
         if self.state.run is not None or holding:
             job = holding[0] if holding else self.records.get(self.state.run.job_id)  # type: ignore[union-attr]
-            raise ServiceError(f"cannot confirm a fresh frame: job {job.id} is {job.state.value} on the printer "
+            raise ServiceError(f"cannot confirm a fresh frame: job {job.id} is {state_name(job.state, job.kind)} on the printer "
                                "(the frame under a running job is not fresh); confirm it once that job has "
                                f"ended (ribbonctl cancel {job.id} ends it now)")
         self.records.store.set_frame(FRAME_FRESH, None)

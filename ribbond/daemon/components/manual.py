@@ -23,7 +23,7 @@ from ribbond.printer import codec
 from ribbond.printer.errors import LinkError
 from ribbond.printer.link import LinkState, PrinterLink, prepare_program
 from ..config import ManualSettings
-from ..jobs import JobState
+from ..jobs import JobState, state_name
 from ..records import JobRecords, ServiceError
 from .head import Head
 from .run import PrintState
@@ -57,7 +57,7 @@ class ManualControl:
                                                       JobState.FITTED, JobState.AWAITING_CHECK):
                 hint = f"pause it first: ribbonctl pause {job.id}" if job.state in (
                     JobState.PRINTING_FRONT, JobState.PRINTING_BACK) else f"wait, or cancel it: ribbonctl cancel {job.id}"
-                raise ServiceError(f"cannot {what}: job {job.id} is {job.state.value} (a program is streaming "
+                raise ServiceError(f"cannot {what}: job {job.id} is {state_name(job.state, job.kind)} (a program is streaming "
                                    f"to the printer); {hint}")
             if run.busy:
                 raise ServiceError(f"cannot {what}: job {job.id} is pausing or resuming; try again in a moment")
@@ -94,7 +94,8 @@ class ManualControl:
         self.head.set((x, y, z))
 
     def _position_status(self) -> dict[str, Any]:
-        return {"position": list(self.head.position) if self.head.position is not None else None}
+        return {"position": list(self.head.position) if self.head.position is not None else None,
+                "homed": self.head.homed()}
 
     async def home(self) -> dict[str, Any]:
         """Home all axes (``G28``); the head's position is then the printer's."""
@@ -102,6 +103,7 @@ class ManualControl:
             link = self._manual_link("home")
             await link.send("G28", timeout=300)
             self.head.forget()
+            self.head.ran(["G28"])
             await self.head.where(link)
             return self._position_status()
 
@@ -151,7 +153,9 @@ class ManualControl:
                                  "the daemon's moves and G-code jobs expect (give G91 and its moves in one request)")
             except BaseException:
                 self.head.forget()              # stopped part way: where the head is, the printer says
+                self.head.ran(checked.commands)   # (a G28 or M84 among them may have run: the worse is assumed)
                 raise
+            self.head.ran(checked.commands)
             await self._after_typed(link, checked.modal, moves_head)
             return {"answers": answers, "notes": notes}
 
@@ -186,6 +190,7 @@ class ManualControl:
             log.warning("raw console ([manual] raw_console = true): sending unchecked G-code: %s", command)
             _, lines = await link.send_collecting(command, timeout=600)
             self.head.forget()
+            self.head.ran([command])
             answers.append({"command": command, "answer": lines})
         return {"answers": answers, "notes": ["sent unchecked: [manual] raw_console = true in the daemon's "
                                               "configuration"], "unchecked": True}
@@ -232,6 +237,7 @@ class ManualControl:
                               "disconnected": "not connected: temperatures unknown",
                               "connecting": "connecting"}.get(status["state"])
         status["head"] = list(self.head.position) if self.head.position is not None else None
+        status["homed"] = self.head.homed()          # the axes homed on this connection (Mainsail's homed_axes)
         status["profile"] = self._profile_info()
         return status
 
@@ -256,8 +262,9 @@ class ManualControl:
         if link.state is not LinkState.HALTED:
             raise ServiceError(f"cannot recover: the printer is {link.state.value}, not halted; nothing to recover")
         await link.recover()
-        self.head.forget()
-        return await self.printer_status()
+        # the firmware restarted: its position is unknown until homed; the report is asked afresh
+        self.head.unhome()
+        return await self.printer_status(refresh=True)
 
 
 def _typed(commands: list[str]) -> list[str]:

@@ -123,6 +123,10 @@ def notice(event: str, job: dict[str, Any] | None, info: dict[str, Any] | None =
     if event == "alignment":
         return Notice(event, _title(event, job, " (check the fit)"), f"{label}: {instruction}.{_button('fitted')}",
                       kind, job["id"])
+    if event == "done" and job.get("panel") and instruction.startswith("All "):
+        # the project's last panel: the sewing, not "print it again" (issue 36)
+        detail = f" (all {job.get('panels')} panels)"
+        return Notice(event, _title(event, job, detail), f"{label} is printed. {instruction}.", kind, job["id"])
     if event == "done":
         body = (f"{label} is printed. Take the frame off the printer (the next job asks for a fresh one). "
                 f"To print it again: ribbonctl start {job['id']}.")

@@ -65,12 +65,12 @@ class Predictor:
         if table is not None:
             self.check_table(table)
         if job.state in (JobState.SUBMITTED, JobState.COMPILING):
-            raise IllegalTransition(job.state, "predict", hint="its design is being compiled; the compile predicts it")
+            raise IllegalTransition.of(job, "predict", hint="its design is being compiled; the compile predicts it")
         if job.kind != "design" or not job.design_dir or not (Path(job.design_dir) / "design.json").is_file():
             raise ServiceError(f"cannot predict: job {job_id} has no design folder"
                                + (" (a plain G-code program)" if job.kind == "gcode" else ""))
         if job.state.holds_printer:
-            raise IllegalTransition(job.state, "predict", hint="predict it again once the print has stopped")
+            raise IllegalTransition.of(job, "predict", hint="predict it again once the print has stopped")
         if self.running(job_id):
             raise ServiceError(f"cannot predict: a prediction of job {job_id} is already running")
         self._views[job_id] = {"state": "running", "fraction": 0.0, "message": "starting", "table": table,

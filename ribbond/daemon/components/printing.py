@@ -268,14 +268,18 @@ class PrintTask:
         if kept:
             correction = Correction.model_validate(job.correction)
         else:
-            # a resumed back: the frame is back side up already (the operator checked it)
-            correction = await self.aligner.align(job.id, expected, flipped=resume is not None and resume.side == "back")
+            # a resumed back: the frame is back side up already (the operator checked it), unless the
+            # front was printed and the frame never turned over: then the flip step first
+            flipped = resume is not None and resume.side == "back" and not resume.flip
+            correction = await self.aligner.align(job.id, expected, flipped=flipped)
         program = self._corrected_back(job.id, correction)
         start = resume.start if resume is not None and resume.side == "back" else 0
         whole = await self._resumed_side(program.text, start)
         text = resumed_text(program.text, "back", start, resume, self.profile) if start else program.text
+        # the front's lines are not the back's: until the back's stream sets them, no line count is shown
         fields: dict[str, Any] = dict(side="back", correction=correction.model_dump(mode="json"), error=None,
-                                      estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)})
+                                      estimate_s={**(job.estimate_s or {}), "back": float(program.stats.time_s)},
+                                      program="back", lines_total=None, last_acked_line=-1)
         if kept:
             self.records.transition(job.id, JobState.HEATING, stage="heating", **fields)
             await self._stream(job.id, text, "back", JobState.PRINTING_BACK, part_base=start, whole=whole)
@@ -343,8 +347,17 @@ class PrintTask:
         records.publish(records.store.update(job_id, lines_total=len(commands), last_acked_line=-1, program=name))
         track = _PartTracker(records.store, job_id, side, [] if plain else program_parts(lines), part_base)
         acks = _Acknowledgements(records, state, self.progress, job_id, stream, track, after_heating, self.frame.used)
+        ran = 0
+
+        def progress(p: StreamProgress) -> None:
+            nonlocal ran                                  # the program's G28 and M84: the axes homed
+            if p.acknowledged > ran:
+                self.head.ran(commands[ran:p.acknowledged])
+                ran = p.acknowledged
+            acks(p)
+
         try:
-            await link.stream(commands, acks, track.barriers)
+            await link.stream(commands, progress, track.barriers)
         finally:
             rate = stream_rate(stream)
             if rate is not None and stream.acked >= len(commands) - 1:
@@ -374,6 +387,7 @@ class PrintTask:
                 except (LinkError, asyncio.TimeoutError):
                     sent = False
             self.head.forget()
+            self.head.ran(self._safe_stop_commands())            # the motors off: no axis homed
         return sent
 
     async def shutdown(self, reason: str) -> None:

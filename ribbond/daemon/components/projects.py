@@ -19,6 +19,7 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
+from ribbond.design.verdict import project_reached, project_verdict_lines
 from ..config import DaemonConfig
 from ..jobs import TRANSITIONS, JobState
 from ..records import JobRecords, NotFound, ServiceError
@@ -34,6 +35,19 @@ PREFIX = "prj-"
 PROJECT_FILES = ("project.json", "panels.png", "target.obj", "deployed.obj", "deployed.png")
 #: What the operator does between panels.
 FRESH_FABRIC = "load a fresh stretched fabric, then confirm: ribbonctl frame-ready"
+
+
+def sewing_instruction(n: int, seams: list[dict[str, Any]], allowance_mm: float) -> str:
+    """``all 3 panels are printed: release them and sew seams A–C, in this order: A (panels 1 and 2),
+    …`` (project.json's seams in their order: each joins a panel to those sewn before it)."""
+    if not seams:
+        return f"all {n} panels are printed: release them and sew them together, {allowance_mm:g} mm seam allowance"
+    labels = [str(s["label"]) for s in seams]
+    span = labels[0] if len(labels) == 1 else f"{labels[0]}–{labels[-1]}"
+    order = ", ".join(f"{s['label']} (panels {' and '.join(map(str, s['panels']))})" for s in seams)
+    return (f"all {n} panels are printed: release them and sew seam{'s' if len(seams) > 1 else ''} {span}, in this "
+            f"order: {order}; pin each seam's stitch marks together first (A1 to A1, A2 to A2 …), "
+            f"{allowance_mm:g} mm seam allowance")
 
 
 def panel_instruction(job: JobRecord) -> str:
@@ -264,8 +278,26 @@ class Projects:
         data.update(state=state, current_panel=current, panels=panels,
                     panels_done=sum(p["state"] == "done" for p in panels),
                     seams=layout.get("seams", []), report=layout.get("report"),
+                    reached=project_reached(layout) if layout else None,
+                    verdict=project_verdict_lines(layout) if layout else [],
+                    has_deployed=bool(project.folder) and (Path(project.folder) / "deployed.png").is_file(),
                     next=_next_step(project, state, current, panels, layout))
         return data
+
+    def done_instruction(self, job: JobRecord) -> str | None:
+        """For a panel job that is ``done``: the sewing, once every panel of its project is printed
+        (None otherwise, and for a job of no project)."""
+        if job.project is None or job.state is not JobState.DONE:
+            return None
+        try:
+            project = self.records.project(job.project)
+        except NotFound:
+            return None
+        jobs = self.records.store.project_jobs(project.id)
+        if not jobs or any(j.state is not JobState.DONE for j in jobs):
+            return None
+        layout = self.layout(project)
+        return sewing_instruction(len(layout.get("panels") or jobs), layout.get("seams", []), project.seam_allowance_mm)
 
     def list(self, limit: int | None = None) -> list[dict[str, Any]]:
         return [self.view(p) for p in self.records.store.projects(limit)]
@@ -316,9 +348,7 @@ def _next_step(project: ProjectRecord, state: str, current: int | None, panels: 
     if state == "failed":
         return {"instruction": f"the compile failed: {project.error}; submit the mesh again", "commands": []}
     if state == "done":
-        seams = "; ".join(f"{s['label']}: panels {' and '.join(map(str, s['panels']))}" for s in layout.get("seams", []))
-        return {"instruction": f"all {n} panels are printed: release them and sew them along the seams"
-                + (f" ({seams})" if seams else "") + f", {project.seam_allowance_mm:g} mm seam allowance",
+        return {"instruction": sewing_instruction(n, layout.get("seams", []), project.seam_allowance_mm),
                 "commands": []}
     done = [q["index"] for q in panels if q["state"] == "done"]
     if state == "cancelled":

@@ -96,7 +96,7 @@ class Resumer:
         job = self.records.get(job_id)
         run = self.state.current(job_id)
         if job.state not in (JobState.PRINTING_FRONT, JobState.PRINTING_BACK) or run is None:
-            raise IllegalTransition(job.state, "pause")
+            raise IllegalTransition.of(job, "pause")
         link = self.head.require_link()
         run.busy = True
         try:
@@ -137,14 +137,14 @@ class Resumer:
         if job.state is JobState.INTERRUPTED:
             return self.resume_interrupted(job_id, partial)
         if partial is not None:  # a request the job's state does not allow: 409, as other verbs
-            raise IllegalTransition(job.state, "resume", command=f"resume with partial={partial!r}",
+            raise IllegalTransition.of(job, "resume", command=f"resume with partial={partial!r}",
                                     hint="only an interrupted print has a partial part")
         run = self.state.current(job_id)
         if job.state is JobState.PAUSED and run is not None and run.pause_snapshot is None:
-            raise IllegalTransition(job.state, "resume", hint="the head is still being parked: resume in a "
+            raise IllegalTransition.of(job, "resume", hint="the head is still being parked: resume in a "
                                     "moment, when the job's stage says 'paused (head parked)'")
         if job.state is not JobState.PAUSED or run is None or run.pause_snapshot is None:
-            raise IllegalTransition(job.state, "resume")
+            raise IllegalTransition.of(job, "resume")
         link = self.head.require_link()
         if run.heaters is not None:
             run.heaters.cancel()
@@ -158,7 +158,8 @@ class Resumer:
                     await link.send(command, timeout=1200)
                 self.head.forget()
             back_to = job.paused_from or JobState.PRINTING_FRONT
-            job = self.records.transition(job_id, back_to, stage=f"printing {job.side or 'front'}")
+            what = "the program" if job.kind == "gcode" else job.side or "front"   # a plain program has no sides
+            job = self.records.transition(job_id, back_to, stage=f"printing {what}")
             run.pause_snapshot = None
             if run.stream is not None and run.stream.paused_at is not None:
                 run.stream.paused_s += time.monotonic() - run.stream.paused_at
@@ -212,7 +213,7 @@ class Resumer:
         """
         job = self.records.get(job_id)
         if job.state is not JobState.INTERRUPTED:
-            raise IllegalTransition(job.state, "resume")
+            raise IllegalTransition.of(job, "resume")
         queued = any(j.state is JobState.READY and j.start_when_ready for j in self.records.store.active())
         if self.state.run is not None or queued:
             busy = self.state.run.job_id if self.state.run is not None else "queued jobs"
@@ -232,7 +233,7 @@ class Resumer:
                                            "skipped, nothing is left to print", error=None, stage=None,
                                            start_when_ready=False)
         where = (f"the {plan.side} from part {plan.start + 1} of {plan.parts}" if plan.parts
-                 else "the alignment of the back")
+                 else "the flip (the front is printed)" if plan.flip else "the alignment of the back")
         note = f"; part {plan.partial + 1} begun and not proven printed: {plan.choice}" \
             if plan.partial is not None else ""
         job = self.records.transition(job_id, JobState.AWAITING_CHECK, reason=f"resumed at {where}{note}",
@@ -252,11 +253,12 @@ class Resumer:
             raise ValueError(f"partial={partial!r}: 'skip' (leave the part begun as it is) or 'reprint'")
         design = read_design_folder(Path(job.design_dir or "")).design
         has_back = any(r.side == "back" for r in design.ribbons or [])
-        front_done = job.checkpoint in ("front_done", "flip")
+        front_done = job.checkpoint in ("front_done", "flip", "flipped")
         side = "back" if job.side == "back" or front_done else "front"
         if side == "back" and job.side != "back":
-            # the front is printed: align the back (a one-sided design is complete)
-            return ResumePlan(side="back", start=0, parts=0) if has_back else None
+            # the front is printed: the flip step unless the operator said flip-done, then the
+            # alignment of the back (a one-sided design is complete)
+            return ResumePlan(side="back", start=0, parts=0, flip=job.checkpoint != "flipped") if has_back else None
         parts = program_parts(self._side_program(job, side))
         unproven = [p.ordinal + 1 for p in parts if p.sync is None]
         if unproven:
@@ -268,8 +270,8 @@ class Resumer:
         start = first + 1 if choice == "skip" else first
         if start < len(parts):
             return ResumePlan(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
-        if side == "front" and has_back:                     # every front part proven: the back
-            return ResumePlan(side="back", start=0, parts=0, partial=partial_at, choice=choice)
+        if side == "front" and has_back:                     # every front part proven: the flip, the back
+            return ResumePlan(side="back", start=0, parts=0, partial=partial_at, choice=choice, flip=True)
         return ResumePlan(side=side, start=start, parts=len(parts), partial=partial_at, choice=choice)
 
     def _side_program(self, job: JobRecord, side: str) -> list[str]:
@@ -281,19 +283,26 @@ class Resumer:
         return base.read_text(encoding="utf-8").splitlines()
 
     async def check_frame(self, job_id: str) -> None:
-        """Home, set the heaters (the idle policy applies while waiting), wait for ``frame_ok``."""
+        """Home, set the heaters (the idle policy applies while waiting), wait for ``frame_ok``.
+        A resume at the flip (``ResumePlan.flip``) sets the heaters only: the flip step is the
+        operator's check (it waits for ``flip-done``), and the alignment after it homes."""
         run = self.state.run
         assert run is not None
         link = self.head.require_link()
         await self.heaters.cooled()                           # the heaters-off of the daemon's start first
         t = self.profile.temperatures
+        flip = run.resume is not None and run.resume.flip
         async with self.head.lock:
-            await link.send("G28", timeout=300)
-            self.head.forget()
+            if not flip:                                      # (not over the frame about to be turned)
+                await link.send("G28", timeout=300)
+                self.head.forget()
+                self.head.ran(["G28"])
             if t.bed > 0:
                 await link.send(f"M140 S{t.bed:.0f}")
             await link.send(f"M104 S{t.nozzle:.0f}")
         run.check()
+        if flip:
+            return
         self.records.publish(self.records.store.update(job_id, stage="check the frame"))
         await self.heaters.idle_until(run, job_id, "awaiting the frame check", run.checked)
         run.check()
@@ -305,7 +314,7 @@ class Resumer:
         job = self.records.get(job_id)
         run = self.state.current(job_id)
         if job.state is not JobState.AWAITING_CHECK or run is None or run.resume is None:
-            raise IllegalTransition(job.state, "frame-ok")
+            raise IllegalTransition.of(job, "frame-ok")
         if keep_alignment and (run.resume.side != "back" or job.side != "back" or not job.correction):
             raise ValueError("keep_alignment: there is no stored alignment of this print's back to keep "
                              "(it is measured after the flip); leave it out")

@@ -65,6 +65,9 @@ class ResumePlan:
     parts: int
     partial: int | None = None
     choice: str | None = None
+    #: the front is printed and the back not begun, and the operator never said flip-done: the job
+    #: goes through the flip step (its instruction, notice, then the alignment), not a frame check
+    flip: bool = False
 
 
 @dataclass
