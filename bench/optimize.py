@@ -3,9 +3,10 @@
 For each surface (a cylinder patch 100 mm, the torus patch of Fig. 2 120 mm, a symmetric saddle
 110 mm, a skew saddle (κx = 1/40, κy = 1/100 /mm) 110 mm, a shallow spherical cap (radius 60 mm,
 half-angle 30°) 100 mm; sizes are bounding-box diagonals, ~10k faces each) it designs the forward
-layout as ``ribbonctl design --no-optimize`` does (``design_mesh(predict=False)``), predicts it
-(every release), optimizes its thicknesses (``optimize_layout``, the default budget), predicts the
-optimized layout again from the flat sheet, says whether the stage keeps it (``optimization_kept``:
+layout as ``ribbonctl design --no-optimize`` does (``design_mesh(predict=False)``), then runs the
+stage optimize as the pipeline does: predicts it (every release), optimizes its thicknesses
+(``optimize_layout``, what is left of the default budget), predicts the optimized layout again from
+the flat sheet (every release), says whether the stage keeps it (``optimization_kept``:
 its prediction better than the forward one's), and prints, each against the issue's goal:
 
 - the predicted mean deviation, forward → optimized (≤ 1.0 %; ≤ 0.6 × the forward's where that is above 1 %);
@@ -53,7 +54,7 @@ def _mesh(name: str):
 
 def run(name: str) -> dict:
     from ribbond.deploy.optimize import optimize_layout
-    from ribbond.deploy.predict import RELEASES, predict_deployed
+    from ribbond.deploy.predict import predict_deployed
     from ribbond.design.mesh_io import write_obj
     from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
     from ribbond.design.pipeline import design_mesh
@@ -66,13 +67,12 @@ def run(name: str) -> dict:
     p = res.design.parameters
     kw = dict(prestretch=p.prestretch, ribbon_width=p.ribbon_width, table=load_curvature_table(p.curvature_table))
     uv, V, F, rib = res.flat_uv, res.V, res.F, res.design.ribbons
-    forward = predict_deployed(uv, V, F, rib, **kw)
-    t0 = time.perf_counter()
-    start = predict_deployed(uv, V, F, rib, releases=RELEASES[:1], **kw)     # what the stage optimize runs
+    t0 = time.perf_counter()                                                    # the stage optimize:
+    forward = predict_deployed(uv, V, F, rib, **kw)                              # the forward layout, every release
     budget = max(SolverSettings().optimize_budget_s - (time.perf_counter() - t0), 1.0)     # as the stage
-    opt = optimize_layout(uv, V, F, rib, start, budget_s=budget, **kw)
+    opt = optimize_layout(uv, V, F, rib, forward, budget_s=budget, **kw)
+    optimized = predict_deployed(uv, V, F, opt.ribbons, **kw)                    # from the flat sheet, every release
     stage_s = time.perf_counter() - t0
-    optimized = predict_deployed(uv, V, F, opt.ribbons, **kw)
     from ribbond.design.pipeline import optimization_kept
     kept, why = optimization_kept(forward, optimized)
     return {"kept": kept, "why": why, "surface": name, "faces": len(F), "ribbons": len(rib), "forward": forward, "optimized": optimized,

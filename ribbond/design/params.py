@@ -167,8 +167,8 @@ class SolverSettings(BaseModel):
         "optimize, when the shape is predicted); false: the paper's forward design")
     optimize_budget_s: float = Field(
         45.0, gt=0, le=3600, description="wall-time budget of the layout's optimization against the "
-        "prediction (stage optimize, the forward layout's nominal prediction included: the ribbons' "
-        "thicknesses; ribbond.deploy.optimize), s")
+        "prediction (stage optimize, the forward layout's prediction included: the ribbons' "
+        "thicknesses; ribbond.deploy.optimize), s; the optimized layout's own prediction follows it")
 
 
 def check_smoothing(params: "DesignParameters", solver: "SolverSettings") -> None:
