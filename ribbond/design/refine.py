@@ -40,7 +40,10 @@ Quadric fits over three rings gave 0.02–1.2° median, cubic fits over four rin
 ridge on the cubic terms (``CUBIC_RIDGE``) keeps the one-sided fits at the boundary from
 extrapolating (|κ1| p95 12 % instead of 25 % on the noisy torus patch). The ribbons do not follow
 all of it (docs/benchmarks.md, "Coarse targets refined at intake"): better on the noisy torus patch
-and shoulder, worse on the saddles and the garment top, where the line field decides them.
+and shoulder, worse on the garment top, where four rings (±20 mm) are too wide for its 8 mm bumps:
+the fits' error is smooth at the coarse scale and the line field keeps it (``RING`` = 3 gives the
+garment top's ribbons of the exactly sampled surface, but no longer averages a noisy scan's error
+below the coarse mesh's own: the support should follow the noise).
 
 A fit's lift is capped at ``MAX_LIFT`` × the distance to its vertex, so a spike or a fold in a
 scan cannot throw new vertices far off the coarse surface; ``Refined.offset_pct`` reports the
