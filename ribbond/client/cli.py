@@ -195,6 +195,7 @@ def _deviation_line(what: str, dev: Any) -> list[str]:
 def _cmd_design(args: argparse.Namespace) -> int:
     # the engine is imported here only: the daemon commands start without it
     from ribbond.design.params import DesignSettings, SizeSpec, load_settings
+    from ribbond.design.folder import check_destination
     from ribbond.design.pipeline import design_mesh, write_design
     from ribbond.gcode.profiles import load_profile
 
@@ -211,6 +212,7 @@ def _cmd_design(args: argparse.Namespace) -> int:
     solver = settings.solver if args.optimize else settings.solver.model_copy(update={"optimize": False})
     if args.panels is not None:
         return _design_project(args, params, solver)
+    check_destination(args.output)              # before the design's minutes, not after them
     progress = TerminalProgress(quiet=args.quiet)
     try:
         result = design_mesh(args.mesh, params, solver, frame=frame, progress=progress,
@@ -227,13 +229,14 @@ def _design_project(args: argparse.Namespace, params: Any, solver: Any) -> int:
     panel-K/ design folders) and its summary."""
     import json
 
-    from ribbond.design.project import design_project, write_project
+    from ribbond.design.project import check_project_destination, design_project, write_project
 
     panels: int | str = args.panels
     if panels != "auto":
         if not str(panels).isdigit() or int(panels) < 2:
             raise ValueError(f"--panels {panels}: 'auto' or a whole number of panels, at least 2")
         panels = int(panels)
+    check_project_destination(args.output)      # before the cut and the panels' designs
     progress = TerminalProgress(quiet=args.quiet)
     try:
         result = design_project(args.mesh, params, solver, panels=panels, seam_allowance=args.seam_allowance,

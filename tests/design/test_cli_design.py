@@ -339,6 +339,30 @@ def test_size_too_large_leaves_an_existing_folder_alone(cylinder: dict[str, Any]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["existing"]    # no leftovers
 
 
+def test_a_destination_that_is_not_a_design_folder_is_refused_before_any_stage(tmp_path: Path) -> None:
+    """Issue 36 item 4: ``-o DIR`` naming a folder that is not a design folder (or a file) is refused
+    first, before the design's stages run, and left as it was; so is a project's (``--panels``)."""
+    V, F = surfaces.cylinder_patch(CYL_RADIUS, CYL_ANGLE, CYL_HEIGHT, n_around=20, n_along=10)
+    mesh = tmp_path / "cylinder.obj"
+    write_obj(mesh, V, F)
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "thesis.tex").write_text("mine\n")
+    plain = tmp_path / "plain.txt"
+    plain.write_text("mine\n")
+    for out, extra, words in ((notes, (), "not a design folder"), (plain, (), "not a directory"),
+                              (notes, ("--panels", "2"), "not a project folder"),
+                              (plain, ("--panels", "2"), "not a directory")):
+        before = sorted(p.name for p in tmp_path.rglob("*"))
+        proc = run_design(mesh, out, *extra)
+        assert proc.returncode == 2, (out, extra, proc.stderr)
+        assert words in proc.stderr and str(out) in proc.stderr, proc.stderr
+        assert not any(re.match(rf"{stage}\s", line) for line in stderr_lines(proc.stderr)
+                       for stage in ("load", "curvature", "flatten", "cut")), proc.stderr
+        assert sorted(p.name for p in tmp_path.rglob("*")) == before
+        assert (notes / "thesis.tex").read_text() == "mine\n" and plain.read_text() == "mine\n"
+
+
 # ---------------------------------------------------------------------------------------------
 # spheres: sign convention and bounds
 
