@@ -208,6 +208,19 @@ class CalibrationRequest(Body):
     start: bool = False
 
 
+class CalibrationStatus(BaseModel):
+    """A calibration plan: made in its own process after ``POST /calibrations`` answers (``planning``),
+    then one ready two-sided job per sheet (``ready``), or why it could not be made (``failed``)."""
+
+    calibration: str = Field(description="its id, cal-XXXXXXXX")
+    state: Literal["planning", "ready", "failed"]
+    sheets: int | None = Field(None, ge=1, description="when ready: the sheets (one job each)")
+    coupons: int | None = Field(None, ge=1, description="when ready: the coupons over all sheets")
+    jobs: list[str] = Field(default_factory=list, description="when ready: each sheet's job, in order")
+    error: str | None = Field(None, description="when failed: why")
+    folder: str = Field(description="the plan's folder on the daemon's host")
+
+
 def _example_table() -> str:
     """The shipped table's TOML as a daemon table named ``example``: the document's example body."""
     text = (TABLE_DIR / "tpu95a-lycra-default.toml").read_text(encoding="utf-8")

@@ -228,6 +228,7 @@ class RibbonService:
         self.compiler.stop_all()
         self.projects.stop_all()
         self.predictor.stop_all()
+        self.calibrations.stop_all()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:

@@ -233,3 +233,42 @@ def test_an_unknown_form_field_is_refused(daemon: Daemon, good: Path, route: str
     assert r.status_code == 422, r.text
     assert "strat" in r.json()["detail"], r.text
     assert kept(daemon) == before
+
+
+# ---------------------------------------------------------------------- a calibration plan (item 14)
+
+
+def test_a_calibration_plan_is_answered_at_once_and_made_after(daemon: Daemon) -> None:
+    """``POST /calibrations`` answers within 2 s (202, ``planning``): the plan is made in the
+    planner's process afterwards, and its sheets' jobs appear when it is (``ready``)."""
+    assert daemon.client is not None
+    c = daemon.client
+    jobs_before = {j["id"] for j in c.get("/jobs").json()}
+    t0 = time.monotonic()
+    r = c.post("/calibrations", json={"thicknesses": [0.1, 0.3, 0.6, 0.9], "spacings": [4.0, 8.0, 14.0]})
+    took = time.monotonic() - t0
+    assert r.status_code == 202, r.text
+    assert took < 2.0, took
+    cal = r.json()
+    assert cal["state"] == "planning" and cal["jobs"] == [] and cal["sheets"] is None
+    deadline = time.monotonic() + 120
+    while (cal := c.get(f"/calibrations/{cal['calibration']}").json())["state"] == "planning":
+        assert time.monotonic() < deadline
+        time.sleep(0.2)
+    assert cal["state"] == "ready", cal
+    assert cal["coupons"] == 4 * 3 * 2 and cal["sheets"] == len(cal["jobs"]) >= 1     # the grid × 2 sides
+    assert {j["id"] for j in c.get("/jobs").json()} - jobs_before == set(cal["jobs"])
+    assert all(c.get(f"/jobs/{j}").json()["state"] == "ready" for j in cal["jobs"])
+    plan = c.get(f"/calibrations/{cal['calibration']}/files/plan.json").json()
+    assert len(plan["sheets"]) == cal["sheets"]
+    assert c.get("/calibrations/cal-00000000").status_code == 404
+
+
+def test_a_coupon_larger_than_the_frame_is_refused_at_once(daemon: Daemon) -> None:
+    """What the plan would refuse in the planner is checked before the answer: 422 naming it."""
+    assert daemon.client is not None
+    before = kept(daemon)
+    r = daemon.client.post("/calibrations", json={"spacings": [4.0, 400.0]})
+    assert r.status_code == 422, r.text
+    assert "does not fit the frame" in r.json()["detail"]
+    assert kept(daemon) == before
