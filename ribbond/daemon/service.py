@@ -270,6 +270,7 @@ class RibbonService:
             mesh = folder / safe
             shutil.move(str(upload), mesh)
             await self._intake(mesh, parameters)
+            self.records.check_queue()                  # again: other submits may have landed meanwhile
             job = self.store.create(mesh_name=safe, mesh_path=str(mesh), parameters=parameters,
                                     start_when_ready=start, job_id=job_id)
         except BaseException:
@@ -296,6 +297,7 @@ class RibbonService:
             mesh = folder / safe
             shutil.move(str(upload), mesh)
             await self._intake(mesh, parameters)
+            self.records.check_queue()
             project = self.projects.create(project_id, mesh, parameters, panels, seam_allowance, start)
         except BaseException:
             shutil.rmtree(folder, ignore_errors=True)
