@@ -18,8 +18,8 @@ writes into ``examples/meshes/`` (or ``DIR``):
 
 ``--scale N`` multiplies the resolution parameters (grid cells, disk rings) by N, so the face counts
 grow by about N²: ``--scale 6`` gives ≥ 110,000 faces for the torus patch and the caps (benchmarks).
-The sizes in mm only set the shape: ``ribbonctl design`` scales a surface to its ``--size`` (by
-default the largest that fits the printer's frame).
+The sizes are in mm: ``ribbonctl design`` reads them so unless ``--size MM`` (a diagonal) or
+``--size fit`` (the largest that fits the printer's frame) scales the surface.
 """
 
 from __future__ import annotations

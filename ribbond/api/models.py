@@ -37,6 +37,13 @@ CalibrationFileName = Annotated[str, PathParam(pattern=r"^(plan\.json|coupons\.c
 Ident = Annotated[str, PathParam(max_length=64)]
 
 
+class Body(BaseModel):
+    """A request's JSON body: a field the document does not name is refused (422 naming it), never
+    ignored (issue 36 item 14: a body of unknown keys once made a whole default plan)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
 class NextStep(BaseModel):
     """What the operator does next."""
 
@@ -151,22 +158,21 @@ class CameraView(BaseModel):
     last_error_at: float | None = Field(None, description="when, unix s")
 
 
-class PredictRequest(BaseModel):
+class PredictRequest(Body):
     """``POST /jobs/{id}/predict``: the prediction's curvature table (``fine``, the ribbon-resolved
     model, was taken out (issue 34): refused, as any other unknown field)."""
 
-    model_config = ConfigDict(extra="forbid")
     table: str | None = Field(None, pattern=TABLE_NAME.pattern,
                               description="a curvature table's name (GET /tables); default the design's")
 
 
-class JogRequest(BaseModel):
+class JogRequest(Body):
     dx: float = Field(description="mm")
     dy: float = Field(description="mm")
     dz: float = Field(0.0, description="mm")
 
 
-class GotoRequest(BaseModel):
+class GotoRequest(Body):
     x: float = Field(description="mm, machine coordinates")
     y: float = Field(description="mm, machine coordinates")
 
@@ -177,18 +183,18 @@ GCODE_COMMAND = r"^[ \t]*[!-'+-:<-~][\t -)+-~]*$"
 GCODE_COMMAND_MAX = 80
 
 
-class GcodeRequest(BaseModel):
+class GcodeRequest(Body):
     commands: list[Annotated[str, Field(pattern=GCODE_COMMAND, max_length=GCODE_COMMAND_MAX)]] = Field(
         min_length=1, max_length=MAX_MANUAL_COMMANDS, description="one G-code command or a short list")
 
 
-class HeatRequest(BaseModel):
+class HeatRequest(Body):
     # the upper bounds are the profile's: written into the document by ribbond.api.openapi
     nozzle: float | None = Field(None, ge=0, description="°C; default the profile's print temperature")
     bed: float | None = Field(None, ge=0, description="°C")
 
 
-class CalibrationRequest(BaseModel):
+class CalibrationRequest(Body):
     """``POST /calibrations``: the plan's grid and ribbons (``ribbond.calibration.spec``), all optional."""
 
     # the spec's own bounds, so the document states them; its cross-field rules (increasing grids,
@@ -212,29 +218,42 @@ class CalibrationRequest(BaseModel):
     start: bool = False
 
 
+class CalibrationStatus(BaseModel):
+    """A calibration plan: made in its own process after ``POST /calibrations`` answers (``planning``),
+    then one ready two-sided job per sheet (``ready``), or why it could not be made (``failed``)."""
+
+    calibration: str = Field(description="its id, cal-XXXXXXXX")
+    state: Literal["planning", "ready", "failed"]
+    sheets: int | None = Field(None, ge=1, description="when ready: the sheets (one job each)")
+    coupons: int | None = Field(None, ge=1, description="when ready: the coupons over all sheets")
+    jobs: list[str] = Field(default_factory=list, description="when ready: each sheet's job, in order")
+    error: str | None = Field(None, description="when failed: why")
+    folder: str = Field(description="the plan's folder on the daemon's host")
+
+
 def _example_table() -> str:
     """The shipped table's TOML as a daemon table named ``example``: the document's example body."""
     text = (TABLE_DIR / "tpu95a-lycra-default.toml").read_text(encoding="utf-8")
     return text.replace('name = "tpu95a-lycra-default"', 'name = "example"', 1)
 
 
-class TableRequest(BaseModel):
+class TableRequest(Body):
     toml: str = Field(min_length=1, description="the text of a curvature table's TOML file", examples=[_example_table()])
 
 
-class ResumeRequest(BaseModel):
+class ResumeRequest(Body):
     """Resuming: for an interrupted print, what to do with the part begun and not proven printed."""
 
     partial: Literal["skip", "reprint"] | None = Field(None, description="skip it (default) or print it again")
 
 
-class FrameOkRequest(BaseModel):
+class FrameOkRequest(Body):
     """The frame of a resumed print is checked; for the back, whether the stored alignment holds."""
 
     keep_alignment: bool = Field(False, description="the frame was not moved: keep the stored correction")
 
 
-class AlignRequest(BaseModel):
+class AlignRequest(Body):
     """One registration mark: the head is on it (``here``), or the jog from where the head was sent
     to the mark (no jog: it was on the mark)."""
 

@@ -96,6 +96,8 @@ def _describe_upload(schema: dict[str, Any], components: dict[str, Any]) -> None
     body["oneOf"] = [{"required": ["mesh"], "not": {"required": ["gcode"]}},
                      {"required": ["gcode"], "not": {"required": ["mesh"]},
                       "properties": {"parameters": {"maxProperties": 0}}}]
+    for form in ("Body_submit", "Body_submit_project"):           # deps.form_fields refuses any other
+        components[form]["additionalProperties"] = False
     project = components["Body_submit_project"]["properties"]
     project["parameters"] = dict(props["parameters"])
     project["mesh"] = {**project["mesh"], "minLength": 1}

@@ -98,6 +98,7 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         "preview.svg/.png)",
         f"surface     {d.source.file}: {r.faces} faces, {p.size.bbox_diagonal:.1f} mm bounding-box "
         f"diagonal; flat layout {w:.1f} × {h:.1f} mm",
+        size_line(r, p.size.bbox_diagonal),
         *([f"refined     {r.refined.from_faces:,} → {r.refined.faces:,} faces ({r.refined.method}; at most "
            f"{r.refined.offset_pct:.2f} % of the diagonal off the file's surface) for the layout"]
           if r.refined is not None else []),
@@ -197,14 +198,16 @@ def _deviation_line(what: str, dev: Any) -> list[str]:
 def _cmd_design(args: argparse.Namespace) -> int:
     # the engine is imported here only: the daemon commands start without it
     from ribbond.design.params import DesignSettings, SizeSpec, load_settings
+    from ribbond.design.folder import check_destination
     from ribbond.design.pipeline import design_mesh, write_design
     from ribbond.gcode.profiles import load_profile
 
     settings = load_settings(args.params) if args.params else DesignSettings()
     params = settings.parameters
     updates: dict[str, object] = {}
-    if args.size is not None:
-        updates["size"] = SizeSpec(bbox_diagonal=args.size)
+    size = _size_argument(args.size, args.panels is not None)
+    if size is not None:
+        updates["size"] = SizeSpec(bbox_diagonal=size)
     if args.profile is not None:
         updates["printer_profile"] = args.profile
     if updates:
@@ -213,10 +216,13 @@ def _cmd_design(args: argparse.Namespace) -> int:
     solver = settings.solver if args.optimize else settings.solver.model_copy(update={"optimize": False})
     if args.panels is not None:
         return _design_project(args, params, solver)
+    check_destination(args.output)              # before the design's minutes, not after them
     progress = TerminalProgress(quiet=args.quiet)
     try:
+        # SIZE_RULE: without --size (nor a size in --params) the file's units are mm, as with --panels
         result = design_mesh(args.mesh, params, solver, frame=frame, progress=progress,
-                             predict=not args.no_predict, optimize=args.optimize)
+                             predict=not args.no_predict, optimize=args.optimize,
+                             unsized="fit" if args.size == "fit" else "file")
         out = write_design(result, args.output, progress)
     finally:
         progress.close()
@@ -224,18 +230,57 @@ def _cmd_design(args: argparse.Namespace) -> int:
     return 0
 
 
+#: How ``design`` sizes a target, for a design and a project alike (``--help``).
+SIZE_RULE = ("the target's size: its bounding-box diagonal in mm, or 'fit' (one design, not --panels: the "
+             "largest size at which its layout fits the printer's frame). Without it (and without a size in "
+             "--params) the file's units are read as mm, for a design and for --panels alike; a design "
+             "larger than one sheet takes is refused, naming the largest size that fits. The summary's "
+             "'size' line and design.json's report.scale say which rule gave the size")
+
+
+def _size_argument(value: str | None, panels: bool) -> float | None:
+    """``--size``: a diagonal in mm, ``fit`` (None here: the engine fits it) or absent (None)."""
+    if value is None or value == "fit":
+        if value == "fit" and panels:
+            raise ValueError("--size fit: a project's panels keep one scale, and more panels make any size fit; "
+                             "give --size MM, or leave it out to read the file's units as mm")
+        return None
+    try:
+        size = float(value)
+    except ValueError:
+        raise ValueError(f"--size {value}: a bounding-box diagonal in mm, or 'fit'") from None
+    if not math.isfinite(size) or size <= 0:
+        raise ValueError(f"--size {value}: must be a finite number of mm > 0, or 'fit'")
+    return size
+
+
+def size_line(report: Any, bbox_diagonal: float) -> str:
+    """The summary's ``size`` line: the design's size and the rule that gave it (``report.scale``)."""
+    sc = report.scale
+    if sc is None:
+        return f"size        {bbox_diagonal:.1f} mm bounding-box diagonal"
+    source = f"the file's {sc.source_diagonal:.4g} (its units)"
+    why = {"size": f"as asked (--size or --params): {source} scaled × {sc.factor:.4g}",
+           "fit": f"SCALED × {sc.factor:.4g} from {source} to the largest that fits the frame (--size fit, or no size "
+                  "given to the daemon); --size MM to choose",
+           "file": "the file's units read as mm (no --size); --size MM to scale it, --size fit for the largest "
+                   "that fits the frame"}[sc.rule]
+    return f"size        {bbox_diagonal:.1f} mm bounding-box diagonal: {why}"
+
+
 def _design_project(args: argparse.Namespace, params: Any, solver: Any) -> int:
     """``ribbonctl design MESH --panels auto|N``: the project folder (project.json, panels.png,
     panel-K/ design folders) and its summary."""
     import json
 
-    from ribbond.design.project import design_project, write_project
+    from ribbond.design.project import check_project_destination, design_project, write_project
 
     panels: int | str = args.panels
     if panels != "auto":
         if not str(panels).isdigit() or int(panels) < 2:
             raise ValueError(f"--panels {panels}: 'auto' or a whole number of panels, at least 2")
         panels = int(panels)
+    check_project_destination(args.output)      # before the cut and the panels' designs
     progress = TerminalProgress(quiet=args.quiet)
     try:
         result = design_project(args.mesh, params, solver, panels=panels, seam_allowance=args.seam_allowance,
@@ -244,7 +289,11 @@ def _design_project(args: argparse.Namespace, params: Any, solver: Any) -> int:
     finally:
         progress.close()
     project = json.loads((out / "project.json").read_text(encoding="utf-8"))
-    print(project_summary(project, out))
+    first, *rest = project_summary(project, out).split("\n")
+    diagonal = float(project["size"]["bbox_diagonal"])
+    why = ("as asked (--size or --params)" if params.size is not None else
+           "the file's units read as mm (no --size); --size MM to scale it")
+    print("\n".join([first, f"size        {diagonal:.1f} mm bounding-box diagonal: {why}", *rest]))
     return 0
 
 
@@ -501,8 +550,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "folder: target.obj, flat.obj, design.json.")
     d.add_argument("mesh", type=Path, help="target surface: OBJ, PLY, STL or OFF (a topological disk)")
     d.add_argument("-o", "--output", type=Path, required=True, help="design folder to write")
-    d.add_argument("--size", type=float, metavar="MM",
-                   help="bounding-box diagonal of the target in mm (default: the largest that fits the frame)")
+    d.add_argument("--size", metavar="MM|fit", help=SIZE_RULE)
     d.add_argument("--params", type=Path, metavar="FILE",
                    help="TOML or JSON file of design parameters (and an optional [solver] table)")
     d.add_argument("--profile", metavar="NAME", help="printer profile name or .toml path")
@@ -567,7 +615,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if getattr(args, "size", None) is not None and not (math.isfinite(args.size) and args.size > 0):
+    if isinstance(getattr(args, "size", None), float) and not (math.isfinite(args.size) and args.size > 0):
         parser.error(f"--size {args.size}: must be a positive number of millimetres")
     try:
         return args.func(args)

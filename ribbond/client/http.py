@@ -792,8 +792,14 @@ def cmd_tables(args: argparse.Namespace) -> int:
 def calibrate_remote(args: argparse.Namespace, spec: dict[str, Any]) -> int:
     """ribbonctl calibrate plan without -o: the daemon makes the plan, one job per sheet."""
     c = _client(args)
-    r = c.request("POST", "/calibrations", json={**spec, "start": bool(getattr(args, "start", False))},
-                  timeout=600)
+    r = c.request("POST", "/calibrations", json={**spec, "start": bool(getattr(args, "start", False))})
+    if not args.json:
+        print(f"calibration {r['calibration']}: making the plan on the daemon …", file=sys.stderr, flush=True)
+    while r["state"] == "planning":                      # made in the planner's process, as a compile is
+        time.sleep(0.5)
+        r = c.request("GET", f"/calibrations/{r['calibration']}")
+    if r["state"] == "failed":
+        raise ClientError(f"calibration {r['calibration']}: {r['error']}", 1)
     base = c.url.rstrip("/")
     text = (f"calibration {r['calibration']}: {r['coupons']} coupons on {r['sheets']} sheet(s), one job per sheet: "
             f"{', '.join(r['jobs'])}\n  coupons: {base}/calibrations/{r['calibration']}/files/coupons.csv\n"

@@ -42,6 +42,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ribbond.design.errors import MeshError
+from ribbond.design.intake import load_target
 from ribbond.design.params import check_printable, settings_from_dict
 from ribbond.gcode.checker import Checked
 from ribbond.gcode.profiles import PrinterProfile
@@ -177,7 +179,7 @@ class RibbonService:
         # slicers' uploads and views in OctoPrint's words (issue 27)
         self.octoprint = OctoPrintCompat(self.records, self.state, self.head, self.submit, self.submit_gcode,
                                          self.status, self.manual.printer_status,
-                                         (MESH_SUFFIXES, GCODE_SUFFIXES), config.limits.max_faces)
+                                         (MESH_SUFFIXES, GCODE_SUFFIXES))
         self.notifier = Notifier(config.notify, self.bus)    # the operator's phone (issue 27)
         self.camera = Camera(config.camera, self.records)            # snapshots at each side's end (issue 27)
         self._tasks: list[asyncio.Task[None]] = []
@@ -232,6 +234,7 @@ class RibbonService:
         self.compiler.stop_all()
         self.projects.stop_all()
         self.predictor.stop_all()
+        self.calibrations.stop_all()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
@@ -251,12 +254,14 @@ class RibbonService:
     def job_dir(self, job_id: str) -> Path:
         return self.records.dir(job_id)
 
-    def submit(self, upload: Path, name: str, parameters: dict[str, Any], start: bool) -> JobRecord:
+    async def submit(self, upload: Path, name: str, parameters: dict[str, Any], start: bool) -> JobRecord:
         """Take an uploaded mesh (``upload``, moved into the job's folder) and queue its compile.
 
         Everything is checked first (the name, the parameters against the engine, the daemon's
-        limits and its printer); the job's row is written only once the mesh is in its folder, and
-        if anything fails on the way neither the row nor the folder remains."""
+        limits, its printer and its curvature tables, the mesh read and validated as the compile's
+        intake reads it); the job's row is written only once the mesh is in its folder and
+        checked, and if anything fails on the way neither the row nor the folder remains (no event,
+        no notification)."""
         safe = mesh_file_name(name)
         if Path(safe).suffix.lower() in GCODE_SUFFIXES:
             raise ValueError(f"{name!r} is a G-code program, not a mesh: print it with 'ribbonctl print {name}'")
@@ -270,6 +275,8 @@ class RibbonService:
             folder.mkdir(parents=True)
             mesh = folder / safe
             shutil.move(str(upload), mesh)
+            await self._intake(mesh, parameters)
+            self.records.check_queue()                  # again: other submits may have landed meanwhile
             job = self.store.create(mesh_name=safe, mesh_path=str(mesh), parameters=parameters,
                                     start_when_ready=start, job_id=job_id)
         except BaseException:
@@ -279,8 +286,8 @@ class RibbonService:
         self.compiler.queue(job.id)
         return job
 
-    def submit_project(self, upload: Path, name: str, parameters: dict[str, Any], panels: str,
-                       seam_allowance: float, start: bool) -> dict[str, Any]:
+    async def submit_project(self, upload: Path, name: str, parameters: dict[str, Any], panels: str,
+                             seam_allowance: float, start: bool) -> dict[str, Any]:
         """Take an uploaded mesh to print in panels (``panels``: ``auto`` or 2 to 16): checked as a
         job's mesh is, then compiled once; its panels become one job each (``Projects``). Its view."""
         panels = check_panels(panels)
@@ -295,6 +302,8 @@ class RibbonService:
             folder.mkdir(parents=True)
             mesh = folder / safe
             shutil.move(str(upload), mesh)
+            await self._intake(mesh, parameters)
+            self.records.check_queue()
             project = self.projects.create(project_id, mesh, parameters, panels, seam_allowance, start)
         except BaseException:
             shutil.rmtree(folder, ignore_errors=True)
@@ -302,9 +311,24 @@ class RibbonService:
         self.compiler.queue(project_id)
         return self.projects.view(project)
 
+    async def _intake(self, mesh: Path, parameters: dict[str, Any]) -> None:
+        """The mesh read, cleaned and validated as the compile's intake will (``load_target``: a
+        MeshError naming the problem and its file line), in a thread so the printer's stream goes on.
+        Fast: no refinement, no flattening."""
+        solver = settings_from_dict(parameters).solver
+        limit = self.config.limits.max_faces
+        try:
+            await asyncio.to_thread(load_target, mesh, max_faces=min(solver.max_faces, limit),
+                                    merge_tolerance=solver.merge_tolerance)
+        except MeshError as exc:
+            if exc.problem == "too_many_faces" and limit < solver.max_faces:
+                raise MeshError(exc.problem, f"{exc} ([limits] max_faces = {limit})") from None
+            raise
+
     def _check_settings(self, parameters: dict[str, Any]) -> None:
         """Refuse (ValueError naming the field sent) what the compile could not take: the engine's
-        checks, this printer's frame and nozzle, its curvature tables and ``[limits] max_faces``."""
+        checks, this printer's frame and nozzle, its curvature tables (their name and the pre-stretch
+        they were measured at) and ``[limits] max_faces``."""
         settings = settings_from_dict(parameters)
         asked = parameters.get("printer_profile")
         if asked is not None and asked != self.config.printer_profile:
@@ -312,6 +336,7 @@ class RibbonService:
                              "printer; leave printer_profile out (designs are made for the daemon's printer)")
         check_printable(settings.parameters, self.profile.frame.size, self.profile.extruder.nozzle_diameter)
         self.library.check_table_name(settings.parameters.curvature_table)
+        self.library.check_prestretch(settings.parameters.curvature_table, settings.parameters.prestretch)
         limit = self.config.limits.max_faces
         if settings.solver.max_faces > limit and "max_faces" in settings.solver.model_fields_set:
             raise ValueError(f"solver.max_faces = {settings.solver.max_faces}: above this daemon's limit "

@@ -244,6 +244,26 @@ def _locked(directory: Path) -> Iterator[bool]:
         os.close(fd)  # releases the lock
 
 
+def check_destination(out_dir: str | Path) -> None:
+    """Refuse, before any work, a destination the design folder could not be written to: a file, a
+    symbolic link, a directory that is not a design folder, or a parent that is not a writable
+    directory (ValueError naming it). ``write_design_folder`` checks it again under its lock."""
+    out_dir = Path(out_dir)
+    _check_replaceable(out_dir)
+    _check_parent(out_dir)
+
+
+def _check_parent(out_dir: Path) -> None:
+    """The nearest existing ancestor of ``out_dir`` is a directory we may write into."""
+    parent = next((p for p in out_dir.absolute().parents if p.exists()), None)
+    if parent is None:
+        return
+    if not parent.is_dir():
+        raise ValueError(f"{out_dir}: {parent} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{out_dir}: cannot write in {parent} (permission denied)")
+
+
 def _check_replaceable(out_dir: Path) -> None:
     """Refuse to replace anything but a missing, empty or design directory."""
     if out_dir.is_symlink():

@@ -292,6 +292,19 @@ class RefinedReport(BaseModel):
                               "surface, % of its bounding-box diagonal")
 
 
+class ScaleReport(BaseModel):
+    """``report.scale`` (optional; absent in older folders): how the target got its physical size,
+    ``parameters.size.bbox_diagonal`` = ``source_diagonal`` × ``factor``."""
+
+    model_config = _CONFIG
+    rule: Literal["size", "fit", "file"] = Field(
+        description="size: the size asked for (--size, size.bbox_diagonal); fit: none asked, scaled to the "
+        "largest at which the layout fits the frame; file: none asked, the file's units read as mm (factor 1)")
+    source_diagonal: float = Field(gt=0, description="the target's bounding-box diagonal in the file's units "
+                                   "(as read, cleaned and refined)")
+    factor: float = Field(gt=0, description="mm per file unit: the design's diagonal / source_diagonal")
+
+
 class ThicknessFit(BaseModel):
     """The size factor (× the design's size: κ1 / scale, σ and μ2 unchanged) at which the fewest ribbon
     thicknesses clamp to the table, the closest to 1 among ties, and how many clamp there."""
@@ -428,6 +441,7 @@ class Report(_Updatable):
     print_: PrintReport | None = Field(None, alias="print")
     deployed: DeployedReport | None = None
     refined: RefinedReport | None = Field(None, description="the coarse target refined at intake")
+    scale: ScaleReport | None = Field(None, description="how the target got its physical size (issue 36)")
     realization: RealizationReport | None = Field(None, description="the printed plastic against the "
                                                   "flattening's metric and curvature (format 4)")
     optimization: OptimizationReport | None = Field(None, description="the layout optimized against the "

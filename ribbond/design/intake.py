@@ -127,7 +127,9 @@ def load_target(path: str | Path, *, max_faces: int, merge_tolerance: float = 1e
     digest = hashlib.sha256(data).hexdigest()
     cleaned: CleanedMesh | None = None
     try:
-        _check_finite(V, F)  # before cleaning, so that indices are the file's (0-based)
+        # before cleaning, so that indices are the file's; an OBJ's vertices named as its faces
+        # name them (from 1) with their line
+        _check_finite(V, F, mesh_io.vertex_lines(data, Path(path).suffix))
         cleaned = clean_mesh(V, F, merge_tolerance=merge_tolerance)
         boundary = check_disk(cleaned.V, cleaned.F)
     except MeshError as exc:
@@ -441,8 +443,10 @@ def _as_arrays(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return V, np.ascontiguousarray(F_in, dtype=np.int64)
 
 
-def _check_finite(V: np.ndarray, F: np.ndarray | None) -> None:
-    """``non_finite`` for vertices with NaN/inf coordinates (only those ``F`` uses, if given)."""
+def _check_finite(V: np.ndarray, F: np.ndarray | None, lines: np.ndarray | None = None) -> None:
+    """``non_finite`` for vertices with NaN/inf coordinates (only those ``F`` uses, if given).
+    ``lines``: (n,) the file's line of each vertex (an OBJ's): each is then named by its line and
+    its number from 1, as the file's faces refer to it."""
     bad = ~np.isfinite(V).all(axis=1)
     if F is not None and bad.any():
         inside = F[(F >= 0) & (F < len(V))]
@@ -451,7 +455,10 @@ def _check_finite(V: np.ndarray, F: np.ndarray | None) -> None:
         bad &= used
     idx = np.flatnonzero(bad)
     if idx.size:
-        items = [f"vertex {v} at {_xyz(V[v])}" for v in idx[:_LIST_LIMIT]]
+        if lines is not None and len(lines) == len(V):
+            items = [f"vertex {v + 1} on line {lines[v]} at {_xyz(V[v])}" for v in idx[:_LIST_LIMIT]]
+        else:
+            items = [f"vertex {v} at {_xyz(V[v])}" for v in idx[:_LIST_LIMIT]]
         raise MeshError("non_finite", f"{_count(idx.size, 'vertex', 'vertices')} with NaN or "
                                       f"infinite coordinates: {_listing(items, idx.size)}")
 

@@ -424,6 +424,25 @@ def _parse_obj(data: bytes, name: str, max_faces: int | None) -> tuple[np.ndarra
     return V, _obj_faces(data, f_rest, is_v, len(V), name, max_faces)
 
 
+def vertex_lines(data: bytes, suffix: str) -> np.ndarray | None:
+    """The file's 1-based line of each vertex of an OBJ file (its ``v`` lines, in order), for
+    messages that name a vertex (error path only); None for the other formats, where vertices are
+    not one a line (binary STL and PLY, OFF's free layout).
+
+    Returns
+    -------
+    (n,) int64 array or None
+    """
+    if suffix.lower() != ".obj":
+        return None
+    text = _strip_bom(data)
+    if b"#" in text:
+        text = _COMMENT.sub(b"", text)      # as the parser reads it: line numbers hold
+    starts = [m.start() for m in _OBJ_RECORD.finditer(text) if m.group(1) == b"v"]
+    breaks = np.flatnonzero(np.frombuffer(text, dtype=np.uint8) == ord("\n"))
+    return np.searchsorted(breaks, np.asarray(starts, dtype=np.int64)).astype(np.int64) + 1
+
+
 def _obj_record_line(data: bytes, k: int) -> int:
     """The line of the k-th 'v' or 'f' record (error path only)."""
     for i, m in enumerate(_OBJ_RECORD.finditer(data)):

@@ -32,7 +32,7 @@ from .errors import DesignError
 from .flatten import BoundedFlattener, FlatteningResult
 from .folder import write_design_folder
 from .format import (DeployedReport, Deviation, Design, Faces, OptimizationReport, Parameters, PrintReport,
-                     Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, SidePrintReport,
+                     Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, ScaleReport, SidePrintReport,
                      Source, StitchMark, ThicknessFit)
 from .frames import FaceFrames, face_frames
 from .intake import TargetMesh, check_disk, load_target
@@ -138,11 +138,13 @@ class _Run:
     optimize: bool = True
     timings: dict[str, float] = field(default_factory=dict)
     flat_start: np.ndarray | None = None
+    unsized: str = "fit"
     # load
     target: TargetMesh = field(init=False)
     coarse_faces: int = field(init=False)
     refined: Refined | None = field(init=False)
     size: float = field(init=False)
+    source_diagonal: float = field(init=False)
     V: np.ndarray = field(init=False)
     F: np.ndarray = field(init=False)
     # curvature
@@ -206,14 +208,14 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
                 solver: SolverSettings | None = None, *, frame: FrameSpec | None = None,
                 progress: DesignProgress | None = None, predict: bool = True,
                 tables_dir: Path | None = None, flat_start: np.ndarray | None = None,
-                finish: bool = True, optimize: bool = False) -> DesignResult:
+                finish: bool = True, optimize: bool = False, unsized: str = "fit") -> DesignResult:
     """Run the engine's ``STAGES`` on a mesh file: load, curvature and line field, flattening, stripes,
     ribbons, G-code, the predicted deployed shape and the preview.
 
     Parameters
     ----------
     mesh_path : an OBJ, PLY, STL or OFF file of the target (deployed) surface.
-    parameters : the design parameters (``size`` None: the largest that fits the frame).
+    parameters : the design parameters (``size`` None: as ``unsized`` says).
     solver : the solver settings.
     frame : the printable rectangle; default: that of ``parameters.printer_profile``.
     predict : predict the deployed shape of the layout (stage ``deploy``, ``ribbond.deploy``).
@@ -227,6 +229,9 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     optimize : with ``predict``, optimize the ribbons' thicknesses against the prediction (stage
         ``optimize``, ``ribbond.deploy.optimize``, within ``solver.optimize_budget_s``; also off when
         ``solver.optimize`` is false); False: the paper's forward design.
+    unsized : what a missing ``parameters.size`` means: ``"fit"`` the largest size at which the layout
+        fits the frame, ``"file"`` the file's units read as mm (a design larger than the frame takes
+        is then refused, naming the largest size that fits). ``report.scale`` says which was applied.
 
     Raises
     ------
@@ -237,8 +242,11 @@ def design_mesh(mesh_path: str | Path, parameters: DesignParameters | None = Non
     """
     run = _prepare(mesh_path, parameters or DesignParameters(), solver or SolverSettings(), frame,
                    progress or NoProgress(), predict, tables_dir)
+    if unsized not in ("fit", "file"):
+        raise ValueError(f"unsized = {unsized!r}: 'fit' or 'file'")
     run.flat_start = flat_start
     run.optimize = optimize and run.solver.optimize
+    run.unsized = unsized
     for stage in STAGES:
         if stage.applies(run) and (finish or stage.name not in FINISHING):
             _run_stage(run, stage)
@@ -282,8 +290,8 @@ def _load(run: _Run) -> str:
     run.coarse_faces = len(target.F)
     run.target, run.refined = refine_target(target, solver.refine_below_faces, solver.refine_to_faces,
                                             solver.max_faces)
-    diag0 = _bbox_diagonal(run.target.V)
-    run.size = run.params.size.bbox_diagonal if run.params.size is not None else NOMINAL_DIAGONAL
+    run.source_diagonal = diag0 = _bbox_diagonal(run.target.V)
+    run.size = _first_size(run, diag0)
     run.V = (run.target.V - run.target.V.mean(axis=0)) * (run.size / diag0)
     run.F = run.target.F
     refined, F = run.refined, run.F
@@ -292,6 +300,20 @@ def _load(run: _Run) -> str:
             + (f"; refined {run.coarse_faces:,} → {len(F):,} faces ({refined.method}, at most "
                f"{refined.offset_pct:.2f} % of the diagonal off the file's surface) for the layout"
                if refined is not None else ""))
+
+
+def _first_size(run: _Run, diag0: float) -> float:
+    """The size the target is designed at (bbox diagonal, mm): ``size``, the file's own (``unsized``
+    "file": refused below one ribbon's width), or a nominal one that the frame's fit scales later."""
+    if run.params.size is not None:
+        return run.params.size.bbox_diagonal
+    if run.unsized == "fit":
+        return NOMINAL_DIAGONAL
+    if diag0 < run.params.ribbon_width:
+        raise DesignError(f"the file's units read as mm make the target {diag0:.3g} mm across (bounding-box "
+                          f"diagonal), narrower than one ribbon ({run.params.ribbon_width:g} mm): give its size "
+                          "(--size MM, size.bbox_diagonal) or --size fit")
+    return diag0
 
 
 def _curvature(run: _Run) -> str:
@@ -342,7 +364,7 @@ def _fit_in_frame(run: _Run) -> None:
     """Scale the design to the largest that fits the frame, or refuse a given size that does not fit."""
     frame, margin = run.frame, run.solver.layout_margin
     fits = fit_scale(run.uv, frame, margin)
-    if run.params.size is None:
+    if run.params.size is None and run.unsized == "fit":
         run.scale = fits
         run.V, run.uv = run.V * fits, (run.uv - np.array(frame.center)) * fits + np.array(frame.center)
         run.size *= fits
@@ -350,11 +372,12 @@ def _fit_in_frame(run: _Run) -> None:
     run.scale = 1.0
     if fits < 1.0:
         w, h = run.uv.max(axis=0) - run.uv.min(axis=0)
+        units = ", the file's units read as mm" if run.params.size is None else ""
         raise DesignError(
-            f"at size {run.size:.1f} mm (bounding-box diagonal) the flat layout is {w:.0f} × {h:.0f} mm, "
+            f"at size {run.size:.1f} mm (bounding-box diagonal{units}) the flat layout is {w:.0f} × {h:.0f} mm, "
             f"larger than the frame's {frame.size[0]:.0f} × {frame.size[1]:.0f} mm less a "
             f"{margin:.0f} mm margin; the largest size that fits is {run.size * fits:.1f} mm"
-            + _panels_hint(run))
+            + (" (--size fit)" if units else "") + _panels_hint(run))
 
 
 def _panels_hint(run: _Run) -> str:
@@ -473,6 +496,8 @@ def _design_document(run: _Run) -> None:
         thickness_fit=ThicknessFit(**dict(zip(("scale", "clamped"), fitting_scale(run.thickness)))),
         **{key: Quantiles(**value) for key, value in q.items()})
     report["realization"] = _realization(run)
+    rule = "size" if run.params.size is not None else run.unsized
+    report["scale"] = ScaleReport(rule=rule, source_diagonal=run.source_diagonal, factor=run.size / run.source_diagonal)
     run.parameters = Parameters.resolved(run.params, run.size)
     target, flat = run.target, run.flat
     run.design = Design(

@@ -618,7 +618,13 @@ def render_project_png(result: ProjectResult) -> bytes:
                              title=f"{result.target.name}: {result.cut.count} panels, {len(result.seams)} seams")
 
 
-def _check_replaceable_project(out_dir: Path) -> None:
+def check_project_destination(out_dir: str | Path) -> None:
+    """Refuse, before any work, a destination a project folder could not replace (ValueError naming
+    it): a file, or a directory with content and no ``project.json``; ``write_project`` checks it
+    again."""
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"{out_dir} exists and is not a directory; not replacing it")
     if out_dir.exists() and any(out_dir.iterdir()) and not (out_dir / PROJECT_FILE).is_file():
         raise ValueError(f"{out_dir} exists and is not a project folder (no {PROJECT_FILE}); not replacing it")
 
@@ -634,7 +640,7 @@ def write_project(result: ProjectResult, out_dir: str | Path, progress: DesignPr
     from .pipeline import write_design
     progress = progress or NoProgress()
     out_dir = Path(out_dir)
-    _check_replaceable_project(out_dir)
+    check_project_destination(out_dir)
     progress.stage_started("write", f"writing {out_dir}")
     t = time.perf_counter()
     out_dir.parent.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,9 @@ import csv
 import io
 import subprocess
 import sys
+import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -27,11 +29,21 @@ GRID = {"thicknesses": [0.1, 0.3, 0.6, 0.9], "spacings": [4.0, 8.0, 14.0]}
 NOISE = 0.01
 
 
+def planned(api: httpx.Client, cal_id: str, timeout: float = 120.0) -> dict[str, Any]:
+    """The calibration once its plan is made (it is made after ``POST /calibrations`` answers)."""
+    deadline = time.monotonic() + timeout
+    while (cal := api.get(f"/calibrations/{cal_id}").json())["state"] == "planning":
+        assert time.monotonic() < deadline, f"calibration {cal_id} still planning after {timeout:.0f} s"
+        time.sleep(0.2)
+    assert cal["state"] == "ready", cal
+    return dict(cal)
+
+
 def test_calibration_loop(api: httpx.Client, shared_sim: Sim, shared_daemon: Daemon, meshes: dict[str, Path],
                           tmp_path: Path) -> None:
     r = api.post("/calibrations", json={**GRID, "start": True, "fabric": "test lycra"})
-    assert r.status_code == 201, r.text
-    cal = r.json()
+    assert r.status_code == 202, r.text
+    cal = planned(api, r.json()["calibration"])
     assert cal["coupons"] == 4 * 3 * 2 and cal["sheets"] == len(cal["jobs"]) >= 2
     plan = api.get(f"/calibrations/{cal['calibration']}/files/plan.json").json()
     rows = list(csv.DictReader(io.StringIO(api.get(f"/calibrations/{cal['calibration']}/files/coupons.csv").text)))

@@ -61,13 +61,16 @@ def test_exit_statuses_and_one_line_errors(shared_daemon: Daemon, api: httpx.Cli
     assert unreachable.returncode == 3 and "cannot reach ribbond" in unreachable.stderr
 
 
-def test_a_mesh_the_engine_refuses_fails_the_job_with_the_reason(shared_daemon: Daemon, api: httpx.Client,
-                                                                 tmp_path: Path) -> None:
+def test_a_mesh_the_engine_refuses_is_refused_at_upload_with_the_reason(shared_daemon: Daemon, api: httpx.Client,
+                                                                        tmp_path: Path) -> None:
+    """Issue 36 item 3: refused at upload (exit status 2, the reason), no failed job left behind."""
     closed = tmp_path / "tetra.obj"                           # a closed surface: not a disk
     closed.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n")
+    before = api.get("/jobs").json()
     proc = ctl(shared_daemon, "submit", str(closed))
-    assert proc.returncode == 1
-    assert "failed" in proc.stdout and "closed" in proc.stdout
+    assert proc.returncode == 2, proc
+    assert "closed" in proc.stderr and "tetra.obj" in proc.stderr, proc.stderr
+    assert api.get("/jobs").json() == before
     assert api.get("/printer").json()["state"] == "ready"     # the daemon is fine
 
 

@@ -133,7 +133,7 @@ def test_an_upload_without_the_token_is_refused_before_its_body_is_read(gated: D
     assert spooled(gated, spool) >= 1024 * 1024, "an authorized upload should spool to the daemon's TMPDIR"
     resume.set()
     worker.join(60)
-    assert result and result[0][0] == 201, result         # taken (its compile fails: no faces)
+    assert result and result[0][0] == 422, result         # read whole, then refused at upload: no faces
     base = spooled(gated, spool)                                     # the spooled file is gone with the request
 
     # Ten unauthenticated uploads at once: each is answered 401 before its body is read.

@@ -8,6 +8,7 @@ they were, also across a restart.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import sqlite3
 import subprocess
@@ -159,19 +160,23 @@ def test_a_failure_after_the_upload_is_stored_leaves_nothing(tmp_path: Path, sma
     upload.write_bytes(small.read_bytes())
     store.close()                                             # every write now raises
     with pytest.raises(sqlite3.Error):
-        service.submit(upload, "w" * 300 + ".obj", dict(SIZE), start=False)
+        asyncio.run(service.submit(upload, "w" * 300 + ".obj", dict(SIZE), start=False))
     assert list(service.jobs_dir.iterdir()) == []
     with JobStore(tmp_path / "jobs.sqlite") as reopened:
         assert reopened.count() == 0
 
 
-def test_the_daemons_max_faces_reaches_the_compile(client: httpx.Client,
-                                                   meshes: dict[str, tuple[Path, int]]) -> None:
+def test_the_daemons_max_faces_is_checked_at_upload(client: httpx.Client,
+                                                    meshes: dict[str, tuple[Path, int]]) -> None:
+    """The mesh is read at upload as the compile's intake reads it (issue 36 item 3): a mesh over the
+    daemon's ``[limits] max_faces`` is refused there, naming both counts and the limit, no job made."""
     large, faces = meshes["large"]
-    job = post(client, large, SIZE).json()
-    failed = wait_for(client, job["id"], "failed", timeout=120)
-    assert "[limits] max_faces" in failed["error"], failed["error"]
-    assert str(faces) in failed["error"] and str(MAX_FACES) in failed["error"]
+    before = client.get("/jobs").json()
+    r = post(client, large, SIZE)
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert "[limits] max_faces" in detail and str(faces) in detail and str(MAX_FACES) in detail, detail
+    assert client.get("/jobs").json() == before
 
 
 def test_solver_settings_take_effect(client: httpx.Client, small: Path) -> None:

@@ -30,6 +30,9 @@ FRAME = load_profile("ultimaker2-tpu").frame
 LAYOUT_MARGIN = 10.0                                   # SolverSettings.layout_margin default
 SIGMA2_MAX = 15.0 * 1.6 / (15.0 + 1.5 * 0.6)          # Eq. 10 at μ2 = l_r, defaults: ≈ 1.5094
 STAGES = ("load", "curvature", "flatten", "write")
+#: The refined target's bounding box against the file's: refinement moves only new vertices, onto
+#: quadric fits of the surface, which can reach a hair past the file's extremes.
+REFINED_BBOX = 1e-5
 
 #: The cylinder of most tests: radius 40 mm, 120° around the z-axis, 60 mm high, 1600 faces.
 CYL_RADIUS, CYL_ANGLE, CYL_HEIGHT = 40.0, 120.0, 60.0
@@ -134,7 +137,7 @@ def cylinder(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     mesh = tmp / "cylinder.obj"
     write_obj(mesh, V, F)
     out = tmp / "design"
-    proc = run_design(mesh, out, predict=True)
+    proc = run_design(mesh, out, "--size", "fit", predict=True)     # the largest that fits the frame
     return {"mesh": mesh, "V": V, "F": F, "out": out, "proc": proc}
 
 
@@ -269,7 +272,7 @@ def test_progress_and_summary(cylinder: dict[str, Any]) -> None:
 
 def test_quiet_prints_only_the_summary(cylinder: dict[str, Any], tmp_path: Path) -> None:
     out = tmp_path / "q"
-    proc = run_design(cylinder["mesh"], out, "-q")
+    proc = run_design(cylinder["mesh"], out, "-q", "--size", "fit")
     assert proc.returncode == 0, proc.stderr
     assert all("warning" in line.lower() for line in stderr_lines(proc.stderr)), proc.stderr
     assert proc.stdout.startswith("design ") and "k1 deviation" in proc.stdout
@@ -310,6 +313,8 @@ def test_size_sets_the_bounding_box_diagonal(cylinder: dict[str, Any], tmp_path:
     assert proc.returncode == 0, proc.stderr
     d = design_json(out)
     assert d["parameters"]["size"]["bbox_diagonal"] == 50
+    assert d["report"]["scale"]["rule"] == "size"
+    assert d["report"]["scale"]["factor"] == pytest.approx(50.0 / bbox_diagonal(cylinder["V"]), rel=REFINED_BBOX)
     folder = read_design_folder(out)
     assert bbox_diagonal(folder.target_V) == pytest.approx(50.0, rel=1e-6)
     assert_in_frame(folder.flat_V, LAYOUT_MARGIN)
@@ -317,6 +322,49 @@ def test_size_sets_the_bounding_box_diagonal(cylinder: dict[str, Any], tmp_path:
     _, radius = fit_circle(folder.target_V[:, :2])
     assert radius == pytest.approx(CYL_RADIUS * 50.0 / bbox_diagonal(cylinder["V"]), rel=1e-4)
     assert np.median(d["faces"]["kappa1"]) == pytest.approx(1.0 / radius, rel=0.03)
+
+
+def test_without_size_the_files_units_are_mm_and_the_summary_says_so(cylinder: dict[str, Any],
+                                                                    tmp_path: Path) -> None:
+    """Issue 36 item 6: one rule for a design and a project: without --size the file's units are mm
+    (the cylinder's file is 93.8 mm across: so is the design), and report.scale and the summary's
+    ``size`` line say which rule gave the size; --help states it."""
+    out = tmp_path / "d"
+    proc = run_design(cylinder["mesh"], out, "-q")
+    assert proc.returncode == 0, proc.stderr
+    diag = bbox_diagonal(cylinder["V"])
+    folder = read_design_folder(out)
+    assert bbox_diagonal(folder.target_V) == pytest.approx(diag, rel=REFINED_BBOX)
+    scale = design_json(out)["report"]["scale"]
+    assert scale["rule"] == "file" and scale["factor"] == 1.0
+    assert scale["source_diagonal"] == pytest.approx(bbox_diagonal(folder.target_V), rel=1e-8)   # target.obj: 9+ digits
+    assert re.search(rf"^size\s+{diag:.1f} mm bounding-box diagonal: the file's units read as mm", proc.stdout, re.M)
+    helptext = subprocess.run([sys.executable, "-m", "ribbond.client.cli", "design", "--help"], cwd=ROOT,
+                              capture_output=True, text=True, timeout=60).stdout
+    assert "file's units are read as mm, for a design and for --panels alike" in " ".join(helptext.split())
+
+
+def test_size_fit_is_reported_as_a_scaling(cylinder: dict[str, Any]) -> None:
+    """--size fit scales to the largest that fits the frame: report.scale gives the factor (the
+    design's diagonal over the file's) and the summary says SCALED."""
+    d = design_json(cylinder["out"])
+    scale, size = d["report"]["scale"], d["parameters"]["size"]["bbox_diagonal"]
+    diag = bbox_diagonal(cylinder["V"])
+    assert scale["rule"] == "fit" and scale["source_diagonal"] == pytest.approx(diag, rel=REFINED_BBOX)
+    assert scale["factor"] == pytest.approx(size / scale["source_diagonal"], rel=1e-9) and scale["factor"] > 1
+    assert re.search(rf"^size\s+{size:.1f} mm bounding-box diagonal: SCALED × {scale['factor']:.4g} from the "
+                     rf"file's {diag:.4g}", cylinder["proc"].stdout, re.M), cylinder["proc"].stdout
+
+
+def test_a_file_too_large_for_one_sheet_is_refused_naming_fit_and_panels(cylinder: dict[str, Any],
+                                                                         tmp_path: Path) -> None:
+    V, F = cylinder["V"] * 3.0, cylinder["F"]                       # 281 mm across in its file
+    mesh = tmp_path / "big.obj"
+    write_obj(mesh, V, F)
+    proc = run_design(mesh, tmp_path / "d", "-q")
+    assert proc.returncode == 1, proc.stderr
+    assert f"at size {bbox_diagonal(V):.1f} mm (bounding-box diagonal, the file's units read as mm)" in proc.stderr
+    assert "(--size fit)" in proc.stderr and "--panels" in proc.stderr, proc.stderr
 
 
 def test_size_too_large_is_refused(cylinder: dict[str, Any], tmp_path: Path) -> None:
@@ -342,6 +390,30 @@ def test_size_too_large_leaves_an_existing_folder_alone(cylinder: dict[str, Any]
     assert proc.returncode == 1
     assert snapshot(out) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["existing"]    # no leftovers
+
+
+def test_a_destination_that_is_not_a_design_folder_is_refused_before_any_stage(tmp_path: Path) -> None:
+    """Issue 36 item 4: ``-o DIR`` naming a folder that is not a design folder (or a file) is refused
+    first, before the design's stages run, and left as it was; so is a project's (``--panels``)."""
+    V, F = surfaces.cylinder_patch(CYL_RADIUS, CYL_ANGLE, CYL_HEIGHT, n_around=20, n_along=10)
+    mesh = tmp_path / "cylinder.obj"
+    write_obj(mesh, V, F)
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "thesis.tex").write_text("mine\n")
+    plain = tmp_path / "plain.txt"
+    plain.write_text("mine\n")
+    for out, extra, words in ((notes, (), "not a design folder"), (plain, (), "not a directory"),
+                              (notes, ("--panels", "2"), "not a project folder"),
+                              (plain, ("--panels", "2"), "not a directory")):
+        before = sorted(p.name for p in tmp_path.rglob("*"))
+        proc = run_design(mesh, out, *extra)
+        assert proc.returncode == 2, (out, extra, proc.stderr)
+        assert words in proc.stderr and str(out) in proc.stderr, proc.stderr
+        assert not any(re.match(rf"{stage}\s", line) for line in stderr_lines(proc.stderr)
+                       for stage in ("load", "curvature", "flatten", "cut")), proc.stderr
+        assert sorted(p.name for p in tmp_path.rglob("*")) == before
+        assert (notes / "thesis.tex").read_text() == "mine\n" and plain.read_text() == "mine\n"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -440,7 +512,7 @@ def test_params_file_is_applied_and_recorded(cylinder: dict[str, Any], tmp_path:
     params.write_text("smoothing_lambda = -0.1\nribbon_width = 1.2\n\n"
                       "[solver]\nlayout_margin = 25.0\nmax_iterations = 500\n")
     out = tmp_path / "d"
-    proc = run_design(cylinder["mesh"], out, "-q", "--params", str(params))
+    proc = run_design(cylinder["mesh"], out, "-q", "--params", str(params), "--size", "fit")
     assert proc.returncode == 0, proc.stderr
     d = design_json(out)
     p = d["parameters"]
@@ -578,5 +650,11 @@ def test_panels_write_a_project_folder(tmp_path: Path) -> None:
     # the project's verdict, as every project is shown (issue 36): without a prediction, not known
     assert "verdict     reached: not known: compiled without a prediction" in r.stdout, r.stdout
     assert "deployed.png" not in r.stdout and not (out / "deployed.png").exists()
+    # the same rule as a design's: no --size, the file's units are mm, and the summary says so
+    V, _ = surfaces.sphere_cap(50.0, 40.0, rings=12)
+    assert project["size"]["bbox_diagonal"] == pytest.approx(bbox_diagonal(V), abs=1e-3)
+    assert re.search(r"^size\s+[\d.]+ mm bounding-box diagonal: the file's units read as mm", r.stdout, re.M)
+    fit = run_design(mesh, tmp_path / "y", "--panels", "2", "--size", "fit")
+    assert fit.returncode == 2 and "--size fit" in fit.stderr and not (tmp_path / "y").exists()
     bad = run_design(mesh, tmp_path / "x", "--panels", "0")
     assert bad.returncode != 0 and "panels" in bad.stderr

@@ -293,14 +293,27 @@ def test_load_target_messages_start_with_the_file_name(tmp_path: Path) -> None:
 
 
 def test_load_target_reports_non_finite_with_file_indices(tmp_path: Path) -> None:
+    """Issue 36 item 12: a NaN on an OBJ's 5th 'v' line is vertex 5 on that line, as the file's
+    faces number it (from 1) and as face errors name their line; a comment line before it moves
+    the line, not the number. OFF numbers its vertices from 0 and has no line per vertex."""
     V, F, _ = grid(2)
-    (tmp_path / "nan.obj").write_text(
-        "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in V.tolist()).replace(
-            "v 0.5 0.5", "v nan 0.5", 1)
-        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F.tolist()))
+    vertices = "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in V.tolist()).replace("v 0.5 0.5", "v nan 0.5", 1)
+    faces = "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F.tolist())
+    assert vertices.splitlines()[4].startswith("v nan")                    # (0.5, 0.5) is the 5th
+    for header, line in (("", 5), ("# a comment\n\n", 7)):
+        (tmp_path / "nan.obj").write_text(header + vertices + faces)
+        with pytest.raises(MeshError) as exc:
+            load_target(tmp_path / "nan.obj", max_faces=100)
+        assert exc.value.problem == "non_finite" and f"vertex 5 on line {line} at (nan, 0.5" in str(exc.value), \
+            str(exc.value)
+    bad = V.copy()
+    bad[4, 0] = np.nan
+    (tmp_path / "nan.off").write_text(f"OFF\n{len(bad)} {len(F)} 0\n"
+                                      + "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in bad.tolist())
+                                      + "".join(f"3 {a} {b} {c}\n" for a, b, c in F.tolist()))
     with pytest.raises(MeshError) as exc:
-        load_target(tmp_path / "nan.obj", max_faces=100)
-    assert exc.value.problem == "non_finite" and "vertex 4" in str(exc.value)  # (0.5, 0.5) is 4
+        load_target(tmp_path / "nan.off", max_faces=100)
+    assert "vertex 4 at (nan, 0.5" in str(exc.value) and "line" not in str(exc.value), str(exc.value)
 
 
 def test_check_disk_is_fast_on_a_big_grid() -> None:

@@ -17,7 +17,7 @@ from ribbond.daemon.records import NotFound
 from ribbond.daemon.store import Transition
 from ribbond.design.params import parameters_from_json
 
-from ..deps import Service, file_response, job_status
+from ..deps import FormBool, Service, file_response, form_fields, job_status
 from ..errors import responses
 from ..models import JOB_FILES, Ident, JobFile, JobStatus, PredictRequest
 from ..openapi import file_content, links
@@ -72,25 +72,29 @@ async def spooled(service: Any, upload: UploadFile) -> AsyncIterator[Path]:
 
 
 @router.post("/jobs", status_code=201, response_model=JobStatus,
+             dependencies=[form_fields("mesh", "gcode", "parameters", "start", "same_frame",
+                                       booleans=("start", "same_frame"))],
              responses={**responses(409, mutating=True, body=True),
                         201: {"links": links("job_id=$response.body#/id", JOB_LINKS)}})
 async def submit(service: Service,
                  mesh: Annotated[UploadFile | None, File(description="OBJ, PLY, STL or OFF: a design")] = None,
                  gcode: Annotated[UploadFile | None, File(description="a plain G-code program")] = None,
                  parameters: Annotated[str, Form(description="design parameters, JSON")] = "{}",
-                 start: Annotated[bool, Form(description="print as soon as it is ready")] = False,
-                 same_frame: Annotated[bool, Form(description="a G-code program that prints on the frame as it "
-                                                  "is: no fresh frame is asked for before it")] = False,
+                 start: Annotated[FormBool, Form(description="print as soon as it is ready")] = "false",
+                 same_frame: Annotated[FormBool, Form(description="a G-code program that prints on the frame as "
+                                                      "it is: no fresh frame is asked for before it")] = "false",
                  ) -> JobStatus:
-    """Upload a mesh (a design is compiled from it) or a G-code program (checked against the profile)."""
-    params = parse_parameters(parameters, mesh is not None, gcode is not None, same_frame)
+    """Upload a mesh (a design is compiled from it) or a G-code program (checked against the profile).
+    A mesh is read and validated at once, as the compile's intake reads it: a file the engine cannot
+    use is refused (422 naming the problem and its line) and nothing is kept."""
+    now, same = start == "true", same_frame == "true"
+    params = parse_parameters(parameters, mesh is not None, gcode is not None, same)
     upload = mesh if mesh is not None else gcode
     assert upload is not None
     async with spooled(service, upload) as tmp:
         if mesh is not None:
-            return job_status(service, service.submit(tmp, mesh.filename or "mesh.obj", params, start))
-        return job_status(service, await service.submit_gcode(tmp, upload.filename or "program.gcode", start,
-                                                              same_frame))
+            return job_status(service, await service.submit(tmp, mesh.filename or "mesh.obj", params, now))
+        return job_status(service, await service.submit_gcode(tmp, upload.filename or "program.gcode", now, same))
 
 
 @router.get("/jobs", response_model=list[JobStatus], responses=responses(422))

@@ -8,7 +8,7 @@ from typing import Annotated
 from fastapi import APIRouter, File, Form, Query, UploadFile
 from fastapi.responses import FileResponse
 
-from ..deps import Service, file_response
+from ..deps import FormBool, Service, file_response, form_fields
 from ..errors import responses
 from ..models import Ident, ProjectFile, ProjectStatus
 from ..openapi import file_content, links
@@ -24,6 +24,8 @@ PANELS = "^(auto|[2-9]|1[0-6])$"
 
 
 @router.post("/projects", status_code=201, response_model=ProjectStatus,
+             dependencies=[form_fields("mesh", "parameters", "panels", "seam_allowance", "start",
+                                       booleans=("start",))],
              responses={**responses(409, mutating=True, body=True),
                         201: {"links": links("project_id=$response.body#/id", PROJECT_LINKS)}})
 async def submit_project(service: Service,
@@ -33,13 +35,16 @@ async def submit_project(service: Service,
                                                      json_schema_extra={"pattern": PANELS})] = "auto",
                          seam_allowance: Annotated[float, Form(ge=0.0, le=30.0, description="fabric left around "
                                                                "each panel for its seams, mm")] = 6.0,
-                         start: Annotated[bool, Form(description="print the panels, in order, once compiled")] = False,
+                         start: Annotated[FormBool, Form(description="print the panels, in order, once "
+                                                         "compiled")] = "false",
                          ) -> ProjectStatus:
-    """Upload a mesh to print in panels: compiled once, then one two-sided job per panel."""
+    """Upload a mesh to print in panels: compiled once, then one two-sided job per panel. The mesh is
+    read and validated at once, as a job's is (422 naming the problem; nothing kept)."""
     params = parse_parameters(parameters, True, False, False)
     async with spooled(service, mesh) as tmp:
-        return ProjectStatus.model_validate(service.submit_project(tmp, mesh.filename or "mesh.obj", params, panels,
-                                                                   seam_allowance, start))
+        project = await service.submit_project(tmp, mesh.filename or "mesh.obj", params, panels, seam_allowance,
+                                               start == "true")
+    return ProjectStatus.model_validate(project)
 
 
 @router.get("/projects", response_model=list[ProjectStatus], responses=responses(422))

@@ -21,15 +21,12 @@ from __future__ import annotations
 
 import asyncio
 import re
-import shutil
-import tempfile
 from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
 from ribbond import __version__
-from ribbond.design.intake import load_target
-from ribbond.design.params import parameters_from_json, settings_from_dict
+from ribbond.design.params import parameters_from_json
 from ..jobs import JobState
 from ..records import JobRecords, ServiceError
 from ..store import JobRecord
@@ -127,32 +124,24 @@ def design_parameters(userdata: str, gcode: bool) -> dict[str, Any]:
         raise UploadRefused(str(exc)) from None
 
 
-def _checked_name(name: str) -> str:
-    """The upload's base name, in characters every file system takes (at most 100 + the suffix)."""
-    base = Path(name.replace("\\", "/")).name
-    stem, suffix = Path(base).stem, Path(base).suffix.lower()
-    return (re.sub(r"[^A-Za-z0-9._-]", "_", stem)[:100] or "mesh") + suffix
-
-
 class OctoPrintCompat:
     """Slicer uploads made jobs, and the job and printer shown as OctoPrint shows them.
 
     ``submit_mesh`` and ``submit_gcode`` are the service's own submits (every check of theirs
     applies); ``status`` is a job as people see it (its progress and time left); ``printer_status``
     the manual control's view of the printer; ``suffixes`` the mesh and the G-code file suffixes
-    the service takes; ``max_faces`` the daemon's ``[limits] max_faces``."""
+    the service takes."""
 
     def __init__(self, records: JobRecords, state: PrintState, head: Head,
-                 submit_mesh: Callable[[Path, str, dict[str, Any], bool], JobRecord],
+                 submit_mesh: Callable[[Path, str, dict[str, Any], bool], Awaitable[JobRecord]],
                  submit_gcode: Callable[[Path, str, bool], Awaitable[JobRecord]],
                  status: Callable[[JobRecord], dict[str, Any]],
                  printer_status: Callable[[], Awaitable[dict[str, Any]]],
-                 suffixes: tuple[tuple[str, ...], tuple[str, ...]], max_faces: int) -> None:
+                 suffixes: tuple[tuple[str, ...], tuple[str, ...]]) -> None:
         self.records, self.state, self.head = records, state, head
         self.submit_mesh, self.submit_gcode, self.status = submit_mesh, submit_gcode, status
         self.printer_status = printer_status
         self.mesh_suffixes, self.gcode_suffixes = suffixes
-        self.max_faces = max_faces
 
     # ------------------------------------------------------------------ uploads
 
@@ -193,15 +182,9 @@ class OctoPrintCompat:
                               f"nor a mesh to make a design of ({', '.join(self.mesh_suffixes)})")
 
     async def _mesh_job(self, path: Path, name: str, params: dict[str, Any], start: bool) -> JobRecord:
-        """The mesh read and checked as the compile's intake reads it (in a thread: the printer's
-        stream goes on), then submitted as a design job."""
-        solver = settings_from_dict(params).solver
-        with tempfile.TemporaryDirectory(dir=path.parent, prefix="mesh-") as folder:
-            named = Path(folder) / _checked_name(name)       # the reader goes by the suffix
-            shutil.move(str(path), named)
-            await asyncio.to_thread(load_target, named, max_faces=min(solver.max_faces, self.max_faces),
-                                    merge_tolerance=solver.merge_tolerance)
-            return self.submit_mesh(named, name, params, start)
+        """A design job of the mesh: the service's submit reads and checks it as the compile's
+        intake will before the job exists, as it does for every route."""
+        return await self.submit_mesh(path, name, params, start)
 
     # ------------------------------------------------------------------ what a slicer is shown
 

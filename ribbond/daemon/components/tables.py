@@ -46,6 +46,15 @@ class TableLibrary:
             raise ValueError(f"curvature_table {name!r} {what}; the daemon's tables: {', '.join(known)} "
                              "(add one with 'ribbonctl tables add FILE')")
 
+    def check_prestretch(self, name: str, prestretch: float) -> None:
+        """A design's ``prestretch`` must be the one its table was measured at (the compile refuses
+        it otherwise, after the upload): ValueError naming both."""
+        table, _ = self._table(name)
+        if abs(table.prestretch - prestretch) > 1e-9:
+            raise ValueError(f"prestretch = {prestretch:g}: the curvature table {name!r} was measured at "
+                             f"pre-stretch s = {table.prestretch:g}; give prestretch = {table.prestretch:g}, or "
+                             "a curvature_table measured at that pre-stretch (GET /tables, 'ribbonctl tables')")
+
     def _table(self, name: str) -> tuple[CurvatureTable, str]:
         source = self.table_names().get(name)
         if source is None:
