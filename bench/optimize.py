@@ -95,7 +95,7 @@ def report(r: dict) -> None:
           f" goal ≤ {GOAL_MEAN_PCT} % and ≤ {GOAL_RATIO} × forward above 1 %: {_met(goal)})")
     print(f"  ∫K predicted / target {fk:.3f} → {ok:.3f} (target {kt:+.3f}; goal within {100 * GOAL_K:.0f} %: "
           f"{_met(abs(ok - 1) <= GOAL_K)}); reached {f.reached} → {o.reached}")
-    print(f"  optimization {opt.time_s:.1f} s, stage (with the forward nominal prediction) {r['stage_s']:.1f} s "
+    print(f"  optimization {opt.time_s:.1f} s, stage (with both layouts' predictions) {r['stage_s']:.1f} s "
           f"(goal ≤ {GOAL_S:.0f} s: {_met(r['stage_s'] <= GOAL_S)}); {opt.iterations} iterations, "
           f"{opt.evaluations} evaluations, {opt.newton_iterations} Newton iterations, {opt.stopped}; "
           f"RMS {100 * np.sqrt(opt.objective_forward):.2f} → {100 * np.sqrt(opt.objective):.2f} % on {opt.faces} faces; "
