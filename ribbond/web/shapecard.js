@@ -17,8 +17,9 @@ export const reachedOf = (design) => design?.report?.deployed?.reached;
 export function printWarningHTML(design) {
   const d = design?.report?.deployed;
   if (!d || d.reached !== false) return "";
+  const why = String(d.verdict || "").replace(/^will NOT take the target's shape:\s*/i, "");
   return `<span class="print-warning" id="print-warning"><strong>Predicted NOT to take the target's shape</strong>` +
-    `${d.verdict ? `: ${esc(d.verdict)}` : ""} (<a href="#j-shape" data-goto="j-shape">see it in 3D</a>).</span>`;
+    `${why ? `: ${esc(why)}` : ""} (<a href="#j-shape" data-goto="j-shape">see it in 3D</a>).</span>`;
 }
 
 /** The colour bar: 0 to ``vmax`` % of the diagonal, five ticks, the diagonal in mm. */
@@ -29,10 +30,18 @@ function legendHTML(vmax, diagonal) {
     (${Number(diagonal).toFixed(1)} mm); the top colour: ${vmax.toFixed(1)} % or more</p>`;
 }
 
+const LABELS = { target: "target", deployed: "prediction", both: "prediction, the target's edges over it" };
+
 export class ShapeCard {
   constructor() {
     this.view = new ShapeView($("shape-canvas"));
     this.key = "";
+    this.view.onDraw = (panes) => {                 // each pane named in its corner
+      const key = JSON.stringify(panes);
+      if ($("shape-labels").dataset.key === key) return;
+      $("shape-labels").dataset.key = key;
+      $("shape-labels").innerHTML = panes.map((p) => `<span style="left:${p.left}px;top:${p.top}px">${LABELS[p.what]}</span>`).join("");
+    };
     // "see it in 3D" beside Print: a scroll, not a route (the page's routes live in the hash)
     document.addEventListener("click", (e) => {
       const a = e.target.closest("a[data-goto]");
@@ -45,6 +54,7 @@ export class ShapeCard {
       if (!b) return;
       if (b.dataset.mode === "reset") { this.view.reset(); return; }
       this.view.setMode(b.dataset.mode);
+      $("shape-canvas").classList.toggle("side", b.dataset.mode === "side");
       for (const o of $("shape-modes").querySelectorAll("button[data-mode]")) o.classList.toggle("on", o === b);
     });
   }

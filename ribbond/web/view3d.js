@@ -180,7 +180,7 @@ function upload(gl, mesh) {
 
 // ------------------------------------------------------------------ the view
 
-const GREY = [0.74, 0.75, 0.78], LINE = [0.35, 0.37, 0.42];
+const GREY = [0.74, 0.75, 0.78], LINE = [0.15, 0.16, 0.2];
 const fill = (n, rgb) => { const c = new Float32Array(3 * n); for (let i = 0; i < c.length; i++) c[i] = rgb[i % 3]; return c; };
 
 /** The prediction's colours: each vertex's distance as % of the diagonal over [0, vmax]. */
@@ -198,7 +198,7 @@ export class ShapeView {
   constructor(canvas) {
     this.canvas = canvas;
     this.gl = context(canvas);
-    this.mode = "both";
+    this.mode = "side";
     this.meshes = {};
     this.reset();
     if (!this.gl) return;
@@ -246,12 +246,22 @@ export class ShapeView {
     this.reset();
   }
 
-  /** ``both`` (the prediction, the target as lines), ``deployed`` or ``target``. */
+  /** ``side`` (the target beside the prediction), ``both`` (the prediction, the target's edges over
+   * it), ``deployed`` or ``target``. */
   setMode(mode) { this.mode = mode; this.draw(); }
 
   draw() {
     if (!this.gl || this.frame) return;
     this.frame = requestAnimationFrame(() => { this.frame = 0; this.render(); });
+  }
+
+  /** The parts of the canvas drawn: side by side (the target, then the prediction; one above the
+   * other on a tall canvas), or one view of the whole. [x, y, w, h, what] in device pixels, y up. */
+  panes(w, h) {
+    if (this.mode !== "side") return [[0, 0, w, h, this.mode]];
+    if (w >= h) { const a = Math.floor(w / 2); return [[0, 0, a, h, "target"], [a, 0, w - a, h, "deployed"]]; }
+    const b = Math.floor(h / 2);
+    return [[0, h - b, w, b, "target"], [0, 0, w, h - b, "deployed"]];
   }
 
   render() {
@@ -265,21 +275,27 @@ export class ShapeView {
     if (!this.meshes.target) return;
     gl.enable(gl.DEPTH_TEST);
     gl.useProgram(this.prog);
-    const aspect = w / h;
+    gl.uniformMatrix3fv(this.uni.rotation, false, this.turn);
+    gl.uniform1f(this.uni.scale, this.scale * this.zoom);
+    const panes = this.panes(w, h);
+    for (const [x, y, pw, ph, what] of panes) this.pane(x, y, pw, ph, what);
+    this.onDraw?.(panes.map(([x, y, pw, ph, what]) => ({ left: x / dpr, top: (h - y - ph) / dpr, what })));
+    c.dataset.frames = String(Number(c.dataset.frames || 0) + 1);     // drawn (the browser tests wait for it)
+  }
+
+  pane(x, y, w, h, what) {
+    const gl = this.gl, aspect = w / h;
+    gl.viewport(x, y, w, h);
     // the unit sphere fills the shorter side at zoom 1 (camera 3.2 away, 36° on the shorter side)
     const fovy = aspect >= 1 ? 0.63 : 2 * Math.atan(Math.tan(0.315) / aspect);
     gl.uniformMatrix4fv(this.uni.projection, false, perspective(fovy, aspect, 0.1, 20));
-    gl.uniformMatrix3fv(this.uni.rotation, false, this.turn);
-    gl.uniform1f(this.uni.scale, this.scale * this.zoom);
     gl.disable(gl.BLEND);
-    if (this.mode !== "target") this.mesh(this.meshes.deployed, false, 1, 1);
-    if (this.mode === "target") this.mesh(this.meshes.target, false, 1, 1);
-    if (this.mode === "both") {                    // the target's edges, faint, over the prediction
+    this.mesh(what === "target" ? this.meshes.target : this.meshes.deployed, false, 1, 1);
+    if (what === "both") {                         // the target's edges, faint, over the prediction
       gl.enable(gl.BLEND);
       gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA);
-      this.mesh(this.meshes.targetLines, true, 0, 0.45);
+      this.mesh(this.meshes.targetLines, true, 0, 0.3);
     }
-    c.dataset.frames = String(Number(c.dataset.frames || 0) + 1);     // drawn (the browser tests wait for it)
   }
 
   mesh(m, lines, lit, alpha) {

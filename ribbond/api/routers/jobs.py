@@ -135,11 +135,9 @@ async def job_file(service: Service, job_id: Ident, name: JobFile) -> FileRespon
 
 
 @router.get("/jobs/{job_id}/deviation", response_model=ShapeDeviation, responses=responses(404, 422))
-def deviation(service: Service, job_id: Ident) -> ShapeDeviation:
-    """The distance of each vertex of the predicted shape to the target (the dashboard's 3D view).
-
-    A plain ``def``: the measure (tens of ms) runs in the thread pool, not on the event loop."""
-    return ShapeDeviation.model_validate(service.shapes.deviation(service.job(job_id)))
+async def deviation(service: Service, job_id: Ident) -> ShapeDeviation:
+    """The distance of each vertex of the predicted shape to the target (the dashboard's 3D view)."""
+    return ShapeDeviation.model_validate(await service.shapes.deviation(service.job(job_id)))
 
 
 @router.post("/jobs/{job_id}/start", response_model=JobStatus, responses=JOB_ACTION)

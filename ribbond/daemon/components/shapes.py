@@ -6,6 +6,7 @@ distances are measured here from the two meshes, once per prediction written, an
 
 from __future__ import annotations
 
+import asyncio
 from collections import OrderedDict
 from pathlib import Path
 from typing import Any
@@ -26,10 +27,11 @@ class Shapes:
     def __init__(self) -> None:
         self._kept: OrderedDict[tuple[str, int, int], dict[str, Any]] = OrderedDict()
 
-    def deviation(self, job: JobRecord) -> dict[str, Any]:
+    async def deviation(self, job: JobRecord) -> dict[str, Any]:
         """``{"vertices", "distance_mm": [k], "diagonal_mm", "deviation_pct": {mean, p99, max}}``.
 
-        Raises ``NotFound`` when the job has no prediction (no design, or ``deployed.obj`` absent)."""
+        Raises ``NotFound`` when the job has no prediction (no design, or ``deployed.obj`` absent). The
+        meshes are read and measured in a thread (tens of ms): the event loop goes on."""
         folder = Path(job.design_dir) if job.kind == "design" and job.design_dir else None
         deployed = folder / "deployed.obj" if folder else None
         if deployed is None or not deployed.is_file() or not (folder / "target.obj").is_file():
@@ -40,12 +42,17 @@ class Shapes:
         if key in self._kept:
             self._kept.move_to_end(key)
             return self._kept[key]
-        V, _ = read_mesh(deployed)
-        target_V, target_F = read_mesh(folder / "target.obj")
-        d = registered_deviation(V, target_V, target_F)
-        kept = {"vertices": len(V), "distance_mm": d.distance.tolist(), "diagonal_mm": d.diagonal,
-                "deviation_pct": d.as_dict()}
+        kept = await asyncio.to_thread(measure, deployed, folder / "target.obj")
         self._kept[key] = kept
         while len(self._kept) > KEPT:
             self._kept.popitem(last=False)
         return kept
+
+
+def measure(deployed: Path, target: Path) -> dict[str, Any]:
+    """The distances of ``deployed`` (an OBJ registered onto the target) to the ``target`` OBJ."""
+    V, _ = read_mesh(deployed)
+    target_V, target_F = read_mesh(target)
+    d = registered_deviation(V, target_V, target_F)
+    return {"vertices": len(V), "distance_mm": d.distance.tolist(), "diagonal_mm": d.diagonal,
+            "deviation_pct": d.as_dict()}
