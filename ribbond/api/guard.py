@@ -43,7 +43,7 @@ Send = Callable[[Message], Awaitable[None]]
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 #: Paths served without the token: the API's documentation and the dashboard's static files (they
 #: hold no data; the page asks for the token when the API answers 401).
-OPEN_PATHS = frozenset({"/", "/docs", "/openapi.json"})
+OPEN_PATHS = frozenset({"/", "/docs", "/openapi.json", "/favicon.ico"})
 OPEN_PREFIXES = ("/docs-assets/", "/ui/")
 _DEFAULT_PORTS = {"http": 80, "https": 443}
 

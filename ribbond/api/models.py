@@ -51,6 +51,17 @@ class NextStep(BaseModel):
     commands: list[str] = Field(description="the exact commands possible now")
 
 
+class ShapeDeviation(BaseModel):
+    """The predicted shape (``deployed.obj``, registered onto ``target.obj``) against the target, per vertex."""
+
+    vertices: int = Field(ge=1, description="vertices of deployed.obj, in its order")
+    distance_mm: list[float] = Field(description="each vertex's distance to the target surface, mm, in "
+                                                 "deployed.obj's order")
+    diagonal_mm: float = Field(gt=0, description="the target's bounding-box diagonal, mm")
+    deviation_pct: dict[str, float] = Field(description="mean, p99 and max of the distances, % of the diagonal "
+                                                        "(report.deployed.deviation_pct's measure)")
+
+
 class Snapshot(BaseModel):
     """A camera snapshot kept with a job at a side's end."""
 
@@ -105,7 +116,7 @@ class ProjectPanel(BaseModel):
     progress: float = Field(0.0, ge=0.0, le=1.0, description="of the panel's print, both sides")
     print_side: str | None = None
     waits_for_operator: bool = False
-    at_gate: bool = Field(False, description="queued and waiting for a fresh stretched fabric (frame-ready)")
+    at_gate: bool = Field(False, description="queued and waiting for a fresh stretched frame (frame-ready)")
     queued: bool = Field(False, description="ready and queued to print")
     next: NextStep | None = Field(None, description="what the operator does next for this panel's job")
     faces: int | None = None
@@ -129,7 +140,7 @@ class ProjectStatus(ProjectRecord):
 
     state: Literal["submitted", "compiling", "ready", "printing", "waiting", "done", "failed",  # type: ignore[assignment]
                    "cancelled"] = Field(description="compiling, then ready (not started), printing or waiting "
-                                                    "(for the operator: a fresh fabric, the flip, a mark), done")
+                                                    "(for the operator: a fresh frame, the flip, a mark), done")
     current_panel: int | None = Field(None, description="the panel on the printer, or next to go on it")
     panels_done: int = Field(0, ge=0)
     panels: list[ProjectPanel] = Field(default_factory=list, description="the panel map, by panel")

@@ -66,6 +66,7 @@ from .components.resume import Resumer, modal_state
 from .components.run import PrintState, Stream, stream_rate
 from .components.tables import TableLibrary
 from .components.temperatures import TemperatureHistory
+from .components.shapes import Shapes
 from .components.verdicts import Verdicts
 from .config import DaemonConfig
 from .events import EventBus
@@ -172,6 +173,7 @@ class RibbonService:
         self.verdicts = Verdicts(self.jobs_dir)          # the design's verdict in each status (issue 22)
         self.predictor = Predictor(self.records, self.library.tables_dir, python, self.library.check_table_name,
                                    lambda job_id: self.verdicts.forget(job_id, self.job(job_id).design_dir))
+        self.shapes = Shapes()                           # the prediction's deviation per vertex (issue 36)
         self.temperatures = TemperatureHistory()         # the last 30 minutes, for the chart (issue 22)
         self.projects = Projects(config, self.records, self.library.tables_dir, python, self.state.queue_print,
                                  self.status, self.cancel, self.start_job)          # a mesh in panels (issue 26)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import igl
 import numpy as np
 
-__all__ = ["kabsch", "Deviation", "surface_deviation"]
+__all__ = ["kabsch", "Deviation", "surface_deviation", "registered_deviation"]
 
 
 def kabsch(P: np.ndarray, Q: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -76,7 +76,25 @@ def surface_deviation(X: np.ndarray, X_target: np.ndarray, target_V: np.ndarray,
     target_V : (n, 3), target_F : (m, 3) the target surface (distances are to it).
     """
     R, t = kabsch(X, X_target)
-    Y = X @ R.T + t
+    return registered_deviation(X @ R.T + t, target_V, target_F)
+
+
+def registered_deviation(Y: np.ndarray, target_V: np.ndarray, target_F: np.ndarray) -> Deviation:
+    """Measure a surface already registered onto the target (``deployed.obj``) against it.
+
+    Parameters
+    ----------
+    Y : (k, 3) the registered vertices, mm; target_V : (n, 3), target_F : (m, 3) the target surface.
+
+    Returns
+    -------
+    The distance of each vertex of Y to its closest point on the target surface (k,) and its figures.
+    """
+    Y = np.ascontiguousarray(Y, dtype=np.float64)
+    if Y.ndim != 2 or Y.shape[1] != 3 or not len(Y):
+        raise ValueError(f"the registered surface must be (k, 3) vertices with k ≥ 1, got {Y.shape}")
+    if not np.all(np.isfinite(Y)):
+        raise ValueError("the registered surface has a vertex that is not finite")
     TV = np.ascontiguousarray(target_V, dtype=np.float64)
     TF = np.ascontiguousarray(target_F, dtype=np.int64)
     d2, _, _ = igl.point_mesh_squared_distance(np.ascontiguousarray(Y), TV, TF)

@@ -49,6 +49,12 @@ export async function fileURL(jobId, name, kind = "jobs") {
   return URL.createObjectURL(await r.blob());
 }
 
+/** A job file's text (an OBJ), or null when it is not there. */
+export async function fileText(jobId, name) {
+  const r = await fetch(`/jobs/${encodeURIComponent(jobId)}/files/${name}`, { headers: headers() });
+  return r.ok ? r.text() : null;
+}
+
 export async function fileJSON(jobId, name) {
   const r = await fetch(`/jobs/${encodeURIComponent(jobId)}/files/${name}`, { headers: headers() });
   return r.ok ? r.json() : null;

@@ -7,6 +7,8 @@ import { layoutSVG, flipSVG, backSVG } from "./draw.js";
 import { panelMapSVG, legendHTML, projectCardHTML, panelListHTML, seamsHTML } from "./project.js";
 import { CameraView } from "./camera.js";
 import { loadNotify, takeDelivery } from "./notify.js";
+import { ShapeCard, printWarningHTML } from "./shapecard.js";
+import { sortJobs, endedDuration, downloads } from "./joblist.js";
 
 const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
@@ -266,13 +268,17 @@ function sizeOf(j) {
 
 function percent(j) { return `${Math.round((j.progress || 0) * 100)} %`; }
 
+let jobsSoon = 0;
+/** Draw the list again once the runs' starts are read (one redraw for many). */
+function renderJobsSoon() { if (!jobsSoon) jobsSoon = setTimeout(() => { jobsSoon = 0; renderJobs(); }, 50); }
+
 function renderJobs() {
-  const jobs = [...state.jobs.values()].filter(FILTERS[state.filter]).sort((a, b) => b.created - a.created);
+  const jobs = sortJobs([...state.jobs.values()].filter(FILTERS[state.filter]), renderJobsSoon);
   if (!jobs.length) { $("job-list").innerHTML = `<p class="muted">No jobs${state.filter === "all" ? " yet" : " here"}.</p>`; return; }
   $("job-list").innerHTML = `<table class="jobs"><thead><tr><th>Name</th><th>State</th><th>Size</th><th>Created</th><th>Finished</th><th>Duration</th></tr></thead><tbody>${
     jobs.map((j) => {
       const ended = ENDED.has(j.state);
-      const dur = ended ? j.updated - j.created : (j.elapsed_s ?? null);
+      const dur = ended ? endedDuration(j, renderJobsSoon) : (j.elapsed_s ?? null);
       const st = STREAMS.has(j.state) || j.state === "compiling" ? `${labelOf(j)} ${percent(j)}` : labelOf(j);
       return `<tr data-job="${esc(j.id)}" class="${j.waits_for_operator ? "waits" : ""}">
         <td><a href="#/job/${esc(j.id)}">${esc(j.mesh_name)}</a>${j.project ? ` <span class="muted">panel ${j.panel}/${j.panels}</span>` : ""}</td>
@@ -287,7 +293,7 @@ function renderJobs() {
   banner.hidden = !waiting || here;
   if (waiting && !here) {
     banner.href = panelGate ? `#/project/${waiting.project}` : `#/job/${waiting.id}`;
-    const what = atGate(waiting) ? (waiting.project ? "load a fresh stretched fabric" : "load a fresh frame")
+    const what = atGate(waiting) ? "load a fresh frame"
       : { awaiting_flip: "turn the frame over", aligning: "align the marks", fitted: "check the fit" }[waiting.state];
     const who = waiting.project ? `${waiting.mesh_name}, panel ${waiting.panel} of ${waiting.panels}` : waiting.mesh_name;
     banner.textContent = `${who}: ${what} →`;
@@ -306,7 +312,7 @@ function renderProjects() {
 function projectActions(p) {
   const cur = (p.panels || []).find((q) => q.index === p.current_panel);
   const out = [];
-  if (cur && cur.at_gate) out.push(`<button class="primary huge" data-pact="frame-ready">Fresh fabric loaded (panel ${cur.index})</button>`);
+  if (cur && cur.at_gate) out.push(`<button class="primary huge" data-pact="frame-ready">Fresh frame loaded (panel ${cur.index})</button>`);
   else if (cur && cur.job_id) out.push(`<a class="button primary" href="#/job/${esc(cur.job_id)}">Panel ${cur.index}: open its job (flip, alignment, pause)</a>`);
   if (["ready", "cancelled"].includes(p.state)) out.push(`<button data-pact="start">Print the panels left</button>`);
   if (!PROJECT_OVER.has(p.state)) out.push(`<button class="warn" data-pact="cancel">Cancel the project</button>`);
@@ -362,7 +368,7 @@ $("pj-actions").addEventListener("click", async (e) => {
   const id = state.route.id, what = b.dataset.pact;
   if (what === "cancel" && !confirm("Cancel the project: the panel on the printer stops (heaters off, head up) and the panels left are cancelled?")) return;
   b.disabled = true;
-  await act({ "frame-ready": "Fresh fabric loaded", start: "Print the panels left", cancel: "Cancel the project" }[what], async () => {
+  await act({ "frame-ready": "Fresh frame loaded", start: "Print the panels left", cancel: "Cancel the project" }[what], async () => {
     if (what === "frame-ready") await api.post("/printer/frame-ready");
     else state.projects.set(id, await api.post(`/projects/${id}/${what}`));
     await loadProject(id);
@@ -425,6 +431,7 @@ $("submit-form").addEventListener("submit", async (e) => {
   const err = $("submit-error");
   err.hidden = true;
   if (!chosen) { err.textContent = "Choose a file first."; err.hidden = false; return; }
+  if (!chosen.size) { err.textContent = `${chosen.name} is empty (0 bytes): choose the file that holds the mesh or the program.`; err.hidden = false; return; }
   const gcode = /\.(gcode|gco|g|nc)$/i.test(chosen.name);
   const panels = gcode ? "" : $("panels").value;
   const form = new FormData();
@@ -541,12 +548,13 @@ function renderActions(j) {
   // daemon refuses a resume until then), the buttons wait
   const busy = state.busy.has(j.id);
   const parking = j.state === "paused" && j.stage === "paused";
-  const key = `${j.id}:${cmds.join(",")}:${j.state}:${busy}:${parking}`;
+  const warning = cmds.includes("start") ? printWarningHTML(state.designs.get(j.id)) : "";
+  const key = `${j.id}:${cmds.join(",")}:${j.state}:${busy}:${parking}:${warning}`;
   if (box.dataset.key === key) return;
   box.dataset.key = key;
   box.innerHTML = cmds.map((c) => `<button data-action="${c}" ${busy || (parking && c === "resume") ? "disabled" : ""}
     class="${c === "cancel" || c === "delete" ? "warn" : c === "start" || c === "frame-ready" ? "primary" : ""}">${ACTIONS[c](j)}</button>`).join("")
-    + optionButtons(j, cmds, busy);
+    + optionButtons(j, cmds, busy) + warning;
 }
 $("j-actions").addEventListener("click", async (e) => {
   const b = e.target.closest("button[data-action]");
@@ -643,7 +651,8 @@ function nextText(j) {
         return "Interrupted. Resume where the print was proven to stand (a ribbon begun and not proven printed is skipped), print it again from the start, or delete it.";
       // falls through
     case "cancelled": case "failed":
-      return commandsOf(j).includes("start") ? "Print it again, or delete it." : "Nothing to print: submit the mesh again.";
+      return commandsOf(j).includes("start") ? "Print it again, or delete it."
+        : "Nothing to print: the file did not compile (the reason is above). Correct it or choose another file under New job, or delete this job.";
     default: return text;
   }
 }
@@ -814,8 +823,6 @@ $("align-result").addEventListener("click", async (ev) => {
 const TEMPS_SPAN_S = 1800;
 /** States in which a job's page shows the temperatures: it heats, prints, or is about to. */
 const HOT = new Set([...STREAMS, "paused", "awaiting_check"]);
-/** Files of a job offered for download, by kind. */
-const DOWNLOADS = { design: ["design.json", "combined.gcode", "front.gcode", "back.gcode"], gcode: ["program.gcode"] };
 
 /** A job's state in words; a plain G-code job prints a program, not a front. */
 function labelOf(j) {
@@ -956,9 +963,7 @@ $("pr-run").addEventListener("click", async () => {
 });
 
 function renderFiles(j) {
-  const names = j.kind === "gcode" ? DOWNLOADS.gcode : j.design_dir ? DOWNLOADS.design : [];
-  const pr = state.designs.get(j.id)?.report?.print || {};
-  const shown = names.filter((n) => !/^(front|back)\.gcode$/.test(n) || pr[n.split(".")[0]]?.lines);
+  const shown = downloads(j, state.designs.get(j.id));
   const box = $("j-files");
   box.hidden = !shown.length;
   const key = `${j.id}:${shown.join(",")}`;
@@ -990,7 +995,9 @@ function optionButtons(j, cmds, busy) {
     ${busy ? "disabled" : ""}>${text}</button>`).join("");
 }
 
+const shapeCard = new ShapeCard();
 function renderOperatorView(j) {
+  shapeCard.update(j, state.designs.get(j.id));
   renderPrediction(j);
   renderVerdict(j);
   renderTemps(j);
@@ -1120,6 +1127,13 @@ function route() {
     window.scrollTo(0, 0);
     return;
   }
+  if (location.hash === "#/new") {                 // the bar's "New job": the form, in view (a phone's is far below)
+    state.route = { page: "home" };
+    renderJobPage();
+    $("submit").scrollIntoView({ block: "start" });
+    $("file").focus({ preventScroll: true });
+    return;
+  }
   const m = /^#\/job\/(.+)$/.exec(location.hash);
   state.route = m ? { page: "job", id: decodeURIComponent(m[1]) } : { page: "home" };
   if (m && !state.jobs.has(state.route.id)) quiet(api.get(`/jobs/${state.route.id}`).then((j) => { state.jobs.set(j.id, j); renderJobPage(); }));
@@ -1127,6 +1141,7 @@ function route() {
   window.scrollTo(0, 0);
 }
 window.addEventListener("hashchange", () => { $("toast").hidden = true; route(); });
+$("new-job").addEventListener("click", (e) => { if (location.hash === "#/new") { e.preventDefault(); route(); } });
 
 function refreshAll() { quiet(loadJobs()); quiet(loadProjects()); quiet(loadTemperatures()); quiet(loadCamera()); pollPrinter(); }
 

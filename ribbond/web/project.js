@@ -69,7 +69,7 @@ export function panelListHTML(p) {
     const size = (q.flat_size_mm || []).length === 2 ? `${q.flat_size_mm[0].toFixed(0)} × ${q.flat_size_mm[1].toFixed(0)} mm` : "";
     const pct = cls === "printing" || (cls === "waiting" && !q.at_gate) ? ` ${Math.round((q.progress || 0) * 100)} %` : "";
     const job = q.job_id ? `<a href="#/job/${esc(q.job_id)}">job ${esc(q.job_id)}</a>` : "no job";
-    const label = q.at_gate ? "waits for a fresh fabric" : q.state.replace("_", " ");
+    const label = q.at_gate ? "waits for a fresh frame" : q.state.replace("_", " ");
     return `<li class="${cls}"><i class="sw ${cls}"></i><b>Panel ${q.index}</b> <span class="state ${esc(q.at_gate ? "awaiting_flip" : q.state)}">${esc(label)}${pct}</span>
       <span class="muted">${esc(size)}</span> ${job}</li>`;
   }).join("")}</ol>`;

@@ -120,7 +120,7 @@ def test_panels_are_refused_clearly(api: httpx.Client, meshes: dict[str, Path]) 
 def test_a_three_panel_project_end_to_end(api: httpx.Client, shared_sim: Sim, shared_daemon: Daemon,
                                           meshes: dict[str, Path]) -> None:
     """Compiled once, three jobs queued in order; each panel printed front, flip and alignment, back;
-    between panels the project says to load a fresh stretched fabric, and waits for it."""
+    between panels the project says to load a fresh stretched frame, and waits for it."""
     project = submit_project(api, meshes["two_sided"], "3")
     assert project["state"] in ("submitted", "compiling") and project["panels"] == []
     pid = project["id"]
@@ -133,12 +133,12 @@ def test_a_three_panel_project_end_to_end(api: httpx.Client, shared_sim: Sim, sh
         assert (record["project"], record["panel"], record["panels"]) == (pid, k, 3)
         if k > 1:              # the panel before is done: this one waits for a fresh fabric, and says so
             gate = wait_project(api, pid, lambda p: p["current_panel"] == k and p["state"] == "waiting")
-            assert gate["next"]["instruction"].startswith(f"panel {k} of 3: load a fresh stretched fabric")
+            assert gate["next"]["instruction"].startswith(f"panel {k} of 3: load a fresh stretched frame")
             assert at_gate(api.get(f"/jobs/{job}").json())
             assert api.get(f"/jobs/{job}").json()["next"]["instruction"].startswith(f"panel {k} of 3")
             assert [q["state"] for q in gate["panels"]][:k - 1] == ["done"] * (k - 1)
             shown = ribbonctl(shared_daemon, "status")
-            assert f"panel {k} of 3: load a fresh stretched fabric" in shown.stdout, shown
+            assert f"panel {k} of 3: load a fresh stretched frame" in shown.stdout, shown
             frame_ready(api)
         done = print_panel(api, shared_sim, job)
         assert done["state"] == "done"

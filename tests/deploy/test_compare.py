@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ribbond.deploy.compare import kabsch, surface_deviation
+from ribbond.deploy.compare import kabsch, registered_deviation, surface_deviation
 from ribbond.design import surfaces
 
 
@@ -49,3 +49,25 @@ def test_deviation_of_a_moved_copy_is_zero_and_of_an_offset_is_the_offset():
     assert dev.as_dict().keys() == {"mean", "p99", "max"}
     assert dev.max_pct <= 100 * 2.0 / diag + 1e-9
     assert dev.mean_pct > 100 * 0.5 / diag        # the offset is not registered away
+
+
+def test_registered_deviation_measures_heights_above_a_plane():
+    """Points above a flat square, not moved (already registered): each distance is its height,
+    or the distance to the nearest edge point where it lies outside the square."""
+    V = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [10.0, 10.0, 0.0], [0.0, 10.0, 0.0]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    Y = np.array([[2.0, 3.0, 1.5], [5.0, 5.0, -0.25], [13.0, 5.0, 4.0]])
+    d = registered_deviation(Y, V, F)
+    np.testing.assert_allclose(d.distance, [1.5, 0.25, 5.0], rtol=1e-12)
+    assert d.diagonal == pytest.approx(np.sqrt(200.0))
+    assert d.mean_pct == pytest.approx(100 * (1.5 + 0.25 + 5.0) / 3 / np.sqrt(200.0))
+    np.testing.assert_array_equal(d.V, Y)                         # not moved
+
+
+def test_registered_deviation_refuses_bad_vertices():
+    V = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    F = np.array([[0, 1, 2]])
+    with pytest.raises(ValueError, match="not finite"):
+        registered_deviation(np.array([[0.0, np.nan, 0.0]]), V, F)
+    with pytest.raises(ValueError, match=r"\(k, 3\)"):
+        registered_deviation(np.zeros((2, 2)), V, F)

@@ -83,7 +83,10 @@ def test_a_design_page_shows_the_verdict_in_the_preview_colours_with_its_files(
     sides = [s for s in ("front", "back") if design["report"]["print"][s]["lines"]]
     page.wait_for_selector("#j-files a", timeout=10 * SECOND)
     links = {a.inner_text(): a.get_attribute("href") for a in page.locator("#j-files a").all()}
-    assert set(links) == {"design.json", "combined.gcode", *(f"{s}.gcode" for s in sides)}, links
+    # the target and the previews too, and the prediction when the design has one (issue 36)
+    predicted = {"deployed.obj", "deployed.png"} if design["report"].get("deployed") else set()
+    assert set(links) == {"design.json", "combined.gcode", *(f"{s}.gcode" for s in sides), "target.obj",
+                          "preview.png", "preview.svg", *predicted}, links
     for name, href in links.items():
         assert href == f"/jobs/{job}/files/{name}"
         got = page.request.get(shared_daemon.url + href)

@@ -49,15 +49,15 @@ def test_the_panel_map_and_the_step_between_panels(browser_page: Any, shared_dae
     wait_project(api, pid, lambda p: p["current_panel"] == 2 and p["state"] == "waiting")
     page.wait_for_function("() => document.querySelector('#pj-next').textContent.startsWith('panel 2 of 3')",
                            timeout=30 * SECOND)
-    assert page.inner_text("#pj-next").startswith("panel 2 of 3: load a fresh stretched fabric")
+    assert page.inner_text("#pj-next").startswith("panel 2 of 3: load a fresh stretched frame")
     assert panel_classes(page) == ["done", "waiting", "queued"]
-    assert page.is_visible("text=Fresh fabric loaded (panel 2)")
+    assert page.is_visible("text=Fresh frame loaded (panel 2)")
     shot(page, "project-between-panels")
     home = browser_page()
     home.goto(shared_daemon.url + "/")
     home.wait_for_selector("#project-cards .panelmap", timeout=30 * SECOND)
-    assert "panel 2 of 3: load a fresh stretched fabric" in home.inner_text("#needs-you").lower() \
-        or "load a fresh stretched fabric" in home.inner_text("#project-cards")
+    assert "panel 2 of 3: load a fresh stretched frame" in home.inner_text("#needs-you").lower() \
+        or "load a fresh stretched frame" in home.inner_text("#project-cards")
     shot(home, "project-home-card")
     phone = browser_page(PHONE)
     phone.goto(f"{shared_daemon.url}/#/project/{pid}")
@@ -67,7 +67,7 @@ def test_the_panel_map_and_the_step_between_panels(browser_page: Any, shared_dae
     shot(phone, "project-between-panels-phone")
     # the operator loads the fabric and says so on the page: panel 2 prints
     shared_sim.ensure_front()
-    page.click("text=Fresh fabric loaded (panel 2)")
+    page.click("text=Fresh frame loaded (panel 2)")
     job2 = p["panels"][1]["job_id"]
     wait_for(api, job2, {"printing_front", "awaiting_flip"}, timeout=60, fresh_frame=False)
     page.wait_for_function("() => document.querySelector('#pj-map .panel.now.printing, #pj-map .panel.now.waiting')",

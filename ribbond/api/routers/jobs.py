@@ -19,7 +19,7 @@ from ribbond.design.params import parameters_from_json
 
 from ..deps import FormBool, Service, file_response, form_fields, job_status
 from ..errors import responses
-from ..models import JOB_FILES, Ident, JobFile, JobStatus, PredictRequest
+from ..models import JOB_FILES, Ident, JobFile, JobStatus, PredictRequest, ShapeDeviation
 from ..openapi import file_content, links
 
 router = APIRouter()
@@ -136,6 +136,12 @@ async def job_file(service: Service, job_id: Ident, name: JobFile) -> FileRespon
     if not path.is_file():
         raise NotFound(f"job {job_id} has no {name.value} (yet)")
     return file_response(path)
+
+
+@router.get("/jobs/{job_id}/deviation", response_model=ShapeDeviation, responses=responses(404, 422))
+async def deviation(service: Service, job_id: Ident) -> ShapeDeviation:
+    """The distance of each vertex of the predicted shape to the target (the dashboard's 3D view)."""
+    return ShapeDeviation.model_validate(await service.shapes.deviation(service.job(job_id)))
 
 
 @router.post("/jobs/{job_id}/start", response_model=JobStatus, responses=JOB_ACTION)

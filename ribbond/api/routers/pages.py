@@ -1,6 +1,7 @@
 """The pages a browser opens, outside the document: the API's documentation (Swagger UI, its files
 served from the package under ``/docs-assets``: it works without internet) and the dashboard's page
-(its files under ``/ui``). ``create_app`` mounts both directories."""
+(its files under ``/ui``), and the site's icon at ``/favicon.ico`` (the dashboard's SVG: a browser asks
+for it on any page). ``create_app`` mounts both directories."""
 
 from __future__ import annotations
 
@@ -27,3 +28,8 @@ async def docs(request: Request) -> HTMLResponse:
 @router.get("/", include_in_schema=False)
 async def dashboard() -> FileResponse:
     return FileResponse(WEB / "index.html", headers={"Cache-Control": "no-cache"})
+
+
+@router.get("/favicon.ico", include_in_schema=False)
+async def favicon() -> FileResponse:
+    return FileResponse(WEB / "favicon.svg", media_type="image/svg+xml", headers={"Cache-Control": "max-age=86400"})

@@ -2,7 +2,7 @@
 (``python -m ribbond.daemon.components.project_worker``, one process, after the compiles queued
 before it), then one two-sided job per panel, queued in order. Each panel job prints as any design
 job does (the fresh-frame gate, the front, the flip and the alignment, the back); between panels the
-operator loads a fresh stretched fabric. The project's view (``view``) is its panel map, the panel
+operator loads a fresh stretched frame. The project's view (``view``) is its panel map, the panel
 on the printer, those done and what the operator does next; ``cancel`` cancels what is left.
 
 Files: ``<state_dir>/projects/ID/`` holds the upload, ``compile.log``, ``project/`` (``project.json``,
@@ -34,7 +34,7 @@ PREFIX = "prj-"
 #: The files of a project that can be fetched: where each is.
 PROJECT_FILES = ("project.json", "panels.png", "target.obj", "deployed.obj", "deployed.png")
 #: What the operator does between panels.
-FRESH_FABRIC = "load a fresh stretched fabric, then confirm: ribbonctl frame-ready"
+FRESH_FRAME = "load a fresh stretched frame, then confirm: ribbonctl frame-ready"
 
 
 def sewing_instruction(n: int, seams: list[dict[str, Any]], allowance_mm: float) -> str:
@@ -51,8 +51,8 @@ def sewing_instruction(n: int, seams: list[dict[str, Any]], allowance_mm: float)
 
 
 def panel_instruction(job: JobRecord) -> str:
-    """``panel 2 of 3: load a fresh stretched fabric, then confirm: ribbonctl frame-ready``."""
-    return f"panel {job.panel} of {job.panels}: {FRESH_FABRIC}"
+    """``panel 2 of 3: load a fresh stretched frame, then confirm: ribbonctl frame-ready``."""
+    return f"panel {job.panel} of {job.panels}: {FRESH_FRAME}"
 
 
 #: The most panels a project may ask for (the engine's ``ribbond.design.project.MAX_PANELS``).
@@ -362,7 +362,7 @@ def _next_step(project: ProjectRecord, state: str, current: int | None, panels: 
                 "commands": [f"ribbonctl project start {p}", stop]}
     panel = next(q for q in panels if q["index"] == current)
     if panel["at_gate"]:
-        return {"instruction": f"panel {current} of {n}: {FRESH_FABRIC}", "commands": ["ribbonctl frame-ready", stop]}
+        return {"instruction": f"panel {current} of {n}: {FRESH_FRAME}", "commands": ["ribbonctl frame-ready", stop]}
     job_next = panel["next"] or {"instruction": "", "commands": []}
     return {"instruction": f"panel {current} of {n}: {job_next['instruction']}",
             "commands": [*job_next["commands"], stop]}
