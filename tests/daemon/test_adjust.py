@@ -31,23 +31,33 @@ SPEED, FLOW = 50.0, 110.0                            # within the profile's [adj
 INJECTED = ("M220", "M221", "M104", "M140")
 
 
-def _program(path: Path) -> list[str]:
-    """A zigzag of MOVES extruding moves of 40 mm at FEED on the fabric: ~7 s on the simulator."""
+def zigzag(path: Path, moves: int = MOVES) -> list[str]:
+    """A zigzag of ``moves`` extruding moves of 40 mm at FEED on the fabric (MOVES: ~7 s on the
+    simulator), written to ``path``; its lines."""
     lines = ["G28", "G90", "M83", "G0 Z5 F600", f"G0 X{X0 + 10:g} Y{Y0 + 10:g} F3000", "G0 Z0.2 F600"]
-    for i in range(MOVES):
+    for i in range(moves):
         x = X0 + 10 + (40 if i % 2 == 0 else 0)
-        y = Y0 + 10 + 0.5 * (i + 1)
+        y = Y0 + 10 + (Y1 - Y0 - 20) * (i + 1) / moves
         lines.append(f"G1 X{x:g} Y{y:g} E{E_PER_MOVE:g} F{FEED:g}")
     lines += ["G0 Z5 F600", "M400"]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return lines
 
 
-def _start(api: httpx.Client, program: Path) -> str:
+def start_program(api: httpx.Client, program: Path) -> str:
     with program.open("rb") as handle:
         r = api.post("/jobs", files={"gcode": (program.name, handle)}, data={"start": "true"})
     assert r.status_code == 201, r.text
     return str(r.json()["id"])
+
+
+def wait_moving(api: httpx.Client, sim: Sim, job: str, since: int, moves: int = 12) -> None:
+    """Until ``job`` prints and the simulator has run ``moves`` extruding moves after its ``since``-th command."""
+    wait_for(api, job, "printing_front", timeout=60, poll=0.02)
+    deadline = time.monotonic() + 30
+    while sum(c["command"].startswith("G1 ") for c in sim.commands()[since:]) < moves:
+        assert time.monotonic() < deadline, "the program did not start moving"
+        time.sleep(0.02)
 
 
 def _segments_after(api: httpx.Client, sim: Sim, job: str) -> list[dict]:
@@ -72,13 +82,10 @@ REFUSED_WHILE_PRINTING = [
 
 def test_a_print_is_adjusted_beside_its_program_and_only_so(shared_daemon: Daemon, shared_sim: Sim,
                                                             api: httpx.Client, tmp_path: Path) -> None:
-    program = _program(tmp_path / "zigzag.gcode")
-    job = _start(api, tmp_path / "zigzag.gcode")
-    wait_for(api, job, "printing_front", timeout=60, poll=0.02)
-    deadline = time.monotonic() + 30
-    while sum(c["command"].startswith("G1 ") for c in shared_sim.commands()) < 12:   # some moves deposited
-        assert time.monotonic() < deadline, "the program did not start moving"
-        time.sleep(0.02)
+    program = zigzag(tmp_path / "zigzag.gcode")
+    since = len(shared_sim.commands())
+    job = start_program(api, tmp_path / "zigzag.gcode")
+    wait_moving(api, shared_sim, job, since)
     before = shared_sim.commands()
 
     # refused while printing: named, and nothing of the batch reaches the printer

@@ -109,8 +109,8 @@ class ManualControl:
         link = self.head.require_link()
         answers = []
         for text, command in zip(typed, checked.commands):
-            _, lines = await link.send_collecting(command, timeout=ADJUST_TIMEOUT_S)
-            answers.append({"command": text, "answer": lines})
+            answer, lines = await link.send_collecting(command, timeout=ADJUST_TIMEOUT_S)
+            answers.append({"command": text, "answer": _own_lines(lines, answer.line)})
         await _read_back(link, checked.commands)
         return {"answers": answers, "printing": job_id,
                 "notes": [f"sent beside job {job_id}'s program: while it prints only M220, M221, M104, M140 "
@@ -299,10 +299,13 @@ class ManualControl:
 
     def _profile_info(self) -> dict[str, Any]:
         """The daemon's printer profile as a person choosing a design's size needs it: its name and
-        frame (the printable rectangle, its centre, the axis the frame is flipped about)."""
-        frame = self.profile.frame
+        frame (the printable rectangle, its centre, the axis the frame is flipped about), and what a
+        print may be adjusted within (``adjust``: the percentages, the temperature limits)."""
+        frame, adjust, t = self.profile.frame, self.profile.adjust, self.profile.temperatures
         return {"name": self.profile.name, "frame": {"bounds": list(frame.bounds), "center": list(frame.center),
-                                                     "size": list(frame.size), "flip_axis": frame.flip_axis}}
+                                                     "size": list(frame.size), "flip_axis": frame.flip_axis},
+                "adjust": {"speed_percent": list(adjust.speed_percent), "flow_percent": list(adjust.flow_percent),
+                           "nozzle_min": adjust.nozzle_min, "nozzle_max": t.nozzle_max, "bed_max": t.bed_max}}
 
     def emergency_stop(self) -> None:
         link = self.head.link
@@ -344,9 +347,19 @@ async def _read_back(link: PrinterLink, commands: list[str]) -> None:
     """After an M220 S… or M221 S…, the bare command: the printer reports the value it now runs
     with (the codec's ``Factor``), which the link's status keeps. A firmware that reports nothing
     leaves the status as it was."""
-    for code in sorted({c.split()[0].upper() for c in commands if len(c.split()) > 1} & {"M220", "M221"}):
-        with contextlib.suppress(LinkError, asyncio.TimeoutError):
-            await link.send(code, timeout=ADJUST_TIMEOUT_S)
+    if {c.split()[0].upper() for c in commands if len(c.split()) > 1} & {"M220", "M221"}:
+        for code in ("M220", "M221"):           # both: the status then shows both as the printer has them
+            with contextlib.suppress(LinkError, asyncio.TimeoutError):
+                await link.send(code, timeout=ADJUST_TIMEOUT_S)
+
+
+def _own_lines(lines: list[str], number: int) -> list[str]:
+    """A command's answer lines beside a running program, without the program lines'
+    acknowledgements that arrived meanwhile (ADVANCED_OK's ``ok N…`` naming another line)."""
+    def other_ok(line: str) -> bool:
+        event = codec.parse_line(line)
+        return isinstance(event, codec.Ok) and event.line is not None and event.line != number
+    return [line for line in lines if not other_ok(line)]
 
 
 def _moves_head(command: str) -> bool:
