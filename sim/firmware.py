@@ -941,7 +941,7 @@ class Firmware:
             return None  # Marlin drops zero-length moves
         # M220 scales the feed, M221 the filament pushed (the E position stays the commanded one,
         # as Marlin's current_position does; only the steps the extruder makes are scaled)
-        feed = self.feed * self.feed_percent / 100.0
+        feed = self.feed if self.feed_percent == 100.0 else self.feed * self.feed_percent / 100.0
         e = new[3] if self.flow_percent == 100.0 else old[3] + (new[3] - old[3]) * self.flow_percent / 100.0
         pushed: Position = (new[0], new[1], new[2], e)
         return self._plan(old, pushed, self._physical(length / feed * 60.0), feed)
