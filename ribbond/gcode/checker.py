@@ -43,8 +43,8 @@ from ribbond.design.format import StitchMark
 from ribbond.printer import codec
 from .profiles import PrinterProfile
 
-__all__ = ["Checked", "GcodeChecker", "Modal", "check_stitch_marks", "extruded_segments", "parse_command",
-           "uncovered"]
+__all__ = ["Checked", "GcodeChecker", "Modal", "NotWhilePrinting", "check_stitch_marks", "extruded_segments",
+           "parse_command", "uncovered"]
 
 _NUMBER_PREFIX = re.compile(r"^N\d+\s*", re.IGNORECASE)
 _CODE = re.compile(r"^([GMT])0*(\d+)(\.\d+)?", re.IGNORECASE)
@@ -83,6 +83,12 @@ _WHILE_PRINTING: dict[str, frozenset[str]] = {
     "M220": frozenset("S"), "M221": frozenset("ST"), "M104": frozenset("ST"), "M140": frozenset("S"),
     "M105": frozenset(), "M114": frozenset(),
 }
+
+
+class NotWhilePrinting(ValueError):
+    """A command refused only because a program is printing (a move, a wait, a nozzle target below
+    ``adjust.nozzle_min``): allowed once the job is paused or done. Values beyond the profile's
+    limits raise a plain ``ValueError``."""
 
 
 def parse_command(command: str, where: str) -> tuple[str, dict[str, float | None]]:
@@ -268,18 +274,18 @@ class GcodeChecker:
         nothing that moves the head, waits or changes what the program's lines mean."""
         if code not in _WHILE_PRINTING:
             moves = " (it moves the head)" if code in ("G0", "G1", "G28") else ""
-            raise ValueError(f"{where}: {code}{moves} is not accepted while a program prints; only "
+            raise NotWhilePrinting(f"{where}: {code}{moves} is not accepted while a program prints; only "
                              f"{', '.join(sorted(_WHILE_PRINTING))} are (pause the job first for anything else)")
         extra = sorted(set(args) - _WHILE_PRINTING[code])
         if extra:
-            raise ValueError(f"{where}: {code} {extra[0]}… is not accepted while a program prints "
+            raise NotWhilePrinting(f"{where}: {code} {extra[0]}… is not accepted while a program prints "
                              f"(only {', '.join(sorted(_WHILE_PRINTING[code])) or 'the bare command'})")
         if code in ("M220", "M221") and args.get("S", 0) is None:
             raise ValueError(f"{where}: {code} S needs a number (a percentage)")
         nozzle = args.get("S")
         low = self.profile.adjust.nozzle_min
         if code == "M104" and nozzle is not None and nozzle < low - _EPS:
-            raise ValueError(f"{where}: nozzle {nozzle:g} °C while printing is below the profile's "
+            raise NotWhilePrinting(f"{where}: nozzle {nozzle:g} °C while printing is below the profile's "
                              f"adjust.nozzle_min ({low:g} °C): the nozzle would stop extruding and the "
                              "rest of the program run dry (cancel or pause the job to cool it)")
 

@@ -67,16 +67,17 @@ def _segments_after(api: httpx.Client, sim: Sim, job: str) -> list[dict]:
 
 
 REFUSED_WHILE_PRINTING = [
-    (["G1 X100 Y100"], "G1 (it moves the head) is not accepted while a program prints"),
-    (["M105", "G28"], "command 2 (G28)"),
-    (["M220 S500"], "feed override above 100 %"),
-    (["M220 S5"], "feed override below 25 %"),
-    (["M221 S200"], "flow above 120 %"),
-    ([f"M104 S{PROFILE.temperatures.nozzle_max + 140:g}"], "nozzle_max"),
-    (["M104 S0"], "adjust.nozzle_min"),
-    (["M109 S220"], "M109 is not accepted while a program prints"),
-    (["M400"], "M400 is not accepted while a program prints"),
-    (["M140 S400"], "bed_max"),
+    # refused because a program prints (409, allowed once paused), or beyond the profile (422)
+    (["G1 X100 Y100"], 409, "G1 (it moves the head) is not accepted while a program prints"),
+    (["M105", "G28"], 409, "command 2 (G28)"),
+    (["M220 S500"], 422, "feed override above 100 %"),
+    (["M220 S5"], 422, "feed override below 25 %"),
+    (["M221 S200"], 422, "flow above 120 %"),
+    ([f"M104 S{PROFILE.temperatures.nozzle_max + 140:g}"], 422, "nozzle_max"),
+    (["M104 S0"], 409, "adjust.nozzle_min"),
+    (["M109 S220"], 409, "M109 is not accepted while a program prints"),
+    (["M400"], 409, "M400 is not accepted while a program prints"),
+    (["M140 S400"], 422, "bed_max"),
 ]
 
 
@@ -89,13 +90,14 @@ def test_a_print_is_adjusted_beside_its_program_and_only_so(shared_daemon: Daemo
     before = shared_sim.commands()
 
     # refused while printing: named, and nothing of the batch reaches the printer
-    for commands, words in REFUSED_WHILE_PRINTING:
+    for commands, status, words in REFUSED_WHILE_PRINTING:
         r = api.post("/printer/gcode", json={"commands": commands})
-        assert r.status_code == 422 and words in r.json()["detail"], (commands, r.text)
-    for body, words in (({"speed": 500}, "feed override above 100 %"), ({"nozzle": 20}, "adjust.nozzle_min"),
-                        ({"flow": 50}, "flow below 80 %")):
+        assert r.status_code == status and words in r.json()["detail"], (commands, r.text)
+    for body, status, words in (({"speed": 500}, 422, "feed override above 100 %"),
+                                ({"nozzle": 20}, 409, "adjust.nozzle_min"), ({"flow": 50}, 422, "flow below 80 %"),
+                                ({}, 422, ""), ({"speed": None}, 422, "nothing to adjust")):
         r = api.post("/printer/adjust", json=body)
-        assert r.status_code == 422 and words in r.json()["detail"], (body, r.text)
+        assert r.status_code == status and words in r.text, (body, r.text)
     for route, body in (("/printer/jog", {"dx": 1, "dy": 0}), ("/printer/home", None)):
         assert api.post(route, json=body).status_code == 409
     sent = [c["command"] for c in shared_sim.commands()[len(before):]]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from ribbond.gcode.checker import GcodeChecker
+from ribbond.gcode.checker import GcodeChecker, NotWhilePrinting
 from ribbond.gcode.profiles import PrinterProfile, load_profile
 
 PROFILE = load_profile("generic-marlin")
@@ -50,25 +50,29 @@ def test_beside_a_program_the_adjustments_at_their_limits_and_the_queries_pass()
     assert _printing(commands) == commands
 
 
-@pytest.mark.parametrize("command, words", [
-    ("G1 X100", "G1 (it moves the head) is not accepted while a program prints"),
-    ("G28", "G28 (it moves the head)"),
-    ("M109 S200", "M109 is not accepted"),
-    ("M400", "M400 is not accepted"),
-    ("M106 S255", "M106 is not accepted"),
-    (f"M220 S{ADJ.speed_percent[1] + 1:g}", f"above {ADJ.speed_percent[1]:g} %"),
-    (f"M220 S{ADJ.speed_percent[0] - 1:g}", f"below {ADJ.speed_percent[0]:g} %"),
-    (f"M221 S{ADJ.flow_percent[1] + 1:g}", f"flow above {ADJ.flow_percent[1]:g} %"),
-    (f"M104 S{ADJ.nozzle_min - 1:g}", "adjust.nozzle_min"),
-    (f"M104 S{T.nozzle_max + 1:g}", "nozzle_max"),
-    (f"M140 S{T.bed_max + 1:g}", "bed_max"),
-    ("M104 S220 B230", "M104 B… is not accepted"),
-    ("M220 S", "needs a number"),
+WAIT = NotWhilePrinting        # refused only while a program prints
+
+
+@pytest.mark.parametrize("command, kind, words", [
+    ("G1 X100", WAIT, "G1 (it moves the head) is not accepted while a program prints"),
+    ("G28", WAIT, "G28 (it moves the head)"),
+    ("M109 S200", WAIT, "M109 is not accepted"),
+    ("M400", WAIT, "M400 is not accepted"),
+    ("M106 S255", WAIT, "M106 is not accepted"),
+    (f"M220 S{ADJ.speed_percent[1] + 1:g}", ValueError, f"above {ADJ.speed_percent[1]:g} %"),
+    (f"M220 S{ADJ.speed_percent[0] - 1:g}", ValueError, f"below {ADJ.speed_percent[0]:g} %"),
+    (f"M221 S{ADJ.flow_percent[1] + 1:g}", ValueError, f"flow above {ADJ.flow_percent[1]:g} %"),
+    (f"M104 S{ADJ.nozzle_min - 1:g}", WAIT, "adjust.nozzle_min"),
+    (f"M104 S{T.nozzle_max + 1:g}", ValueError, "nozzle_max"),
+    (f"M140 S{T.bed_max + 1:g}", ValueError, "bed_max"),
+    ("M104 S220 B230", WAIT, "M104 B… is not accepted"),
+    ("M220 S", ValueError, "needs a number"),
 ])
-def test_beside_a_program_everything_else_is_refused_naming_it(command: str, words: str) -> None:
+def test_beside_a_program_everything_else_is_refused_naming_it(command: str, kind: type, words: str) -> None:
     with pytest.raises(ValueError, match="console, line 2: ") as err:
         _printing(["M105", command])
     assert words in str(err.value), err.value
+    assert (type(err.value) is NotWhilePrinting) == (kind is NotWhilePrinting), type(err.value)
 
 
 def test_between_prints_the_ranges_hold_too_and_moves_are_checked_as_before() -> None:

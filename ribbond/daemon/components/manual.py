@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ribbond.gcode.checker import Checked, GcodeChecker, Modal, parse_command
+from ribbond.gcode.checker import Checked, GcodeChecker, Modal, NotWhilePrinting, parse_command
 from ribbond.gcode.profiles import PrinterProfile
 from ribbond.printer import codec
 from ribbond.printer.errors import LinkError
@@ -101,11 +101,17 @@ class ManualControl:
         never a move or a wait), whole, before any is sent; each goes out through the link's one
         sender as the next numbered line ahead of the program's next lines, so the line numbers,
         the resends and the proof that a program line ran stay the sender's. A changed feed
-        override or flow is read back (bare M220 / M221) so the status shows the printer's own."""
+        override or flow is read back (bare M220 / M221) so the status shows the printer's own.
+        What is refused only because the program prints (a move, a wait, the nozzle below
+        ``adjust.nozzle_min``) is a ``ServiceError`` (409); a value beyond the profile's limits a
+        ``ValueError`` (422)."""
         run = self.state.run
         if run is not None and run.busy:
             raise ServiceError(f"cannot send G-code: job {job_id} is pausing or resuming; try again in a moment")
-        checked = self._check(typed, None, "command", printing=True)
+        try:
+            checked = self._check(typed, None, "command", printing=True)
+        except NotWhilePrinting as refused:         # allowed once the job is paused: a conflict (409)
+            raise ServiceError(f"{refused}; job {job_id} is printing") from None
         link = self.head.require_link()
         answers = []
         for text, command in zip(typed, checked.commands):
