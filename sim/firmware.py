@@ -222,6 +222,8 @@ class Firmware:
         self.relative_xyz = False
         self.relative_e = False
         self.feed = DEFAULT_FEED
+        self.feed_percent = 100.0  # M220: every G0/G1 runs at feed × this / 100
+        self.flow_percent = 100.0  # M221: every move's filament is E × this / 100
         self.fan = 0
         self.autoreport_s: float | None = None
         self._next_autoreport = 0.0
@@ -881,7 +883,7 @@ class Firmware:
             self.stats.segments += 1
             self.stats.extruded_mm += de
 
-    def _plan(self, start: Position, end: Position, duration: float) -> Iterator[_Cond]:
+    def _plan(self, start: Position, end: Position, duration: float, feed: float) -> Iterator[_Cond]:
         if self.planner.moves_free() <= 0:
             yield _PlannerSpace()
             self.position = end  # an M410 meanwhile reset it; the move still goes to its target
@@ -889,7 +891,7 @@ class Firmware:
             self.stats.starvations += 1
             self.stats.starved_s += max(0.0, self.t - self._last_motion_end)
         self._synced = False
-        self.planner.add(start, end, self.feed, duration, self.t)
+        self.planner.add(start, end, feed, duration, self.t)
         if len(self.planner) > self.stats.planner_peak:
             self.stats.planner_peak = len(self.planner)
 
@@ -937,7 +939,12 @@ class Firmware:
         length = dist if dist > 0 else abs(new[3] - old[3])
         if length == 0:
             return None  # Marlin drops zero-length moves
-        return self._plan(old, end, self._physical(length / self.feed * 60.0))
+        # M220 scales the feed, M221 the filament pushed (the E position stays the commanded one,
+        # as Marlin's current_position does; only the steps the extruder makes are scaled)
+        feed = self.feed if self.feed_percent == 100.0 else self.feed * self.feed_percent / 100.0
+        e = new[3] if self.flow_percent == 100.0 else old[3] + (new[3] - old[3]) * self.flow_percent / 100.0
+        pushed: Position = (new[0], new[1], new[2], e)
+        return self._plan(old, pushed, self._physical(length / feed * 60.0), feed)
 
     def _g4(self, g: GCode, cmd: QueuedCommand) -> Iterator[_Cond]:
         seconds = (g.value("P", 0.0) or 0.0) / 1000.0
@@ -1099,6 +1106,23 @@ class Firmware:
         for text in MARLIN_SETTINGS:
             self.emit(text)
 
+    def _m220(self, g: GCode, cmd: QueuedCommand) -> None:
+        # Marlin's M220.cpp: S sets feedrate_percentage; without words it reports "FR:<n>%"
+        s = g.value("S")
+        if s is not None:
+            self.feed_percent = float(max(10, min(999, round(s))))  # Marlin keeps an int, 10-999
+        elif not g.params:
+            self.emit(f"FR:{self.feed_percent:.0f}%")
+
+    def _m221(self, g: GCode, cmd: QueuedCommand) -> None:
+        # Marlin's M221.cpp: S sets the flow percentage of the extruder (T, default 0); without S it
+        # reports "echo:E0 Flow: <n>%"
+        s = g.value("S")
+        if s is not None:
+            self.flow_percent = float(max(10, min(999, round(s))))
+        else:
+            self.emit(f"echo:E0 Flow: {self.flow_percent:.0f}%")
+
     def _t(self, g: GCode, cmd: QueuedCommand) -> None:
         n = int(g.code[1:])
         if n != 0:
@@ -1117,10 +1141,10 @@ _HANDLERS: dict[str, Handler] = {
     "M107": Firmware._m107, "M109": Firmware._m109, "M110": Firmware._m110,
     "M112": Firmware._m112, "M114": Firmware._m114, "M115": Firmware._m115, "M118": Firmware._m118,
     "M140": Firmware._m140, "M155": Firmware._m155, "M190": Firmware._m190,
-    "M400": Firmware._m400, "M502": Firmware._m502, "M503": Firmware._m503,
+    "M220": Firmware._m220, "M221": Firmware._m221, "M400": Firmware._m400, "M502": Firmware._m502, "M503": Firmware._m503,
     "T0": Firmware._t, "T1": Firmware._t, "T2": Firmware._t, "T3": Firmware._t,
 }
 for _code in ("M17", "M18", "M84", "M31", "M73", "M75", "M76", "M77", "M92", "M108",
-              "M117", "M201", "M203", "M204", "M205", "M220", "M221", "M410",
+              "M117", "M201", "M203", "M204", "M205", "M410",
               "M999"):
     _HANDLERS[_code] = Firmware._nothing

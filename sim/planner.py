@@ -21,7 +21,7 @@ class Block:
     start: Position
     end: Position
     feed: float
-    """mm/min, as commanded."""
+    """mm/min, as run: the commanded feed × the M220 override."""
     t_start: float
     t_end: float
 

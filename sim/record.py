@@ -34,9 +34,9 @@ class Segment:
     y1: float
     z: float
     e: float
-    """Filament extruded along this segment (mm, > 0)."""
+    """Filament extruded along this segment (mm, > 0): the move's E × the M221 flow."""
     feed: float
-    """Feed rate (mm/min)."""
+    """Feed rate (mm/min), as run: the move's F × the M220 override."""
     time: float
     """time.monotonic() when the move finished."""
     side: str

@@ -238,6 +238,17 @@ def test_capabilities(line: str, name: str, enabled: bool) -> None:
     assert codec.parse_line(line) == codec.Capability(name, enabled)
 
 
+def test_feed_override_and_flow_reports() -> None:
+    """Marlin's M220 without words prints "FR:<n>%" (M220.cpp), M221 without S "echo:E<i> Flow: <n>%"
+    (M221.cpp); an echo that only mentions a flow stays an echo."""
+    assert codec.parse_line("FR:100%") == codec.Factor("speed", 100.0)
+    assert codec.parse_line("FR:55%") == codec.Factor("speed", 55.0)
+    assert codec.parse_line("echo:E0 Flow: 120%") == codec.Factor("flow", 120.0)
+    assert codec.parse_line("echo:E1 Flow:95%") == codec.Factor("flow", 95.0)
+    assert codec.parse_line("echo:Flow rate changed") == codec.Echo("Flow rate changed")
+    assert codec.parse_line("FR:fast") == codec.Other("FR:fast")
+
+
 def test_start_action_unknown_echo_other() -> None:
     assert codec.parse_line("start") == codec.Start()
     assert codec.parse_line("//action:pause") == codec.Action("pause")

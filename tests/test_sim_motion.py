@@ -69,6 +69,26 @@ def test_segments_recorded_with_extrusion() -> None:
         assert segs[0].time < segs[1].time <= time.monotonic()
 
 
+def test_m220_scales_the_feed_and_m221_the_filament_and_both_report_themselves() -> None:
+    """Marlin's M220/M221: S sets the percentage, the bare command reports it ("FR:n%", "echo:E0
+    Flow: n%"); a move runs at F × M220/100 (its time and its recorded feed) and pushes E × M221/100
+    of filament, while the E position stays the commanded one (the next absolute E is not shifted)."""
+    with connected(SimConfig(time_scale=0.1)) as (sim, host):
+        assert host.command("M220") == ["FR:100%", "ok P15 B3"]
+        assert host.command("M221") == ["echo:E0 Flow: 100%", "ok P15 B3"]
+        assert host.command("M220 S50")[-1].startswith("ok") and host.command("M221 S120")[-1].startswith("ok")
+        assert host.command("M220") == ["FR:50%", "ok P15 B3"]
+        assert host.command("M221") == ["echo:E0 Flow: 120%", "ok P15 B3"]
+        # 30 mm at 6000 mm/min at 50 %: 0.6 physical seconds = 0.06 s wall at time_scale 0.1
+        t0 = host.write("G92 E0\nG1 X30 E2 F6000\nG1 X60 E3\nM400\n")
+        host.read_until(lambda s: s.startswith("ok P15"), timeout=2.0)
+        assert sim.wait_idle(2.0)
+        assert time.monotonic() - t0 >= 2 * 30 / (6000 * 0.5 / 60) * 0.1
+        segs = sim.segments()
+        assert [s.feed for s in segs] == [3000, 3000]
+        assert [s.e for s in segs] == pytest.approx([2 * 1.2, 1 * 1.2])
+
+
 def _deposit(sim, host, p0, p1) -> None:
     host.write(f"G1 X{p0[0]:.6f} Y{p0[1]:.6f} F6000\nG1 X{p1[0]:.6f} Y{p1[1]:.6f} E1\nM400\n")
     assert sim.wait_idle(2.0)

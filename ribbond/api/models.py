@@ -205,6 +205,18 @@ class HeatRequest(Body):
     bed: float | None = Field(None, ge=0, description="°C")
 
 
+class AdjustRequest(BaseModel):
+    """``POST /printer/adjust``: what to change, at least one (issue 36). The bounds are the
+    profile's (``[adjust]``, ``[temperatures]``), written into the document by ribbond.api.openapi;
+    while a program prints the nozzle may not go below ``adjust.nozzle_min`` (422)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, json_schema_extra={"minProperties": 1})
+    speed: float | None = Field(None, gt=0, description="feed override, % (M220 S)")
+    flow: float | None = Field(None, gt=0, description="flow, % (M221 S)")
+    nozzle: float | None = Field(None, ge=0, description="nozzle target, °C (M104 S)")
+    bed: float | None = Field(None, ge=0, description="bed target, °C (M140 S)")
+
+
 class CalibrationRequest(Body):
     """``POST /calibrations``: the plan's grid and ribbons (``ribbond.calibration.spec``), all optional."""
 

@@ -75,6 +75,12 @@ def _profile_bounds(components: dict[str, Any], service: RibbonService) -> None:
 
     bound("HeatRequest", "nozzle", 0, t.nozzle_max)
     bound("HeatRequest", "bed", 0, t.bed_max)
+    adjust, body = service.profile.adjust, components["AdjustRequest"]["properties"]
+    for field, (low, high) in (("speed", adjust.speed_percent), ("flow", adjust.flow_percent),
+                               ("nozzle", (0, t.nozzle_max)), ("bed", (0, t.bed_max))):
+        bound("AdjustRequest", field, low, high)
+        number = next(s for s in body[field]["anyOf"] if s.get("type") == "number")
+        body[field] = {**number, "description": body[field].get("description", "")}   # a number when given
     bound("GotoRequest", "x", x0, x1)
     bound("GotoRequest", "y", y0, y1)
     profile = components["CalibrationRequest"]["properties"]["printer_profile"]

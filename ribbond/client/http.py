@@ -4,7 +4,7 @@ fraction of a second, also on a Raspberry Pi).
 
 Jobs: submit, print (a plain G-code program), status, watch, start, pause, resume, cancel,
 flip-done, frame-ok, align, accept, re-seat, delete. The printer: printer, frame-ready, home, jog, goto, gcode, heat,
-cool, stop, recover.
+cool, adjust, stop, recover.
 
 Exit status: 0 done; 1 refused (the job's state or the printer does not allow it now, the alignment
 is refused, the job failed or was cancelled or interrupted); 2 bad input (a missing or unreadable
@@ -661,8 +661,8 @@ def _printer_text(status: dict[str, Any]) -> str:
                         for k, v in (status.get("heaters") or {}).items())
     where = _head_text(status.get("head") or status.get("position"), status.get("homed"), 2)
     note = status.get("note") or ""
-    return "  ".join(p for p in (status.get("state"), status.get("firmware") or "", heaters, where, note,
-                                 _frame_text(status.get("frame"))) if p)
+    return "  ".join(p for p in (status.get("state"), status.get("firmware") or "", heaters, _factors_text(status),
+                                 where, note, _frame_text(status.get("frame"))) if p)
 
 
 def _frame_text(frame: dict[str, Any] | None) -> str:
@@ -733,6 +733,27 @@ def cmd_gcode(args: argparse.Namespace) -> int:
 def cmd_heat(args: argparse.Namespace) -> int:
     status = _client(args).request("POST", "/printer/heat", json={"nozzle": args.nozzle, "bed": args.bed})
     _out(args, status, _printer_text(status))
+    return 0
+
+
+def _factors_text(status: dict[str, Any]) -> str:
+    """``speed 80 %  flow 105 %``, as the printer last reported them (M220, M221), or nothing."""
+    parts = [f"{name} {status[key]:g} %" for name, key in (("speed", "speed_percent"), ("flow", "flow_percent"))
+             if status.get(key) is not None]
+    return "  ".join(parts)
+
+
+def cmd_adjust(args: argparse.Namespace) -> int:
+    """Adjust the print in progress (or the printer between prints): speed, flow, nozzle, bed."""
+    body = {"speed": args.speed, "flow": args.flow, "nozzle": args.nozzle, "bed": args.bed}
+    if all(v is None for v in body.values()):
+        print("ribbonctl adjust: give --speed, --flow, --nozzle and/or --bed", file=sys.stderr)
+        return 2
+    result = _client(args).request("POST", "/printer/adjust", json=body, timeout=330)
+    sent = ", ".join(a["command"] for a in result["answers"])
+    where = f" beside job {result['printing']}'s program" if result.get("printing") else ""
+    printer = result.get("printer") or {}
+    _out(args, result, f"sent {sent}{where}\n{_printer_text(printer)}")
     return 0
 
 
@@ -946,8 +967,9 @@ def _printer_commands(cmd: Command) -> None:
     g.add_argument("x", type=float)
     g.add_argument("y", type=float)
     gc = cmd("gcode", "send G-code commands and print the printer's answers", cmd_gcode,
-             "Send one command or a short list (one argument each, quoted: ribbonctl gcode \"G28 X\" M114); "
-             "not while a program streams. Checked whole as a G-code job is (frame, fabric, temperatures; "
+             "Send one command or a short list (one argument each, quoted: ribbonctl gcode \"G28 X\" M114). "
+             "While a program streams only M220, M221, M104, M140 (within the profile's limits), M105 and M114 "
+             "are accepted (ribbonctl adjust). Checked whole as a G-code job is (frame, fabric, temperatures; "
              "feed rates clamped, said in a note) before anything is sent; moves start from where home, "
              "jog or goto left the head, in absolute positioning (G90).")
     gc.add_argument("commands", nargs="+", metavar="COMMAND")
@@ -955,6 +977,15 @@ def _printer_commands(cmd: Command) -> None:
     h.add_argument("--nozzle", type=float, metavar="C")
     h.add_argument("--bed", type=float, metavar="C")
     cmd("cool", "heaters off", cmd_cool)
+    a = cmd("adjust", "adjust a print in progress: speed (M220), flow (M221), nozzle, bed", cmd_adjust,
+            "Change the feed override, the flow and the heater targets, also while a job prints (OctoPrint's "
+            "and Mainsail's controls). The values are checked against the printer profile's [adjust] ranges "
+            "and temperature limits (while printing the nozzle stays at or above adjust.nozzle_min); the "
+            "printer reports back the speed and flow it now runs with.")
+    a.add_argument("--speed", type=float, metavar="PCT", help="feed override, %% (M220 S)")
+    a.add_argument("--flow", type=float, metavar="PCT", help="flow, %% (M221 S)")
+    a.add_argument("--nozzle", type=float, metavar="C", help="nozzle target, °C (M104 S)")
+    a.add_argument("--bed", type=float, metavar="C", help="bed target, °C (M140 S)")
     cmd("stop", "emergency stop (M112)", cmd_stop)
     cmd("recover", "after an emergency stop or a halt: restart the firmware (M999)", cmd_recover)
 

@@ -8,7 +8,12 @@ first); a temperature above the profile's ``nozzle_max`` / ``bed_max`` (every he
 check knows: M104, M109, M140, M190 with S, R or B, M303 by its heater) or below 0; arcs and other
 moves it cannot follow (G2/G3, probing, parking, babysteps), inches, G92 on X/Y/Z, and the settings
 that would defeat the limits (steps per mm, maximum feed rates, home offsets, software endstops, a
-feed override above 100 %).
+feed override (M220) or a flow (M221) outside the profile's ``[adjust]`` ranges).
+
+Beside a running program (``printing=True``: the console while a job prints, issue 36) only the
+adjustments go in: M220 and M221 within those ranges, M104 between ``adjust.nozzle_min`` and
+``nozzle_max``, M140 up to ``bed_max``, and the queries M105 and M114; a move, a wait (M109, M190,
+M400) or anything else is refused naming it.
 
 Feed rates above the profile's maximum speeds are not refused but clamped where the firmware
 would clamp them: Marlin scales a move's speed so that no axis exceeds its maximum feed rate
@@ -38,8 +43,8 @@ from ribbond.design.format import StitchMark
 from ribbond.printer import codec
 from .profiles import PrinterProfile
 
-__all__ = ["Checked", "GcodeChecker", "Modal", "check_stitch_marks", "extruded_segments", "parse_command",
-           "uncovered"]
+__all__ = ["Checked", "GcodeChecker", "Modal", "NotWhilePrinting", "check_stitch_marks", "extruded_segments",
+           "parse_command", "uncovered"]
 
 _NUMBER_PREFIX = re.compile(r"^N\d+\s*", re.IGNORECASE)
 _CODE = re.compile(r"^([GMT])0*(\d+)(\.\d+)?", re.IGNORECASE)
@@ -71,6 +76,19 @@ _M_REFUSED = {
 _NOZZLE, _BED = ("nozzle", "nozzle_max"), ("bed", "bed_max")
 _HEATERS = {"M104": _NOZZLE, "M109": _NOZZLE, "M140": _BED, "M190": _BED}
 _EPS = 1e-6
+#: The percentages a person may change: the code -> (what it sets, its range in ``profile.adjust``).
+_ADJUSTED = {"M220": ("feed override", "speed_percent"), "M221": ("flow", "flow_percent")}
+#: What may go in beside a running program, and the words each may carry (issue 36).
+_WHILE_PRINTING: dict[str, frozenset[str]] = {
+    "M220": frozenset("S"), "M221": frozenset("ST"), "M104": frozenset("ST"), "M140": frozenset("S"),
+    "M105": frozenset(), "M114": frozenset(),
+}
+
+
+class NotWhilePrinting(ValueError):
+    """A command refused only because a program is printing (a move, a wait, a nozzle target below
+    ``adjust.nozzle_min``): allowed once the job is paused or done. Values beyond the profile's
+    limits raise a plain ``ValueError``."""
 
 
 def parse_command(command: str, where: str) -> tuple[str, dict[str, float | None]]:
@@ -177,11 +195,14 @@ def _with_feed(command: str, feed: str) -> str:
 class GcodeChecker:
     """Checks commands one at a time against ``profile``, carrying the modal state (``modal``).
 
-    ``where(number, command)`` names a line in refusals (default ``"<source>, line N"``)."""
+    ``where(number, command)`` names a line in refusals (default ``"<source>, line N"``).
+    ``printing``: the commands go in beside a running program (the console while a job prints):
+    only its adjustments (M220, M221, M104, M140 within ``profile.adjust``) and M105 / M114."""
 
     def __init__(self, profile: PrinterProfile, source: str = "program", modal: Modal | None = None,
-                 where: Callable[[int, str], str] | None = None) -> None:
+                 where: Callable[[int, str], str] | None = None, printing: bool = False) -> None:
         self.profile = profile
+        self.printing = printing
         self.modal = modal if modal is not None else Modal()
         self.where = where or (lambda number, _command: f"{source}, line {number}")
         self.limits = _limits(profile)
@@ -206,6 +227,8 @@ class GcodeChecker:
         clamped), the modal state advanced. Raises ``ValueError`` naming ``where`` and the limit."""
         where = self.where(number, command)
         code, args = parse_command(command, where)
+        if self.printing:
+            self._while_printing(code, args, where)
         self._refuse_unfollowed(code, args, where)
         if code in _HEATERS or code == "M303":
             self._temperatures(code, args, where)
@@ -231,9 +254,40 @@ class GcodeChecker:
         base = code.split(".")[0]
         if base in _M_REFUSED:
             raise ValueError(f"{where}: {base} {_M_REFUSED[base]}; not allowed on the fabric")
-        if base == "M220" and (args.get("S") or 0) > 100 + _EPS:
-            raise ValueError(f"{where}: M220 S{args['S']:g} sets the feed override above 100 %, so moves "
-                             "would run faster than the profile's limits allow")
+        if base in _ADJUSTED and args.get("S") is not None:
+            self._percent(base, args["S"], where)  # type: ignore[arg-type]
+
+    def _percent(self, code: str, value: float, where: str) -> None:
+        """M220 S / M221 S within the profile's ``adjust`` range."""
+        what, name = _ADJUSTED[code]
+        low, high = getattr(self.profile.adjust, name)
+        if value > high + _EPS:
+            raise ValueError(f"{where}: {code} S{value:g} sets the {what} above {high:g} % (the profile's "
+                             f"adjust.{name} is {low:g}-{high:g} %)"
+                             + (", so moves would run faster than the profile's limits allow" if code == "M220" else ""))
+        if value < low - _EPS:
+            raise ValueError(f"{where}: {code} S{value:g} sets the {what} below {low:g} % (the profile's "
+                             f"adjust.{name} is {low:g}-{high:g} %)")
+
+    def _while_printing(self, code: str, args: dict[str, float | None], where: str) -> None:
+        """While a program prints only its adjustments and the queries go in beside it (issue 36):
+        nothing that moves the head, waits or changes what the program's lines mean."""
+        if code not in _WHILE_PRINTING:
+            moves = " (it moves the head)" if code in ("G0", "G1", "G28") else ""
+            raise NotWhilePrinting(f"{where}: {code}{moves} is not accepted while a program prints; only "
+                             f"{', '.join(sorted(_WHILE_PRINTING))} are (pause the job first for anything else)")
+        extra = sorted(set(args) - _WHILE_PRINTING[code])
+        if extra:
+            raise NotWhilePrinting(f"{where}: {code} {extra[0]}… is not accepted while a program prints "
+                             f"(only {', '.join(sorted(_WHILE_PRINTING[code])) or 'the bare command'})")
+        if code in ("M220", "M221") and args.get("S", 0) is None:
+            raise ValueError(f"{where}: {code} S needs a number (a percentage)")
+        nozzle = args.get("S")
+        low = self.profile.adjust.nozzle_min
+        if code == "M104" and nozzle is not None and nozzle < low - _EPS:
+            raise NotWhilePrinting(f"{where}: nozzle {nozzle:g} °C while printing is below the profile's "
+                             f"adjust.nozzle_min ({low:g} °C): the nozzle would stop extruding and the "
+                             "rest of the program run dry (cancel or pause the job to cool it)")
 
     def _temperatures(self, code: str, args: dict[str, float | None], where: str) -> None:
         temps = self.profile.temperatures

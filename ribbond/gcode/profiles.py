@@ -125,6 +125,30 @@ class AlignmentTolerance(BaseModel):
     max_offset: float = Field(5.0, gt=0, description="mm any mark may be moved")
 
 
+class Adjustments(BaseModel):
+    """What a person may change while a program prints (issue 36): the feed override (``M220``)
+    and the flow (``M221``) within these percentages, the nozzle's target (``M104``) between
+    ``nozzle_min`` and the profile's ``nozzle_max`` and the bed's (``M140``) up to ``bed_max``.
+    The override and the flow are refused outside these ranges by every check (jobs, console)."""
+
+    model_config = _STRICT
+    speed_percent: tuple[float, float] = Field(
+        (25.0, 100.0), description="M220 S… allowed, %: the firmware clamps a move at its maximum feed rates "
+        "(the profile's max_*_speed), so above 100 the profile's own speeds × the top must stay within them")
+    flow_percent: tuple[float, float] = Field((80.0, 120.0), description="M221 S… allowed, %")
+    nozzle_min: float = Field(180.0, ge=0, description="°C: an M104 while printing may not go below it "
+                              "(a cold nozzle refuses to extrude and the rest of the program runs dry)")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> "Adjustments":
+        for name in ("speed_percent", "flow_percent"):
+            low, high = getattr(self, name)
+            if not 0 < low <= 100 <= high <= 999:
+                raise ValueError(f"adjust.{name} = [{low:g}, {high:g}]: needs 0 < low ≤ 100 ≤ high ≤ 999 "
+                                 "(100 % is the program as written; Marlin takes 10-999)")
+        return self
+
+
 class Snippets(BaseModel):
     """G-code inserted after heating (``start``) and before the heaters go off (``end``)."""
 
@@ -150,7 +174,23 @@ class PrinterProfile(BaseModel):
     fan_percent: float = Field(50.0, ge=0, le=100, description="part cooling fan while printing")
     park_lift: float = Field(20.0, ge=0, description="mm lifted above the fabric when parked")
     alignment: AlignmentTolerance = AlignmentTolerance()
+    adjust: Adjustments = Adjustments()
     gcode: Snippets = Snippets()
+
+    @model_validator(mode="after")
+    def _adjustments_within(self) -> "PrinterProfile":
+        """The top speed override keeps the programs' own speeds within the maxima; the lowest
+        nozzle target allowed while printing is below the print temperature."""
+        top, mo, t = self.adjust.speed_percent[1] / 100.0, self.motion, self.temperatures
+        for name, limit in (("print_speed", "max_xy_speed"), ("travel_speed", "max_xy_speed"),
+                            ("z_speed", "max_z_speed")):
+            if getattr(mo, name) * top > getattr(mo, limit) + 1e-9:
+                raise ValueError(f"adjust.speed_percent's top {top * 100:g} % takes motion.{name} "
+                                 f"({getattr(mo, name):g} mm/s) above motion.{limit} ({getattr(mo, limit):g} mm/s)")
+        if self.adjust.nozzle_min > t.nozzle:
+            raise ValueError(f"adjust.nozzle_min = {self.adjust.nozzle_min:g} °C must be at most the print "
+                             f"temperature (temperatures.nozzle = {t.nozzle:g} °C)")
+        return self
 
 
 def available_profiles() -> list[str]:

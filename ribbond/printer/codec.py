@@ -249,6 +249,15 @@ class Action:
 
 
 @dataclass(frozen=True)
+class Factor:
+    """A feed override or flow report: Marlin's ``FR:100%`` (M220 without words, M220.cpp) and
+    ``echo:E0 Flow: 100%`` (M221 without S, M221.cpp). ``kind``: "speed" or "flow"."""
+
+    kind: str
+    percent: float
+
+
+@dataclass(frozen=True)
 class Echo:
     """Any other ``echo:`` line: informational."""
 
@@ -276,6 +285,7 @@ Event = (
     | Capability
     | UnknownCommand
     | Action
+    | Factor
     | Echo
     | Other
 )
@@ -287,6 +297,8 @@ _POWER = re.compile(rf"(?<!\w)([TBC]?\d?)@:\s*({_NUMBER})")
 # Smoothieware prints each heater's power right after it, "@" without a colon: "T:21.0 /0.0 @0"
 _SMOOTHIE_POWER = re.compile(rf"(?<![\w@])([TBC]\d?):\s*{_NUMBER}\s*/\s*{_NUMBER}\s+@(\d+)")
 _RESEND = re.compile(r"^(?:resend|rs)\s*:?\s*N?\s*(\d+)", re.IGNORECASE)
+_SPEED_FACTOR = re.compile(r"^FR:\s*(\d+(?:\.\d+)?)\s*%$")
+_FLOW_FACTOR = re.compile(r"^E\d+\s+Flow:\s*(\d+(?:\.\d+)?)\s*%$")
 _SKIP = re.compile(r"^skip\s+(\d+)\s*$", re.IGNORECASE)
 # Repetier's line check: "Error:expected line 12 got 14" (line 11 was the last it took)
 _EXPECTED_LINE = re.compile(r"expected line\s+(-?\d+)", re.IGNORECASE)
@@ -438,6 +450,9 @@ def parse_line(raw: str) -> Event:
     if body_lower.startswith("unknown command:"):
         command = body[len("unknown command:") :].strip().strip('"')
         return UnknownCommand(command)
+    factor = _SPEED_FACTOR.match(body) or _FLOW_FACTOR.match(body)
+    if factor:
+        return Factor("speed" if body.startswith("FR") else "flow", float(factor.group(1)))
     if lower.startswith("echo:"):
         return Echo(body)
     for prefix in ("info:", "warning:"):  # Repetier's "Info:PowerUp", RepRapFirmware's warnings

@@ -70,6 +70,9 @@ class PrinterStatus(BaseModel):
     position: tuple[float, float, float, float | None] | None = None
     last_error: str | None = None
     busy: str | None = None
+    #: The feed override (M220) and the flow (M221) the printer last reported, % (None: not asked).
+    speed_percent: float | None = None
+    flow_percent: float | None = None
     lines_acknowledged: int = -1
     #: The sender's byte window now (smaller than configured once overflow was proven), and what
     #: to configure then.
@@ -585,6 +588,8 @@ class PrinterLink:
             self._position_at = time.monotonic()
         elif isinstance(event, codec.Busy):
             self._status.busy = event.reason
+        elif isinstance(event, codec.Factor):
+            setattr(self._status, f"{event.kind}_percent", event.percent)
         elif isinstance(event, codec.Error):
             self._status.last_error = event.message
         if temperatures is not None:
@@ -595,6 +600,7 @@ class PrinterLink:
             }
 
     def _on_boot(self) -> None:
+        self._status.speed_percent = self._status.flow_percent = None  # a reboot resets them
         if self._boot_seen is not None:
             self._boot_seen.set()
         if self._state is LinkState.CONNECTING:

@@ -9,6 +9,7 @@ import { CameraView } from "./camera.js";
 import { loadNotify, takeDelivery } from "./notify.js";
 import { ShapeCard, printWarningHTML } from "./shapecard.js";
 import { sortJobs, endedDuration, downloads } from "./joblist.js";
+import { initAdjust, renderAdjust } from "./adjust.js";
 
 const $ = (id) => document.getElementById(id);
 const esc = (s) => String(s ?? "").replace(/[&<>"']/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
@@ -136,8 +137,11 @@ function renderPrinter() {
   const live = s === "ready" || s === "paused";
   const manual = live && !streaming;
   for (const el of document.querySelectorAll("#manual button, #manual input, #heat, #cool")) el.disabled = !manual;
-  $("manual-note").textContent = manual ? "" : streaming ? `A program is streaming (${streaming.mesh_name}): pause it to move the head.`
-    : `The printer is ${s}.`;
+  // the console stays open beside a running program: the daemon takes only the adjustments and M105/M114 then
+  for (const el of document.querySelectorAll("#console-form input, #console-form button")) el.disabled = !(manual || (streaming && s === "streaming"));
+  $("manual-note").textContent = manual ? "" : streaming ? `A program is streaming (${streaming.mesh_name}): pause it to move the head; ` +
+    "the console takes M220, M221, M104, M140, M105 and M114 meanwhile." : `The printer is ${s}.`;
+  renderAdjust($("adjust"), p, streaming);
   for (const el of document.querySelectorAll(".jogpad .pos")) el.textContent = $("p-position").textContent;
   drawChart($("chart"), state.temps);
 }
@@ -184,6 +188,8 @@ $("goto-centre").addEventListener("click", () => act("Go to the frame's centre",
   await api.post("/printer/goto", { x, y });
   await pollPrinter();
 }));
+
+initAdjust($("adjust"), (r) => { if (r.printer) takePrinter(r.printer); });
 
 // ------------------------------------------------------------------ the jog pad
 

@@ -87,7 +87,10 @@ def test_pause_heaters_manual_control_and_a_safe_stop_on_sigterm(tmp_path: Path,
         # manual control is refused while the program streams, naming what to do instead
         r = api.post("/printer/jog", json={"dx": 1, "dy": 0})
         assert r.status_code == 409 and "pause it first" in r.json()["detail"], r.text
-        assert api.post("/printer/gcode", json={"commands": ["M105"]}).status_code == 409
+        # typed G-code goes in beside the program only as a query or an adjustment (issue 36)
+        assert api.post("/printer/gcode", json={"commands": ["M105"]}).status_code == 200
+        r = api.post("/printer/gcode", json={"commands": ["G1 X120"]})
+        assert r.status_code == 409 and "not accepted while a program prints" in r.json()["detail"], r.text
 
         r = api.post(f"/jobs/{job}/pause")
         assert r.status_code == 200 and r.json()["state"] == "paused", r.text

@@ -2,6 +2,11 @@
 never while a program streams (a job paused, awaiting the flip or aligning, or no job at all);
 the printer's status; the emergency stop and the recovery after it.
 
+While a program streams, typed G-code, ``heat`` and ``adjust`` still go in beside it (issue 36), but
+only the adjustments a print allows (feed override M220, flow M221, nozzle M104 and bed M140 within
+the profile's ``[adjust]`` and temperature limits) and the queries M105 and M114: the checker's
+``printing`` mode refuses everything else, a move first of all.
+
 Moves stay inside the frame and above the fabric, temperatures within the profile: jog, goto, heat
 and typed G-code are checked by the same ``checker.GcodeChecker`` as a plain G-code job (typed G-code
 unchecked only with ``[manual] raw_console = true``). The head's commanded position is tracked
@@ -17,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ribbond.gcode.checker import Checked, GcodeChecker, Modal, parse_command
+from ribbond.gcode.checker import Checked, GcodeChecker, Modal, NotWhilePrinting, parse_command
 from ribbond.gcode.profiles import PrinterProfile
 from ribbond.printer import codec
 from ribbond.printer.errors import LinkError
@@ -34,6 +39,9 @@ log = logging.getLogger(__name__)
 MAX_MANUAL_COMMANDS = 16
 #: Jogs and gotos move at most this fast in X/Y, mm/s (the profile's travel speed if slower).
 JOG_SPEED = 50.0
+#: Seconds an adjustment sent beside a running program may wait for its ``ok`` (the program's
+#: queued lines run first on firmware that answers in order).
+ADJUST_TIMEOUT_S = 120.0
 
 
 class ManualControl:
@@ -66,16 +74,69 @@ class ManualControl:
             raise ServiceError(f"cannot {what}: a program is streaming to the printer")
         return link
 
-    def _check(self, commands: list[str], start: tuple[float, float, float] | None, what: str) -> Checked:
+    def _check(self, commands: list[str], start: tuple[float, float, float] | None, what: str,
+               printing: bool = False) -> Checked:
         """``commands`` checked as a plain G-code job's lines are (``checker``), from ``start`` in
         absolute mode; refusals name ``what`` (e.g. "jog 5 0 0"), or for typed G-code (``what``
-        "command") the command and its number ("command 2 (G1 Z-2)")."""
+        "command") the command and its number ("command 2 (G1 Z-2)"). ``printing``: they go in
+        beside a running program (only the adjustments and the queries pass)."""
         modal = Modal(pos=list(start) if start is not None else [None, None, None])
 
         def where(number: int, command: str) -> str:
             return f"command {number} ({command})" if what == "command" else what
 
-        return GcodeChecker(self.profile, modal=modal, where=where).check(commands)
+        return GcodeChecker(self.profile, modal=modal, where=where, printing=printing).check(commands)
+
+    def _streaming_job(self) -> str | None:
+        """The job whose program is streaming now (heating or printing a side), or None."""
+        run = self.state.run
+        if run is None:
+            return None
+        job = self.records.get(run.job_id)
+        return job.id if job.state.streams else None
+
+    async def _beside_program(self, job_id: str, typed: list[str]) -> dict[str, Any]:
+        """Typed G-code while ``job_id``'s program streams (issue 36): checked with ``printing``
+        (the adjustments within the profile's ``[adjust]`` and the temperature limits, M105, M114;
+        never a move or a wait), whole, before any is sent; each goes out through the link's one
+        sender as the next numbered line ahead of the program's next lines, so the line numbers,
+        the resends and the proof that a program line ran stay the sender's. A changed feed
+        override or flow is read back (bare M220 / M221) so the status shows the printer's own.
+        What is refused only because the program prints (a move, a wait, the nozzle below
+        ``adjust.nozzle_min``) is a ``ServiceError`` (409); a value beyond the profile's limits a
+        ``ValueError`` (422)."""
+        run = self.state.run
+        if run is not None and run.busy:
+            raise ServiceError(f"cannot send G-code: job {job_id} is pausing or resuming; try again in a moment")
+        try:
+            checked = self._check(typed, None, "command", printing=True)
+        except NotWhilePrinting as refused:         # allowed once the job is paused: a conflict (409)
+            raise ServiceError(f"{refused}; job {job_id} is printing") from None
+        link = self.head.require_link()
+        answers = []
+        for text, command in zip(typed, checked.commands):
+            answer, lines = await link.send_collecting(command, timeout=ADJUST_TIMEOUT_S)
+            answers.append({"command": text, "answer": _own_lines(lines, answer.line)})
+        await _read_back(link, checked.commands)
+        return {"answers": answers, "printing": job_id,
+                "notes": [f"sent beside job {job_id}'s program: while it prints only M220, M221, M104, M140 "
+                          "(within the profile's limits), M105 and M114 are accepted"]}
+
+    async def adjust(self, speed: float | None = None, flow: float | None = None, nozzle: float | None = None,
+                     bed: float | None = None) -> dict[str, Any]:
+        """Set the feed override (M220 S, %), the flow (M221 S, %) and the heater targets (M104 S,
+        M140 S, °C), while a program prints or not: sent as typed G-code (``gcode``), so through
+        the same check; the printer's status after it."""
+        values = {"speed": speed, "flow": flow, "nozzle": nozzle, "bed": bed}
+        for name, value in values.items():
+            if value is not None and not np.isfinite(value):
+                raise ValueError(f"{name} must be a finite number")
+        commands = [f"{code} S{value:g}" for code, value in zip(("M220", "M221", "M104", "M140"), values.values())
+                    if value is not None]
+        if not commands:
+            raise ValueError("nothing to adjust: give speed, flow, nozzle or bed")
+        result = await self.gcode(commands)
+        return {**result, "printer": await self.printer_status(refresh=True)}
 
     def _move_commands(self, here: tuple[float, float, float], x: float, y: float, z: float) -> list[str]:
         """The moves to (x, y, z): up before moving across, down after (never dragged over the fabric)."""
@@ -138,6 +199,9 @@ class ManualControl:
         out. It runs in absolute positioning (G90 is sent first when it moves the head) and leaves
         the printer so. ``[manual] raw_console = true`` sends it unchecked (logged)."""
         clean = _typed(commands)
+        job_id = self._streaming_job()
+        if job_id is not None:
+            return await self._beside_program(job_id, clean)
         async with self.head.lock:
             link = self._manual_link("send G-code")
             if self.settings.raw_console:
@@ -157,6 +221,7 @@ class ManualControl:
                 raise
             self.head.ran(checked.commands)
             await self._after_typed(link, checked.modal, moves_head)
+            await _read_back(link, checked.commands)
             return {"answers": answers, "notes": notes}
 
     @staticmethod
@@ -204,6 +269,9 @@ class ManualControl:
                 raise ValueError(f"{name} must be a finite number of °C")
         sets = ([f"M104 S{nozzle:.0f}"] if nozzle is not None else []) + ([f"M140 S{bed:.0f}"] if bed is not None else [])
         what = " ".join(f"--{n} {v:g}" for n, v in (("nozzle", nozzle), ("bed", bed)) if v is not None)
+        if self._streaming_job() is not None:          # beside a running program: its checks
+            await self.gcode(sets)
+            return await self.printer_status(refresh=True)
         sets = self._check(sets, None, f"heat {what}").commands
         async with self.head.lock:
             link = self._manual_link("heat")
@@ -243,10 +311,13 @@ class ManualControl:
 
     def _profile_info(self) -> dict[str, Any]:
         """The daemon's printer profile as a person choosing a design's size needs it: its name and
-        frame (the printable rectangle, its centre, the axis the frame is flipped about)."""
-        frame = self.profile.frame
+        frame (the printable rectangle, its centre, the axis the frame is flipped about), and what a
+        print may be adjusted within (``adjust``: the percentages, the temperature limits)."""
+        frame, adjust, t = self.profile.frame, self.profile.adjust, self.profile.temperatures
         return {"name": self.profile.name, "frame": {"bounds": list(frame.bounds), "center": list(frame.center),
-                                                     "size": list(frame.size), "flip_axis": frame.flip_axis}}
+                                                     "size": list(frame.size), "flip_axis": frame.flip_axis},
+                "adjust": {"speed_percent": list(adjust.speed_percent), "flow_percent": list(adjust.flow_percent),
+                           "nozzle_min": adjust.nozzle_min, "nozzle_max": t.nozzle_max, "bed_max": t.bed_max}}
 
     def emergency_stop(self) -> None:
         link = self.head.link
@@ -283,6 +354,25 @@ def _typed(commands: list[str]) -> list[str]:
             raise ValueError(f"command {i} ({command}): only a comment, nothing to send")
         codec.check_sendable(codec.strip_comment(command) or command)
     return clean
+
+
+async def _read_back(link: PrinterLink, commands: list[str]) -> None:
+    """After an M220 S… or M221 S…, the bare command: the printer reports the value it now runs
+    with (the codec's ``Factor``), which the link's status keeps. A firmware that reports nothing
+    leaves the status as it was."""
+    if {c.split()[0].upper() for c in commands if len(c.split()) > 1} & {"M220", "M221"}:
+        for code in ("M220", "M221"):           # both: the status then shows both as the printer has them
+            with contextlib.suppress(LinkError, asyncio.TimeoutError):
+                await link.send(code, timeout=ADJUST_TIMEOUT_S)
+
+
+def _own_lines(lines: list[str], number: int) -> list[str]:
+    """A command's answer lines beside a running program, without the program lines'
+    acknowledgements that arrived meanwhile (ADVANCED_OK's ``ok N…`` naming another line)."""
+    def other_ok(line: str) -> bool:
+        event = codec.parse_line(line)
+        return isinstance(event, codec.Ok) and event.line is not None and event.line != number
+    return [line for line in lines if not other_ok(line)]
 
 
 def _moves_head(command: str) -> bool:
