@@ -10,7 +10,7 @@ from enum import Enum
 from typing import Annotated, Any, Literal
 
 from fastapi import Path as PathParam
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ribbond.daemon.components.camera import SNAPSHOT_FILES
 from ribbond.daemon.components.manual import MAX_MANUAL_COMMANDS
@@ -215,6 +215,16 @@ class AdjustRequest(BaseModel):
     flow: float | None = Field(None, gt=0, description="flow, % (M221 S)")
     nozzle: float | None = Field(None, ge=0, description="nozzle target, °C (M104 S)")
     bed: float | None = Field(None, ge=0, description="bed target, °C (M140 S)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_nulls(cls, data: Any) -> Any:
+        # the document gives each field as a number: an explicit null is not "leave it", it is refused
+        if isinstance(data, dict):
+            nulls = sorted(k for k, v in data.items() if v is None)
+            if nulls:
+                raise ValueError(f"{', '.join(nulls)}: a number, or leave the field out (null is not allowed)")
+        return data
 
 
 class CalibrationRequest(Body):

@@ -305,9 +305,11 @@ def test_an_upload_shows_its_progress(browser_page: Any, shared_daemon: Daemon, 
     """A large mesh file over a slow link: the progress bar under the form moves from 0 to 1 while
     the bytes go (the upload is throttled in the browser to 2 MB/s), then the job page opens."""
     mesh = tmp_path / "big.obj"
-    with mesh.open("w") as f:                 # 6 MB: a triangle and a long header of comments
+    with mesh.open("w") as f:                 # 6 MB: a small saddle and a long header of comments
         f.write("".join(f"# padding line {i:07d} {'.' * 48}\n" for i in range(90_000)))
-        f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        # a mesh the upload's intake accepts (issue 36: one triangle is refused at upload)
+        f.write("".join(f"v {x * 10} {y * 10} {((x - 2) ** 2 - (y - 2) ** 2) * 0.5}\n" for y in range(5) for x in range(5)))
+        f.write("".join(f"f {a} {a + 1} {a + 6}\nf {a} {a + 6} {a + 5}\n" for a in (y * 5 + x + 1 for y in range(4) for x in range(4))))
     page = browser_page()
     page.goto(shared_daemon.url + "/")
     page.wait_for_selector("#conn.ready", timeout=20 * SECOND)
