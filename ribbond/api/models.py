@@ -10,7 +10,7 @@ from enum import Enum
 from typing import Annotated, Any, Literal
 
 from fastapi import Path as PathParam
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ribbond.daemon.components.camera import SNAPSHOT_FILES
 from ribbond.daemon.components.manual import MAX_MANUAL_COMMANDS
@@ -188,6 +188,16 @@ class AdjustRequest(BaseModel):
     flow: float | None = Field(None, gt=0, description="flow, % (M221 S)")
     nozzle: float | None = Field(None, ge=0, description="nozzle target, °C (M104 S)")
     bed: float | None = Field(None, ge=0, description="bed target, °C (M140 S)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_nulls(cls, data: Any) -> Any:
+        """A field is a number or left out (the document says so): ``null`` is refused."""
+        if isinstance(data, dict):
+            for name, value in data.items():
+                if value is None:
+                    raise ValueError(f"{name}: give a number or leave it out (null is not a value)")
+        return data
 
 
 class CalibrationRequest(BaseModel):
