@@ -219,12 +219,13 @@ class AdjustRequest(BaseModel):
     @model_validator(mode="before")
     @classmethod
     def _no_nulls(cls, data: Any) -> Any:
-        # the document gives each field as a number: an explicit null is not "leave it", it is refused
+        """A field is a number or left out (the document says so): ``null`` is refused."""
         if isinstance(data, dict):
-            nulls = sorted(k for k, v in data.items() if v is None)
-            if nulls:
-                raise ValueError(f"{', '.join(nulls)}: a number, or leave the field out (null is not allowed)")
+            for name, value in data.items():
+                if value is None:
+                    raise ValueError(f"{name}: give a number or leave it out (null is not a value)")
         return data
+
 
 
 class CalibrationRequest(Body):

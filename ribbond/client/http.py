@@ -745,8 +745,9 @@ def _factors_text(status: dict[str, Any]) -> str:
 
 def cmd_adjust(args: argparse.Namespace) -> int:
     """Adjust the print in progress (or the printer between prints): speed, flow, nozzle, bed."""
-    body = {"speed": args.speed, "flow": args.flow, "nozzle": args.nozzle, "bed": args.bed}
-    if all(v is None for v in body.values()):
+    given = {"speed": args.speed, "flow": args.flow, "nozzle": args.nozzle, "bed": args.bed}
+    body = {k: v for k, v in given.items() if v is not None}        # a field is a number or left out
+    if not body:
         print("ribbonctl adjust: give --speed, --flow, --nozzle and/or --bed", file=sys.stderr)
         return 2
     result = _client(args).request("POST", "/printer/adjust", json=body, timeout=330)

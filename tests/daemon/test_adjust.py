@@ -95,7 +95,8 @@ def test_a_print_is_adjusted_beside_its_program_and_only_so(shared_daemon: Daemo
         assert r.status_code == status and words in r.json()["detail"], (commands, r.text)
     for body, status, words in (({"speed": 500}, 422, "feed override above 100 %"),
                                 ({"nozzle": 20}, 409, "adjust.nozzle_min"), ({"flow": 50}, 422, "flow below 80 %"),
-                                ({}, 422, ""), ({"speed": None}, 422, "nothing to adjust")):
+                                ({}, 422, ""), ({"speed": None}, 422, "null is not a value"),
+                                ({"bed": False}, 422, "")):
         r = api.post("/printer/adjust", json=body)
         assert r.status_code == status and words in r.text, (body, r.text)
     for route, body in (("/printer/jog", {"dx": 1, "dy": 0}), ("/printer/home", None)):
