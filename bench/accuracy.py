@@ -106,11 +106,7 @@ def design_cases() -> list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]:
 
 def ribbons_vs_exact(folder, V: np.ndarray, exact: Exact) -> tuple[np.ndarray, np.ndarray]:
     """The design folder's ribbon segments carried back onto the target (scaled back to the
-    generator's V, the mesh the engine designed on: target.obj is it centred and scaled) against the
-    exact k1 on anisotropic faces: angles (k,) in degrees, lengths (k,)."""
-    if len(V) != len(folder.target_V):
-        raise ValueError(f"ribbons_vs_exact: V has {len(V)} vertices, target.obj {len(folder.target_V)}: "
-                         "pass the mesh the engine designed on (refined at intake?)")
+    generator's V) against the exact k1 on anisotropic faces: angles (k,) in degrees, lengths (k,)."""
     Vt = folder.target_V
     c = np.sqrt(np.var(Vt, axis=0).sum() / np.var(V, axis=0).sum())
     P, D, L = ribbon_segments_on_target(folder)
@@ -159,35 +155,6 @@ def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.nd
                   f"{residual:>7.3f}", flush=True)
 
 
-def _garment(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The front of a garment top as a graph over x ∈ [−60, 60], y ∈ [−40, 40] mm: a torso bending
-    around the vertical (radius 90 mm) with two bust bumps (8 mm high, σ 18 mm, 64 mm apart, below
-    the middle); f, its gradient (p, 2) and Hessian (p, 2, 2)."""
-    x, y = xy[:, 0], xy[:, 1]
-    f = -x ** 2 / 180.0
-    g = np.column_stack([-x / 90.0, np.zeros_like(x)])
-    H = np.zeros((len(xy), 2, 2))
-    H[:, 0, 0] = -1 / 90.0
-    for cx in (-32.0, 32.0):
-        dx, dy, s2 = x - cx, y + 8.0, 18.0 ** 2
-        b = 8.0 * np.exp(-(dx ** 2 + dy ** 2) / (2 * s2))
-        f = f + b
-        g = g + np.column_stack([-b * dx / s2, -b * dy / s2])
-        H += b[:, None, None] * (np.stack([np.stack([dx * dx, dx * dy], -1), np.stack([dx * dy, dy * dy], -1)], -2)
-                                 / s2 ** 2 - np.eye(2) / s2)
-    return f, g, H
-
-
-def _garment_mesh(UV: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    xy = np.column_stack([-60 + 120 * UV[:, 0], -40 + 80 * UV[:, 1]])
-    return np.column_stack([xy, _garment(xy)[0]]), F
-
-
-def garment_curvature(P: np.ndarray) -> S.ExactCurvature:
-    _, g, H = _garment(P[:, :2])
-    return S.graph_curvature(P[:, :2], g, H)
-
-
 def coarse_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray]], tuple[int, int], Exact]]:
     """Analytic surfaces at ~900 faces and at ~40k: (name, builder of a resolution, the two
     resolutions, exact curvature)."""
@@ -199,15 +166,7 @@ def coarse_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarr
         # a shoulder: a sleeve (cylinder) running into a cap, the garment-like generator surface
         ("shoulder: cylinder into cap", lambda k: S.cap_cylinder_blend(n_x=k, n_y=(18 * k) // 25), (25, 167),
          lambda P: S.blend_curvature(P[:, :2])),
-        # the front of a garment top: a torso with two bumps (umbilic spots, k1 turning around them)
-        ("garment top", lambda k: _garment_mesh(*S.grid(k, (4 * k) // 7)), (28, 196), garment_curvature),
     ]
-
-
-#: The scan-like meshes' noise, mm (σ on each coordinate): 0.4 % of their ~5 mm edges, a fifth of
-#: the coarse chords' sagitta on the 30 mm saddle; with it the per-face curvature of the meshes as
-#: given is off by ~1–2° (median) and 5 % in magnitude.
-SCAN_NOISE_MM = 0.02
 
 
 def _irregular_grid(nu: int, nv: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -260,31 +219,15 @@ def _scan_shoulder(k: int) -> tuple[np.ndarray, np.ndarray]:
     return np.column_stack([xy, S._blend(xy, 40.0)[0]]), F
 
 
-def _noisy(V: np.ndarray, sigma: float = SCAN_NOISE_MM) -> np.ndarray:
-    """V (n, 3) with Gaussian noise of ``sigma`` mm on every coordinate, as a scanner leaves (seeded)."""
-    return V + np.random.default_rng(23).normal(0.0, sigma, V.shape)
-
-
-def _scan_garment(k: int) -> tuple[np.ndarray, np.ndarray]:
-    return _garment_mesh(*_irregular_grid(k, (4 * k) // 7, seed=23))
-
-
 def scan_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray]], tuple[int, int], Exact]]:
-    """The same surfaces triangulated as scans are (irregular, random valences) at ~900 faces, then
-    with a scanner's noise (``SCAN_NOISE_MM``); the fine reference is the regular ~40k mesh."""
-    (_, torus, (_, tf), te), (_, saddle, (_, sf), se), (_, shoulder, (_, hf), he), (_, garment, (_, gf), ge) = \
-        coarse_cases()
-    scans = [("torus patch", _scan_torus, torus, 30, tf, te), ("saddle", _scan_saddle, saddle, 12, sf, se),
-             ("shoulder", _scan_shoulder, shoulder, 25, hf, he), ("garment top", _scan_garment, garment, 28, gf, ge)]
-    out = []
-    for noise in (False, True):
-        for name, scan, regular, c, f, exact in scans:
-            if name == "garment top" and not noise:
-                continue
-            build = (lambda k, scan=scan, regular=regular, c=c, noise=noise:
-                     ((_noisy(scan(k)[0]), scan(k)[1]) if noise else scan(k)) if k == c else regular(k))
-            out.append((f"{name}, scan-like" + (f" σ {SCAN_NOISE_MM:g}" if noise else ""), build, (c, f), exact))
-    return out
+    """The same surfaces triangulated as scans are (irregular, random valences) at ~900 faces; the
+    fine reference is the regular ~40k mesh."""
+    (_, torus, (_, tf), te), (_, saddle, (_, sf), se), (_, shoulder, (_, hf), he) = coarse_cases()
+    return [
+        ("torus patch, scan-like", lambda k: _scan_torus(k) if k == 30 else torus(k), (30, tf), te),
+        ("saddle, scan-like", lambda k: _scan_saddle(k) if k == 12 else saddle(k), (12, sf), se),
+        ("shoulder, scan-like", lambda k: _scan_shoulder(k) if k == 25 else shoulder(k), (25, hf), he),
+    ]
 
 
 #: Issue 23, item 7: ~900 faces against ~40k, ribbons vs exact k1 (median, °) and across spacing
@@ -300,18 +243,13 @@ def coarse_table(cases, refine_to: list[int | None]) -> None:
     from ribbond.design.mesh_io import write_obj
     from ribbond.design.params import DesignParameters, SolverSettings
     from ribbond.design.pipeline import design_mesh, write_design
-    from ribbond.design.mesh_io import read_mesh
-    from ribbond.design.refine import levels_for, refine
 
     def figures(V: np.ndarray, F: np.ndarray, exact: Exact, solver: SolverSettings, d: Path) -> tuple[float, ...]:
         d.mkdir()
         write_obj(d / "m.obj", V, F)
         result = design_mesh(d / "m.obj", DesignParameters(), solver, predict=False)
         folder = read_design_folder(write_design(result, d / "design"))
-        # a refined target's vertices are not the file's: map the ribbons back through the mesh
-        # the engine designed on (the same refinement of the same file), not through the file's
-        levels = levels_for(len(F), solver.refine_below_faces, solver.refine_to_faces, solver.max_faces)
-        dev, w = ribbons_vs_exact(folder, refine(*read_mesh(d / "m.obj"), levels).V, exact)
+        dev, w = ribbons_vs_exact(folder, V, exact)
         rep = folder.design.report
         return (len(result.F), weighted_quantile(dev, w, .5), weighted_quantile(dev, w, .95),
                 rep.ribbons.spacing_error_across_pct.median, result.design.report.time_s)
@@ -348,36 +286,6 @@ def coarse_table(cases, refine_to: list[int | None]) -> None:
                       f"{secs:>6.1f} | {tail}", flush=True)
 
 
-def refined_field_table(cases) -> None:
-    """The refined surface itself: the engine's per-face k1 (``face_curvature``, before the line
-    field) against the exact one on anisotropic faces, and |κ1| against the exact, on each coarse
-    mesh as given and refined as at intake (no design: seconds)."""
-    from ribbond.design.params import SolverSettings
-    from ribbond.design.refine import levels_for, refine
-
-    def errors(V: np.ndarray, F: np.ndarray, exact: Exact) -> tuple[float, float, float, float]:
-        fr = face_frames(V, F)
-        c = face_curvature(V, F, fr)
-        E = exact(V[F].mean(axis=1))
-        d = np.cos(c.angle)[:, None] * fr.e1 + np.sin(c.angle)[:, None] * fr.e2
-        t = E.direction1 - np.einsum("ij,ij->i", E.direction1, fr.n)[:, None] * fr.n
-        t /= np.linalg.norm(t, axis=1, keepdims=True)
-        dev = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, t)), 0, 1)))[E.anisotropy > 0.3]
-        k = 100 * np.abs(c.kappa1 - E.kappa1) / np.abs(E.kappa1).max()
-        return np.median(dev), np.percentile(dev, 95), np.median(k), np.percentile(k, 95)
-
-    s = SolverSettings()
-    print(f"\n{'per-face k1 of the surface':<34} {'faces':>6} | {'as given: k1 median':>19} {'p95':>5} "
-          f"{'|κ1| % median':>13} {'p95':>5} | {'refined: k1 median':>18} {'p95':>5} "
-          f"{'|κ1| % median':>13} {'p95':>5}")
-    for name, build, (coarse, _), exact in cases:
-        V, F = build(coarse)
-        r = refine(V, F, levels_for(len(F), s.refine_below_faces, s.refine_to_faces, s.max_faces))
-        a, b = errors(V, F, exact), errors(r.V, r.F, exact)
-        print(f"{name:<34} {len(F):>6} | {a[0]:>19.2f} {a[1]:>5.2f} {a[2]:>13.2f} {a[3]:>5.2f} | "
-              f"{b[0]:>18.2f} {b[1]:>5.2f} {b[2]:>13.2f} {b[3]:>5.2f}", flush=True)
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="two resolutions instead of three")
@@ -386,13 +294,12 @@ def main() -> int:
                     help="[solver] spacing_integrability_weight values to run the designs with")
     ap.add_argument("--sweep", action="store_true", help="also the torus patch at seven resolutions, "
                     "without the row-count phase (weight 0) and with the settings' own")
-    ap.add_argument("--coarse", action="store_true", help="only the coarse-mesh tables: the refined surface's "
-                    "per-face k1, then designs at ~900 faces (as given and refined at intake) against ~40k (issue 23)")
+    ap.add_argument("--coarse", action="store_true", help="only the coarse-mesh table: ~900 faces (as given "
+                    "and refined at intake) against ~40k (issue 23)")
     ap.add_argument("--refine-to", type=int, nargs="+", default=None, metavar="N",
                     help="with --coarse: [solver] refine_to_faces values to refine with (default: the settings' own)")
     args = ap.parse_args()
     if args.coarse:
-        refined_field_table(coarse_cases() + scan_cases())
         coarse_table(coarse_cases() + scan_cases(), args.refine_to or [None])
         return 0
     if not args.ribbons_only:

@@ -286,7 +286,7 @@ class RefinedReport(BaseModel):
     model_config = _CONFIG
     from_faces: int = Field(ge=1, description="faces of the cleaned source mesh")
     faces: int = Field(ge=1, description="faces after refinement (those of target.obj)")
-    levels: int = Field(ge=1, description="rounds of subdivision (each × 4 faces)")
+    levels: int = Field(ge=1, description="rounds of midpoint subdivision (each × 4 faces)")
     method: str = Field(min_length=1, description="the refinement scheme")
     offset_pct: float = Field(ge=0, description="largest distance of a refined vertex from the source "
                               "surface, % of its bounding-box diagonal")

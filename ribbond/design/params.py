@@ -152,9 +152,9 @@ class SolverSettings(BaseModel):
         0.3, ge=0, lt=1, description="a face is umbilic where the curvature anisotropy "
         "(|κ1| − |κ2|) / (|κ1| + |κ2|) is at most this")
     refine_below_faces: int = Field(
-        3_000, ge=0, description="targets with fewer faces (scans, exports) are refined at intake: local cubic "
-        "fits blended with Loop subdivision's smooth weights (the file's vertices smoothed onto them), to at "
-        "least refine_to_faces (within max_faces), so that coarse meshes give smooth layouts; 0 turns it off")
+        3_000, ge=0, description="targets with fewer faces (scans, exports) are refined at intake: midpoint "
+        "subdivision onto local quadric fits, the file's vertices kept, to at least refine_to_faces "
+        "(within max_faces), so that coarse meshes give smooth layouts; 0 turns it off")
     refine_to_faces: int = Field(
         10_000, ge=1, description="the face count a refined target reaches at least (each round × 4 faces)")
     max_faces: int = Field(400_000, ge=1, description="meshes with more faces are refused")
