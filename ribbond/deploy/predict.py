@@ -51,6 +51,14 @@ COARSE_FACES = 600
 RELEASES = (NOMINAL,
             Path("lifted against the curl", 1.0, -1.0),
             Path("curvature lagging the contraction", 2.0, 1.0))
+#: The finish's Newton cap, × the cap per release step. A step starts next to its equilibrium (the
+#: last one, continued); the finish starts from the coarse release interpolated onto the reference
+#: mesh, whose equilibrium can lie along a soft mode (a saddle's floppy rim) some way from it: Newton
+#: then walks down that valley two iterations per stride, still converging quadratically at the end.
+#: Measured on the small saddle of tests/deploy/test_predict.py refined at intake: 13 iterations
+#: (midpoint subdivision) and 38 (the smooth refinement), where the per-step cap of 15 stopped it
+#: out of balance (‖∇E‖∞ 3.6e-4 N against 1e-5) at 10, 20 and 40 steps alike.
+FINISH_FACTOR = 4
 #: The model: the homogenized shell (``rest_forms``; docs/engine.md says why there is no other).
 MODELS = ("homogenized",)
 
@@ -255,7 +263,7 @@ def _release_on(sheet: Sheet, coarse: Sheet | None, path: Path, steps: int, max_
         return r.X, r.iterations, r.converged
     r = release(coarse, steps=steps, path=path, max_iterations=max_iterations,
                 progress=lambda k, n, it: report(k, n + 1))
-    fin = _finish(sheet, interpolate(sheet.uv, coarse.uv, coarse.F, r.X), max_iterations)
+    fin = _finish(sheet, interpolate(sheet.uv, coarse.uv, coarse.F, r.X), FINISH_FACTOR * max_iterations)
     report(1, 1)
     return fin.X, r.iterations + fin.iterations, r.converged and fin.converged
 
@@ -311,7 +319,7 @@ def predict_deployed(flat_uv: np.ndarray, target_V: np.ndarray, F: np.ndarray, r
     material : the material constants (``Material()``).
     model : "homogenized" (the shell of ``rest_forms``), the only one.
     steps : release steps per path; releases : the paths (the first is the nominal prediction).
-    max_iterations : Newton's cap per step.
+    max_iterations : Newton's cap per step (the finish on the reference mesh: ``FINISH_FACTOR`` × it).
     progress : called with (fraction done in [0, 1], what is being done).
 
     Returns

@@ -539,7 +539,7 @@ def test_api_token_and_upload_limit(tmp_path: Path, meshes: dict[str, Path]) -> 
         assert daemon.client.get("/jobs").json() == []
         # A small upload passes the limit (the design itself is not needed here).
         small = tmp_path / "small.obj"
-        small.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        small.write_bytes(b"v 0 0 0\nv 10 0 0\nv 0 10 1\nv 10 10 0\nf 1 2 3\nf 2 4 3\n")   # two faces: intake's least
         job = submit(daemon.client, small, start=False, parameters=PARAMETERS)
         assert daemon.client.get(f"/jobs/{job}").status_code == 200
     finally:
