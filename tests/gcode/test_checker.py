@@ -372,3 +372,46 @@ def test_a_stitch_mark_must_be_printed_within_half_the_nozzle_width() -> None:
         check_stitch_marks(["G28"], [mark], PROFILE)
     with pytest.raises(ValueError, match=r"^front\.gcode, line 3: .*outside the frame"):
         check_stitch_marks([*HOME, "G1 X500"], [mark], PROFILE, source="front.gcode")
+
+
+# ---------------------------------------------------------------------------------- the tolerances (1e-6)
+
+
+def test_limits_hold_to_a_millionth_and_not_beyond() -> None:
+    eps = 1e-6
+    run(f"M104 S{240.0 + eps!r}")                                   # within the tolerance: at the limit
+    assert "above the profile's nozzle_max" in refused(f"M104 S{240.0 + 3 * eps!r}")
+    for x, y in ((X0 - eps, Y0 - eps), (X1 + eps, Y1 + eps)):
+        run("G28", f"G0 Z{FABRIC + 2:g}", f"G0 X{x!r} Y{y!r}")
+    for x, y in ((X0 - 3 * eps, 60.0), (X1 + 3 * eps, 60.0), (100.0, Y0 - 3 * eps), (100.0, Y1 + 3 * eps)):
+        assert "outside the frame" in refused("G28", f"G0 Z{FABRIC + 2:g}", f"G0 X{x!r} Y{y!r}")
+    run(*HOME, f"G1 Z{FABRIC - eps!r}")
+    assert "below the fabric" in refused(*HOME, f"G1 Z{FABRIC - 3 * eps!r}")
+
+
+def test_a_millionth_of_filament_is_no_motion() -> None:
+    assert run(*HOME, "M83", "G1 E0.000001 F3000").commands[-1] == "G1 E0.000001 F3000"
+
+
+def test_a_slow_feed_is_a_feed() -> None:
+    assert run(*HOME, "G1 X60 F0.5").commands[-1] == "G1 X60 F0.5"
+
+
+def test_a_move_that_states_its_own_feed_is_sent_as_written() -> None:
+    assert run(*HOME, "G1 F600.0 X60").commands[-1] == "G1 F600.0 X60"
+
+
+def test_a_move_from_an_unknown_start_to_a_known_end_is_clamped_by_the_slowest_axis() -> None:
+    checked = run(f"G0 X50 Y50 Z{FABRIC + 1:g} F99999")
+    assert checked.commands == [f"G0 X50 Y50 Z{FABRIC + 1:g} F300"] and checked.clamped == {"Z": 1}
+
+
+def test_filament_is_not_part_of_the_path_length() -> None:
+    # X 30 mm with 10 mm of filament: X alone would allow 100 mm/s; E at 20 mm/s allows 30/10 * 20 = 60
+    checked = run(*HOME, "M83", "G1 X80 E10 F9000")
+    assert checked.commands[-1] == "G1 X80 E10 F3600" and checked.clamped == {"E": 1}
+
+
+def test_a_relative_move_before_the_position_is_known_is_refused_naming_it() -> None:
+    assert refused("G91", "G1 Y1") == ("program, line 2: a relative Y move before the Y position is known; "
+                                       "home (G28) or move to an absolute position first")
