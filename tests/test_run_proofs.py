@@ -92,3 +92,10 @@ def test_clear_returns_the_unproven_and_forgets_the_queries() -> None:
     a, _, b = receive(proofs, (1, "G1 X1", True), (2, "M114", False), (3, "G1 X2", True))
     assert proofs.clear() == [a, b]
     assert proofs.oldest_unproven is None and proofs.position_reported() == [] and proofs.clear() == []
+
+
+def test_after_idle_the_next_report_is_the_next_querys() -> None:
+    proofs: RunProofs[Line] = RunProofs()
+    _, line, _ = receive(proofs, (3, "M114", False), (4, "G1 X1", True), (5, "M114", False))
+    assert proofs.idle(3) == []                              # the M114 at 3 has run (its report was lost)
+    assert proofs.position_reported() == [line]              # so this report is 5's: line 4 ran

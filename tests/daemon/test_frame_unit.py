@@ -174,3 +174,16 @@ def test_a_fresh_frame_cannot_be_confirmed_during_a_run(g: Gate) -> None:
         g.gate.ready()
     g.state.run = None
     assert g.gate.ready()["state"] == FRAME_FRESH
+
+
+async def test_the_journal_says_what_happened_to_the_frame(g: Gate, caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level("INFO", logger="ribbond.daemon.components.frame")
+    job = queued_job(g.store)
+    g.gate.used("a1")
+    waiting = asyncio.create_task(g.gate.wait_fresh(job))
+    await asyncio.sleep(0.05)
+    g.gate.ready()
+    await asyncio.wait_for(waiting, 2)
+    assert [r.getMessage() for r in caplog.records if r.name == "ribbond.daemon.components.frame"] == [
+        "the frame is used (job a1 printed on it)", f"job {job} waits for a fresh frame (ribbonctl frame-ready)",
+        "the operator confirmed a fresh frame"]
