@@ -179,6 +179,7 @@ def test_a_fresh_frame_cannot_be_confirmed_during_a_run(g: Gate) -> None:
 async def test_the_journal_says_what_happened_to_the_frame(g: Gate, caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level("INFO", logger="ribbond.daemon.components.frame")
     job = queued_job(g.store)
+    g.store.set_frame(FRAME_FRESH, None)
     g.gate.used("a1")
     waiting = asyncio.create_task(g.gate.wait_fresh(job))
     await asyncio.sleep(0.05)
