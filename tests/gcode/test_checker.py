@@ -415,3 +415,36 @@ def test_filament_is_not_part_of_the_path_length() -> None:
 def test_a_relative_move_before_the_position_is_known_is_refused_naming_it() -> None:
     assert refused("G91", "G1 Y1") == ("program, line 2: a relative Y move before the Y position is known; "
                                        "home (G28) or move to an absolute position first")
+
+
+# ---------------------------------------------------------------------------------- the second mutation run
+
+
+def test_absolute_filament_is_measured_from_where_it_stands() -> None:
+    # E from 5 to 15 is 10 mm of filament (not 15, not 20): E at 20 mm/s allows 30/10 * 20 = 60 mm/s
+    assert run(*HOME, "G92 E5", "G1 X80 E15 F9000").commands[-1] == "G1 X80 E15 F3600"
+
+
+def test_a_comment_ending_in_a_letter_is_kept_whole() -> None:
+    assert run(*HOME, "G1 X80 F9000 ; to X").lines[-1] == "G1 X80 F6000  ; to X"
+
+
+def test_extruded_segments_read_numbered_lower_case_and_absolute_lines_as_marlin_does() -> None:
+    lines = [*HOME, "N7 G1 X60 E1*45",            # numbered, E from unknown: not known to feed
+             "G92 E5", "g1 x70 e5.5",            # lower case, 0.5 mm fed
+             "G1 X75 E5.5",                      # absolute E unchanged: a travel
+             "M83", "G1 X80 E0.000001",          # a millionth of filament: nothing fed
+             "G1 X85 E0.1"]
+    assert extruded_segments(lines, PROFILE).tolist() == [[[60.0, 50.0], [70.0, 50.0]], [[80.0, 50.0], [85.0, 50.0]]]
+    assert extruded_segments(["G1 X50 Y50 Z3 E1"], PROFILE).shape == (0, 2, 2)   # absolute E, start unknown
+
+
+def test_extruded_segments_need_a_known_start_in_xy_only() -> None:
+    assert extruded_segments(["M83", "G1 X50 Y50 Z3 E1"], PROFILE).shape == (0, 2, 2)     # from nowhere known
+    segments = extruded_segments(["G28 X Y", "M83", "G1 X50 Y50 Z3 E1"], PROFILE)        # Z unknown, XY known
+    assert segments.tolist() == [[[0.0, 0.0], [50.0, 50.0]]]
+
+
+def test_extruded_segments_name_the_program_in_refusals() -> None:
+    with pytest.raises(ValueError, match=r"^program, line 1: G2 arcs"):
+        extruded_segments(["G2 X1"], PROFILE)
