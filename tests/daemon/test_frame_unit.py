@@ -89,7 +89,7 @@ def test_a_job_reaching_the_printer_marks_the_frame_used_once(g: Gate) -> None:
     g.store.set_frame(FRAME_FRESH, None)
     g.gate.used("a")
     assert g.store.frame()["state"] == FRAME_USED and g.store.frame()["job_id"] == "a"
-    assert [e["frame"]["job_id"] for e in drain(g.events)] == ["a"]
+    assert [(e["type"], e["frame"]["job_id"]) for e in drain(g.events)] == [("frame", "a")]
     g.gate.used("b")                                        # already used: kept as the first job left it
     assert g.store.frame()["job_id"] == "a" and drain(g.events) == []
 
@@ -148,7 +148,7 @@ async def test_a_job_cancelled_deleted_or_unqueued_while_waiting_is_not_printed(
         g.store.delete(job)
     else:
         g.store.update(job, start_when_ready=False)
-    assert await asyncio.wait_for(waiting, 2) is None
+    assert await asyncio.wait_for(waiting, 0.8) is None     # seen at the next 0.2 s look, not a second later
     g.gate.ready()                                          # a confirmation afterwards starts nothing either
 
 
