@@ -20,10 +20,98 @@ KILLED, TIMEOUT, SURVIVED, NO_TESTS = {1, 3}, {24, -24, 36, 152, 255}, {0}, {5, 
 
 #: Survivors no test can kill: the mutant behaves as the original on every input the code can get.
 EQUIVALENT: dict[str, str] = {
-    "ribbond.gcode.checker.x__feed_text__mutmut_12":
-        'rstrip("0") -> rstrip("XX0XX"): the set of characters stripped gains "X", which a number never holds',
-    "ribbond.gcode.checker.x__feed_text__mutmut_13":
-        'rstrip(".") -> rstrip("XX.XX"): likewise',
+    'ribbond.gcode.checker.x__feed_text__mutmut_12':
+        'rstrip("0")/rstrip(".") gain "X" in the set stripped: a number never ends in X',
+    'ribbond.gcode.checker.x__feed_text__mutmut_13':
+        'rstrip("0")/rstrip(".") gain "X" in the set stripped: a number never ends in X',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_clamped__mutmut_43':
+        'likewise: rstrip of a formatted number gains "X"',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_clamped__mutmut_44':
+        'likewise: rstrip of a formatted number gains "X"',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁcheck__mutmut_11':
+        'split("*") with another maxsplit: the part before the first "*" is the same',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁcheck__mutmut_20':
+        'split("*") with another maxsplit: the part before the first "*" is the same',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_19':
+        'the checksum cut before GcodeChecker.command, which cuts it again the same way',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_20':
+        'the checksum cut before GcodeChecker.command, which cuts it again the same way',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_27':
+        'the checksum cut before GcodeChecker.command, which cuts it again the same way',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_28':
+        'the checksum cut before GcodeChecker.command, which cuts it again the same way',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_move__mutmut_13':
+        '"XYZEF"/"XYZ" -> "XXXYZEFXX"/"XXXYZXX": the same set of one-letter words',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_move__mutmut_31':
+        '"XYZEF"/"XYZ" -> "XXXYZEFXX"/"XXXYZXX": the same set of one-letter words',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_end__mutmut_22':
+        '"XYZ" -> "XXXYZXX": the same set of one-letter words',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_clamped__mutmut_21':
+        'sent_feed None instead of the clamped feed: the clamped feed is below the feed asked, so it is never "in force" either',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_clamped__mutmut_10':
+        '< vs <= at a 1e-6 mm/min tie between two feeds: no F word written to 0.1 mm/min or a Marlin limit meets it',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_clamped__mutmut_32':
+        '< vs <= at a 1e-6 mm/min tie between two feeds: no F word written to 0.1 mm/min or a Marlin limit meets it',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_allowed__mutmut_25':
+        'the axis returned with an infinite allowed feed is never read (nothing is clamped)',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_allowed__mutmut_46':
+        'xyz >= 1e-6 vs > 1e-6: each axis in xyz moves more than 1e-6, so xyz is 0 or above 1e-6',
+    'ribbond.gcode.checker.x__comment_of__mutmut_12':
+        'at > 0 vs >= 0: a line whose ";" is first has no command and is never rewritten',
+    'ribbond.gcode.checker.x__comment_of__mutmut_13':
+        'at > 0 vs >= 0: a line whose ";" is first has no command and is never rewritten',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_40':
+        '"Gg" -> "XXGgXX": a command starting with X was refused by the check before',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_46':
+        'the where of a command already parsed by the check: parsing it again cannot fail',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_49':
+        'the where of a command already parsed by the check: parsing it again cannot fail',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_50':
+        'the where of a command already parsed by the check: parsing it again cannot fail',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_69':
+        'm.pos[:3]: after a move naming any axis all three are known; without one the start equals the end',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_98':
+        'dtype float of a list of floats (an empty one is float64 anyway); reshape(-2, ...) is read as -1 by numpy',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_100':
+        'dtype float of a list of floats (an empty one is float64 anyway); reshape(-2, ...) is read as -1 by numpy',
+    'ribbond.gcode.checker.x_extruded_segments__mutmut_102':
+        'dtype float of a list of floats (an empty one is float64 anyway); reshape(-2, ...) is read as -1 by numpy',
+    'ribbond.gcode.checker.x_uncovered__mutmut_7':
+        'the stroke as given: _samples returns floats either way',
+    'ribbond.gcode.checker.x_uncovered__mutmut_9':
+        'the stroke as given: _samples returns floats either way',
+    'ribbond.gcode.checker.x_uncovered__mutmut_12':
+        'the prefilter of segments made looser: it only skips segments farther than reach; keeping more changes no distance',
+    'ribbond.gcode.checker.x_uncovered__mutmut_15':
+        'the prefilter of segments made looser: it only skips segments farther than reach; keeping more changes no distance',
+    'ribbond.gcode.checker.x_uncovered__mutmut_18':
+        'the prefilter of segments made looser: it only skips segments farther than reach; keeping more changes no distance',
+    'ribbond.gcode.checker.x_uncovered__mutmut_21':
+        'the prefilter of segments made looser: it only skips segments farther than reach; keeping more changes no distance',
+    'ribbond.gcode.checker.x_uncovered__mutmut_26':
+        'the prefilter of segments made looser: it only skips segments farther than reach; keeping more changes no distance',
+    'ribbond.gcode.checker.x_uncovered__mutmut_55':
+        'sum(+1) on an (s, 2) array is sum(-1)',
+    'ribbond.printer.proof.x__command_word__mutmut_10':
+        '"" -> "XXXX" for a line without a command word: neither is a move word',
+    'ribbond.printer.proof.x__axis_values__mutmut_6':
+        '"" -> "XXXX": neither holds an axis value',
+    'ribbond.printer.proof.x__step__mutmut_37':
+        '(match) or True inside the G28 branch: the word G28 was matched',
+    'ribbond.printer.proof.x_expected_position__mutmut_8':
+        'relative = None: as falsy as False',
+    'ribbond.daemon.jobs.xǁIllegalTransitionǁ__init____mutmut_20':
+        '"nothing" is said only for a state without commands, and every state has some (test_jobs checks)',
+    'ribbond.daemon.jobs.xǁIllegalTransitionǁ__init____mutmut_21':
+        '"nothing" is said only for a state without commands, and every state has some (test_jobs checks)',
+    'ribbond.gcode.checker.x_parse_command__mutmut_5':
+        'split("*") with another maxsplit: the part before the first "*" is the same',
+    'ribbond.gcode.checker.x_parse_command__mutmut_13':
+        'split("*") with another maxsplit: the part before the first "*" is the same',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_refuse_unfollowed__mutmut_18':
+        '"XYZ" -> "XXXYZXX": the same set of one-letter words',
+    'ribbond.gcode.checker.xǁGcodeCheckerǁ_refuse_unfollowed__mutmut_48':
+        'M220 without S read as S1 instead of S0: both are under 100 %',
 }
 
 

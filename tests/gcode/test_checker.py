@@ -448,3 +448,38 @@ def test_extruded_segments_need_a_known_start_in_xy_only() -> None:
 def test_extruded_segments_name_the_program_in_refusals() -> None:
     with pytest.raises(ValueError, match=r"^program, line 1: G2 arcs"):
         extruded_segments(["G2 X1"], PROFILE)
+
+
+# ---------------------------------------------------------------------------------- the third mutation run
+
+
+@pytest.mark.parametrize(("command", "code", "args"), [
+    ("N3 G28*100*7", "G28", {}),               # the checksum starts at the first star
+    ("M117.1 Hello World", "M117.1", {}),      # a subcode of a text command is text too
+])
+def test_parse_command_edge_cases(command: str, code: str, args: dict) -> None:
+    assert parse_command(command, "here") == (code, args)
+
+
+def test_a_line_that_is_not_a_command_is_named_by_its_first_word_and_its_place() -> None:
+    assert refused("X10 Y5") == "program, line 1: 'X10' is not a G-code command (G…, M… or T…)"
+
+
+def test_the_refusals_say_why_and_what_to_do() -> None:
+    assert refused("G92 X0") == ("program, line 1: G92 redefines the X/Y/Z position, which the frame check cannot "
+                                 "follow (G92 E… is fine)")
+    assert refused("G29") == ("program, line 1: G29 is not a command the check follows (it may move the head where "
+                              "the frame and fabric check cannot see); send G0/G1 moves instead")
+    assert refused("M220 S101") == ("program, line 1: M220 S101 sets the feed override above 100 %, so moves would "
+                                    "run faster than the profile's limits allow")
+    assert "M48 probes the bed" in refused("M48.1")     # a subcode of a refused command is refused
+    run(f"M220 S{100 + 1e-6!r}")                          # 100 % within the tolerance
+
+
+def test_only_g92_sets_the_filament_position() -> None:
+    # M201 E… (an acceleration) must not be read as the E position: E from 0 to 10 is 10 mm
+    assert run(*HOME, "G92 E0", "M201 E1000", "G1 X80 E10 F9000").commands[-1] == "G1 X80 E10 F3600"
+
+
+def test_a_g0_that_extrudes_prints() -> None:
+    assert extruded_segments([*HOME, "M83", "G0 X60 E1"], PROFILE).tolist() == [[[50.0, 50.0], [60.0, 50.0]]]
