@@ -61,3 +61,47 @@ def test_at_position_within_the_report_resolution() -> None:
     assert at_position((12.0 + POSITION_TOLERANCE_MM / 2, 20.0, 99.0), expected), "Z not known: not compared"
     assert not at_position((12.0 + 2 * POSITION_TOLERANCE_MM, 20.0, 0.0), expected)
     assert MIN_PROOF_MOVE_MM > 2 * POSITION_TOLERANCE_MM, "the position before a provable line never passes"
+
+
+# The mutation run's survivors (issue 35): each command that makes the position unknown, G92 and G28
+# by their axes, the program's first mode, and the bounds of MIN_PROOF_MOVE_MM and POSITION_TOLERANCE_MM.
+KNOWN = "G1 X10 Y10 Z5"
+
+
+@pytest.mark.parametrize("word", ["G29", "G30", "G33", "G34", "M48", "G53", "G54", "G55", "G56", "G57", "G58",
+                                  "G59"])
+def test_probing_and_coordinate_systems_make_every_axis_unknown(word: str) -> None:
+    assert expected_position([KNOWN, word, "G91", "G1 X1"], 3) is None
+    assert expected_position([KNOWN, word, "G1 X20"], 2) is None
+
+
+def test_g92_sets_the_axes_it_names_and_without_axes_forgets_all() -> None:
+    assert expected_position([KNOWN, "G92 X5", "G91", "G1 X1"], 3) == {"X": 6.0, "Y": 10.0, "Z": 5.0}
+    assert expected_position([KNOWN, "G92", "G91", "G1 X1"], 3) is None
+
+
+def test_g28_with_axes_forgets_those_alone() -> None:
+    assert expected_position([KNOWN, "G28 X", "G91", "G1 Y1"], 3) == {"Y": 11.0, "Z": 5.0}
+
+
+def test_a_relative_move_of_an_unknown_axis_stays_unknown() -> None:
+    assert expected_position(["G91", "G1 X1"], 1) is None
+
+
+def test_a_line_without_a_command_word_changes_nothing() -> None:
+    assert expected_position(["", "; note", KNOWN, "X5", "G1 X20"], 4) == {"X": 20.0, "Y": 10.0, "Z": 5.0}
+
+
+def test_a_program_starts_absolute() -> None:
+    assert expected_position([KNOWN, "G1 X20"], 1) == {"X": 20.0, "Y": 10.0, "Z": 5.0}
+
+
+def test_the_bounds_are_inclusive() -> None:
+    assert expected_position(["G1 X0 Y0 Z5", f"G1 X{MIN_PROOF_MOVE_MM}"], 1) == {"X": MIN_PROOF_MOVE_MM, "Y": 0.0,
+                                                                                 "Z": 5.0}
+    assert at_position((POSITION_TOLERANCE_MM, 0.0, 0.0), {"X": 0.0, "Y": 0.0})
+
+
+def test_the_line_just_past_the_end_is_refused() -> None:
+    with pytest.raises(ValueError, match="line index 2 outside the program's 2 lines"):
+        expected_position(["G90", "G1 X1"], 2)

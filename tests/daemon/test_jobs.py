@@ -149,3 +149,13 @@ def test_modal_state_follows_the_program_up_to_the_pause() -> None:
     assert s["e_absolute"] is True and s["feed"] == 9000.0 and s["fan"] == 0 and s["nozzle"] == 210.0
     assert s["x"] == 7.0
     assert modal_state(program, 0)["absolute"] is True                    # Marlin's power-on state
+
+
+def test_an_illegal_transition_keeps_what_was_asked_and_says_it() -> None:
+    error = IllegalTransition(JobState.READY, JobState.DONE)
+    assert (error.current, error.requested, error.command) == (JobState.READY, JobState.DONE, "move to done")
+    assert str(error) == "cannot move to done: the job is ready; possible now: start, cancel, delete"
+    error = IllegalTransition(JobState.DONE, "pause", hint="nothing is printing")
+    assert (error.requested, error.command) == ("pause", "pause")
+    assert str(error) == "cannot pause: the job is done; possible now: start, delete (nothing is printing)"
+    assert all(COMMANDS[state] for state in JobState)   # so "possible now: nothing" is never said
