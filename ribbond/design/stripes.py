@@ -269,12 +269,20 @@ class StripeSolver:
         return sp.csc_matrix((data, (rows, cols)), shape=(2 * self.n, 2 * self.n))
 
     def solve(self, direction: np.ndarray, frequency: np.ndarray, *, tolerance: float = 1e-6,
-              max_iterations: int = 50, seed: int = 0, ratio: float = 1.0,
+              max_iterations: int = 50, ratio: float = 1.0,
               face_direction: np.ndarray | None = None) -> StripePattern:
         """The stripe pattern along the line field ``direction`` (n, 2) with ``frequency`` (n,) rad/mm.
 
         Inverse power iteration x ← (A + εM)⁻¹ M x, M-normalized, until the Rayleigh quotient
         changes by less than ``tolerance`` relative to the mean ν².
+
+        The pattern's global phase is free (every e^{ic} ψ has the same energy), so it is the start's:
+        the plane wave ψ_i = exp(i ν_i X_i · (x_i − x̄)), x̄ the flat mesh's centroid. Turning a
+        representative X_i over conjugates both the start and the solution at i, so the pattern does
+        not depend on the representatives, and it moves continuously with the flat mesh; a uniform
+        field gets its line of phase 0 through the centroid. (A random start made the phase depend on
+        each X_i's sign: a field along ±90° took its signs from rounding, and a flattening moved by
+        4e-7 mm moved the cylinder's rows by a fifth of a period and its dashes by a quarter.)
         """
         direction = np.asarray(direction, dtype=float)
         frequency = np.asarray(frequency, dtype=float)
@@ -291,7 +299,9 @@ class StripeSolver:
         A = self.energy_matrix(omega, flip, weights)
         factor = SymmetricFactor(A + self._shift * self.mass)
         m = np.repeat(self.vertex_area, 2)
-        x = np.random.default_rng(seed).standard_normal(2 * self.n)
+        centroid = (self.vertex_area @ self.uv) / self.vertex_area.sum()
+        wave = frequency * np.einsum("nc,nc->n", direction, self.uv - centroid)
+        x = np.column_stack([np.cos(wave), np.sin(wave)]).ravel()
         x /= np.sqrt(np.dot(x, m * x))
         scale = float(np.mean(frequency ** 2))
         lam_prev = np.inf
