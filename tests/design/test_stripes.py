@@ -5,6 +5,7 @@ from __future__ import annotations
 import igl
 import numpy as np
 import pytest
+import scipy.sparse.linalg as spla
 
 from ribbond.design import surfaces
 from ribbond.design.stripes import (
@@ -165,6 +166,27 @@ def test_the_global_phase_depends_neither_on_the_representatives_nor_on_rounding
         lines = StripeSolver(moved, F).solve(X, nu).isolines(0.0)
         offsets.append(wrapped(lines.points @ up, period))
     assert spread(np.concatenate(offsets)) < 1e-5
+
+
+def test_the_pattern_is_the_smallest_eigenvector_where_the_next_is_close() -> None:
+    """Concentric lines on a disk: the two smallest eigenvalues (each a complex pair) lie 2.5 %
+    apart, so the Rayleigh quotient settles long before ψ does. The solver's ψ lies in the
+    smallest eigenspace (ARPACK's, shift-invert), not in a mix of the two."""
+    uv, F = disk(20)
+    r = np.linalg.norm(uv, axis=1)
+    X = np.column_stack([-uv[:, 1], uv[:, 0]]) / np.maximum(r, 1e-9)[:, None]
+    X[r < 1e-9] = [1.0, 0.0]
+    nu = np.full(len(uv), 2 * np.pi / 7.0)
+    solver = StripeSolver(uv, F)
+    pattern = solver.solve(X, nu)
+    A = solver.energy_matrix(*solver.edge_rotations(X, nu))
+    values, vectors = spla.eigsh(A, k=4, M=solver.mass, sigma=-1e-6)
+    order = np.argsort(values)
+    assert values[order[2]] < 1.05 * values[order[0]]                     # a close next pair
+    x = np.column_stack([pattern.psi.real, pattern.psi.imag]).ravel()
+    x /= np.sqrt(x @ (solver.mass @ x))
+    smallest = vectors[:, order[:2]]                                       # M-orthonormal
+    assert np.linalg.norm(smallest.T @ (solver.mass @ x)) > 0.99
 
 
 def test_graded_frequency_across_the_lines_spaces_them_by_the_local_period() -> None:
