@@ -9,7 +9,14 @@ iteration, the reference of issue 3.
 Goals: time per iteration ≤ 0.8 × libigl's; time to tolerance ≤ 10 s for 110k faces (issue 3);
 the whole flattening (set-up, start, iterations) ≤ 60 libigl ARAP iterations of the same mesh (issue 24).
 
-    python bench/flatten.py [--quick] [--surfaces torus,saddle,shallow_cap]
+Determinism (issue 35), on the same mesh and field: the flattening solved ``--runs`` times gives the
+same iteration count and the same bits every time, and from the target's vertices moved by a relative
+1e-12 (Gaussian, seeded) its iteration count changes by at most 10 %.
+
+The scanned_* surfaces are meshes as scans come: a coarse mesh (1,944-2,048 faces) of an analytic
+surface upsampled by midpoint subdivision, three times, to 124-131k faces (``scanned``).
+
+    python bench/flatten.py [--quick] [--runs 3] [--surfaces torus,saddle,shallow_cap,scanned_saddle,...]
 """
 
 from __future__ import annotations
@@ -31,7 +38,15 @@ from ribbond.design.mesh_io import write_obj  # noqa: E402
 from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings  # noqa: E402
 from ribbond.design.pipeline import design_mesh  # noqa: E402
 
-# Resolutions giving about 112k faces each (a quarter of that with --quick).
+def scanned(coarse: tuple[np.ndarray, np.ndarray], k: float) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh as scans come: a coarse mesh of an analytic surface (1-3k faces) upsampled by midpoint
+    subdivision (each triangle into four, the new vertices on the flat coarse faces), three times
+    (64×, about 131k faces), two with --quick (16×)."""
+    V, F = coarse
+    return igl.upsample(V, F, number_of_subdivs=3 if k >= 1 else 2)
+
+
+# Resolutions giving about 112k faces each (a quarter of that with --quick); the scanned ones 124-131k.
 SURFACES = {
     "torus": lambda k: surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30),
                                             nu=int(330 * k), nv=int(170 * k)),
@@ -39,6 +54,10 @@ SURFACES = {
     "shallow_cap": lambda k: surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=int(137 * k)),
     "cylinder": lambda k: surfaces.cylinder_patch(40.0, 120.0, 60.0, n_around=int(330 * k),
                                                   n_along=int(170 * k)),
+    "scanned_saddle": lambda k: scanned(surfaces.saddle(size=80.0, rings=18), k),
+    "scanned_cap": lambda k: scanned(surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=18), k),
+    "scanned_torus": lambda k: scanned(surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30),
+                                                            nu=32, nv=32), k),
 }
 GOAL_RATIO = 0.8
 GOAL_SECONDS = 10.0
@@ -61,7 +80,25 @@ def libigl_arap_per_iteration(V: np.ndarray, F: np.ndarray, uv0: np.ndarray, ite
     return (time.perf_counter() - t) / iterations
 
 
-def run(name: str, scale: float, workdir: Path) -> dict[str, float]:
+def determinism(result, params: DesignParameters, runs: int) -> dict[str, object]:
+    """The flattening of ``result``'s mesh and field solved ``runs`` times and once from vertices
+    moved by a relative 1e-12: iteration counts, whether every run gave the same bits."""
+    from ribbond.design.line_field import ANISOTROPY_THRESHOLD
+
+    def solve(V: np.ndarray):
+        flat = BoundedFlattener(V, result.F, result.field.angle, params.bounds, SolverSettings(),
+                                prestretch=params.prestretch,
+                                k1_defined=result.field.anisotropy > ANISOTROPY_THRESHOLD).solve()
+        return flat.iterations, flat.uv.tobytes()
+
+    repeats = [solve(result.V) for _ in range(runs)]
+    rng = np.random.default_rng(35)
+    nudged, _ = solve(result.V * (1.0 + 1e-12 * rng.standard_normal(result.V.shape)))
+    return {"runs": [it for it, _ in repeats], "same_bits": len({uv for _, uv in repeats}) == 1,
+            "nudged": nudged}
+
+
+def run(name: str, scale: float, workdir: Path, runs: int) -> dict[str, float]:
     V, F = SURFACES[name](scale)
     path = workdir / f"{name}.obj"
     write_obj(path, V, F)
@@ -77,7 +114,8 @@ def run(name: str, scale: float, workdir: Path) -> dict[str, float]:
     start = BoundedFlattener(result.V, result.F, result.field.angle, params.bounds).initial_map(
         result.target.boundary)
     igl_per_iter = libigl_arap_per_iteration(result.V, result.F, start, iterations=10)
-    return {
+    det = determinism(result, params, runs) if runs > 0 else {"runs": [], "same_bits": True, "nudged": None}
+    return {**det,
         "faces": rep.faces, "iterations": flat.iterations, "converged": flat.converged,
         "curvature_s": rep.timings_s["curvature"], "flatten_s": rep.timings_s["flatten"],
         "init_s": flat.time_init_s, "iterate_s": flat.time_iterations_s,
@@ -94,7 +132,9 @@ def run(name: str, scale: float, workdir: Path) -> dict[str, float]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="quarter-size meshes (a smoke run)")
-    ap.add_argument("--surfaces", default="torus,saddle,shallow_cap",
+    ap.add_argument("--runs", type=int, default=3,
+                    help="solves of each flattening for the determinism check (0: none)")
+    ap.add_argument("--surfaces", default="torus,saddle,shallow_cap,scanned_saddle,scanned_cap,scanned_torus",
                     help=f"comma-separated, from {', '.join(SURFACES)}")
     args = ap.parse_args()
     scale = 0.5 if args.quick else 1.0
@@ -108,12 +148,19 @@ def main() -> int:
     ok = True
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
-            r = run(name, scale, Path(tmp))
+            r = run(name, scale, Path(tmp), args.runs)
             print(f"{name:<12} {r['faces']:>7} {r['iterations']:>5} {r['setup_s']:>6.2f} {r['init_s']:>6.2f} "
                   f"{r['iterate_s']:>7.2f} {r['flatten_s']:>7.2f} {r['per_iter_ms']:>6.1f} "
                   f"{r['igl_per_iter_ms']:>9.1f} {r['ratio']:>6.2f} {r['arap_equivalent']:>7.0f} {r['curvature_s']:>6.2f} "
                   f"{r['total_s']:>6.2f} {r['bad1']:>5.2f}/{r['bad2']:<6.2f} {r['k1dev']:>7.3f}"
                   + ("" if r["converged"] else "  NOT CONVERGED"), flush=True)
+            if r["runs"]:
+                same = len(set(r["runs"])) == 1 and r["same_bits"]
+                spread = abs(r["nudged"] - r["iterations"]) / max(r["iterations"], 1)
+                print(f"{'':<12} iterations over {len(r['runs'])} solves: {r['runs']} "
+                      f"({'same bits' if r['same_bits'] else 'DIFFERENT BITS'}); vertices moved by 1e-12: "
+                      f"{r['nudged']} ({100 * spread:.1f} %, goal ≤ 10 %)", flush=True)
+                ok &= same and spread <= 0.10
             ok &= r["converged"] and r["ratio"] <= GOAL_RATIO
             if r["faces"] >= 110_000:
                 ok &= r["flatten_s"] <= GOAL_SECONDS and r["arap_equivalent"] <= GOAL_ARAP_ITERATIONS

@@ -5,8 +5,8 @@ import pytest
 
 from ribbond.design import surfaces
 from ribbond.design.curvature import face_curvature
-from ribbond.design.flatten import (BoundedFlattener, RowCountCoupling, local_step, optimal_rotation,
-                                    principal_stretches, row_curl_operator)
+from ribbond.design.flatten import (BoundedFlattener, RowCountCoupling, exact_rotation_stretch, local_step,
+                                    optimal_rotation, principal_stretches, row_curl_operator)
 from ribbond.design.frames import face_frames
 from ribbond.design.line_field import ANISOTROPY_THRESHOLD, curvature_line_field
 from ribbond.design.params import DesignParameters, SolverSettings
@@ -54,6 +54,72 @@ def test_local_step_clamps_eq_5():
                                       bounds)
         assert np.isclose(np.arctan2(sin[0], cos[0]), a)
         assert np.isclose(o1[0], np.clip(s1, *bounds[0])) and np.isclose(o2[0], np.clip(s2, *bounds[1]))
+
+
+def random_jacobians(m, seed):
+    """(A, B, C, D) of M = J R_θᵀ: half near a rotation times a stretch inside the bounds, half
+    far from any (folds, shears), each (m,)."""
+    rng = np.random.default_rng(seed)
+    phi = rng.uniform(-np.pi, np.pi, m)
+    R = np.stack([np.cos(phi), -np.sin(phi), np.sin(phi), np.cos(phi)], axis=1).reshape(m, 2, 2)
+    spread = np.where(np.arange(m) % 2 == 0, 0.05, 1.0)[:, None, None]
+    M = R @ np.diag(np.mean(BOUNDS, axis=1)) + spread * rng.normal(size=(m, 2, 2))
+    return M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+
+
+def closest_energy(M, cos, sin, s1, s2):
+    """‖M − R diag(σ1, σ2)‖²_F per face."""
+    A, B, C, D = M
+    return ((A - cos * s1) ** 2 + (B + sin * s2) ** 2 + (C - sin * s1) ** 2 + (D - cos * s2) ** 2)
+
+
+def test_exact_local_step_is_the_closest_bounded_stretch_by_brute_force():
+    # Eq. 4 over R ∈ SO(2) and σ_i within the bounds: for each of 4001 angles the best σ is the
+    # clamp, so the minimum over that grid bounds the exact step's energy from above.
+    bounds = np.array(BOUNDS)
+    M = random_jacobians(4000, seed=11)
+    cos, sin, s1, s2 = local_step(M, np.ones(4000), np.ones(4000), bounds)
+    ours = closest_energy(M, cos, sin, s1, s2)
+    assert np.all((s1 >= bounds[0, 0]) & (s1 <= bounds[0, 1]) & (s2 >= bounds[1, 0]) & (s2 <= bounds[1, 1]))
+    assert np.allclose(cos ** 2 + sin ** 2, 1.0, atol=1e-14)
+    phi = np.linspace(-np.pi, np.pi, 4001)[None, :]
+    c, s = np.cos(phi), np.sin(phi)
+    A, B, C, D = (x[:, None] for x in M)
+    g1 = np.clip(A * c + C * s, *bounds[0])
+    g2 = np.clip(D * c - B * s, *bounds[1])
+    brute = closest_energy((A, B, C, D), c, s, g1, g2).min(axis=1)
+    assert np.all(ours <= brute + 1e-12)
+    # and a finer grid around our angle finds nothing better either (the optimum, not a grid point)
+    near = np.arctan2(sin, cos)[:, None] + np.linspace(-1e-3, 1e-3, 201)[None, :]
+    c, s = np.cos(near), np.sin(near)
+    fine = closest_energy((A, B, C, D), c, s, np.clip(A * c + C * s, *bounds[0]),
+                          np.clip(D * c - B * s, *bounds[1])).min(axis=1)
+    assert np.all(ours <= fine + 1e-12)
+
+
+def test_exact_local_step_never_raises_eq_3_from_the_previous_rotation_and_stretch():
+    bounds = np.array(BOUNDS)
+    M = random_jacobians(4000, seed=12)
+    rng = np.random.default_rng(13)
+    phi = rng.uniform(-np.pi, np.pi, 4000)
+    prev1, prev2 = rng.uniform(*bounds[0], 4000), rng.uniform(*bounds[1], 4000)
+    before = closest_energy(M, np.cos(phi), np.sin(phi), prev1, prev2)
+    after = closest_energy(M, *local_step(M, prev1, prev2, bounds))
+    assert np.all(after <= before)
+    # the old step (R by Eq. 7, Σ by Eq. 5, twice) is never better than the exact one
+    two_pass = closest_energy(M, *local_step(M, prev1, prev2, bounds, sigma2_step=lambda h: h))
+    assert np.all(after <= two_pass + 1e-12)
+
+
+def test_exact_local_step_keeps_a_start_that_is_already_optimal():
+    # Σ fixed (degenerate bounds): the best R is Eq. 7's for that Σ, which is also the start
+    bounds = np.array([[1.1, 1.1], [1.3, 1.3]])
+    M = random_jacobians(500, seed=14)
+    A, B, C, D = M
+    start = optimal_rotation(1.1 * A, 1.3 * B, 1.1 * C, 1.3 * D)
+    cos, sin, s1, s2 = exact_rotation_stretch(M, start, bounds)
+    assert np.allclose(cos, start[0], atol=1e-10) and np.allclose(sin, start[1], atol=1e-10)
+    assert np.all(s1 == 1.1) and np.all(s2 == 1.3)
 
 
 def test_principal_stretches_are_singular_values():
@@ -114,6 +180,33 @@ def test_plain_local_global_energy_never_rises():
     *_, plain = flatten(V, F, anderson_window=0, max_iterations=300)
     energies = np.array([h[0] for h in plain.history])
     assert np.all(np.diff(energies) <= 1e-12 * energies[0])
+
+
+def test_plain_iterations_with_the_bounds_active_never_raise_eq_3():
+    # the exact local step and the exact global step (Eq. 9) are block minimizations of Eq. 3
+    V, F = surfaces.sphere_cap(radius=40.0, half_angle_deg=70, rings=8)
+    *_, plain = flatten(V, F, anderson_window=0, max_iterations=200, spacing_integrability_weight=0.0)
+    energies = np.array([h[0] for h in plain.history])
+    assert energies[-1] > 0 and np.all(np.diff(energies) <= 0)
+
+
+def test_same_input_same_iterations_and_bits():
+    V, F = surfaces.saddle(size=80.0, rings=10)
+    *_, a = flatten(V, F)
+    *_, b = flatten(V, F)
+    assert a.iterations == b.iterations and a.uv.tobytes() == b.uv.tobytes()
+
+
+@pytest.mark.parametrize("surface", ["saddle", "deep_cap"])
+def test_a_1e_12_perturbation_changes_the_iterations_by_at_most_10_percent(surface):
+    V, F = (surfaces.saddle(size=80.0, rings=12) if surface == "saddle"
+            else surfaces.sphere_cap(radius=40.0, half_angle_deg=70, rings=12))
+    *_, base = flatten(V, F)
+    assert base.converged and base.iterations >= 20
+    for seed in (21, 22, 23):
+        rng = np.random.default_rng(seed)
+        *_, nudged = flatten(V * (1.0 + 1e-12 * rng.standard_normal(V.shape)), F)
+        assert nudged.converged and abs(nudged.iterations - base.iterations) <= 0.1 * base.iterations
 
 
 def test_anderson_reaches_the_same_minimum_in_fewer_iterations():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import igl
 import numpy as np
 import pytest
+import scipy.sparse.linalg as spla
 
 from ribbond.design import surfaces
 from ribbond.design.stripes import (
@@ -133,6 +134,59 @@ def test_flipped_representatives_do_not_change_the_pattern() -> None:
     assert spread(wrapped(a.points @ d, 8.0)) < 1e-6
     assert spread(wrapped(b.points @ d, 8.0)) < 1e-6
     assert abs(len(a.points) - len(b.points)) <= 0.05 * len(a.points)
+
+
+def test_the_global_phase_depends_neither_on_the_representatives_nor_on_rounding() -> None:
+    """The phase is free, so the solver fixes it by its start: flipped representatives give the
+    same lines, offset included; a uniform field has a line of phase 0 through the centroid; and a
+    field along ±90°, whose representatives a 1e-9 nudge of the mesh turns over here and there (as
+    a layout placed square in the frame has them), keeps its lines where they were."""
+    uv, F = square(40)
+    period = 8.0
+    d = np.array([np.cos(0.3), np.sin(0.3)])
+    nu = np.full(len(uv), 2 * np.pi / period)
+    flips = np.random.default_rng(5).choice([-1.0, 1.0], size=(len(uv), 1))
+    solver = StripeSolver(uv, F)
+    a = solver.solve(np.tile(d, (len(uv), 1)), nu).isolines(0.0)
+    b = solver.solve(np.tile(d, (len(uv), 1)) * flips, nu).isolines(0.0)
+    centroid = uv.mean(axis=0)                       # the square's vertices are evenly spread
+    assert spread(wrapped(np.concatenate([a.points, b.points]) @ d - centroid @ d, period)) < 1e-6
+    # lines across y (the field along y): each vertex's representative from the averaged line field,
+    # as the ribbons get theirs; a field off y by ±1e-12 turns them over here and there (rounding
+    # does, on a layout placed square in the frame); the mesh itself nudged by 1e-9 of its size
+    up = np.array([0.0, 1.0])
+    offsets = []
+    for seed, nudge in ((1, 0.0), (2, 1e-9)):
+        moved = uv + nudge * 100.0 * np.random.default_rng(8).standard_normal(uv.shape)
+        e = moved[F[:, 1:]] - moved[F[:, [0]]]
+        area = 0.5 * np.abs(e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0])
+        off = 1e-12 * np.random.default_rng(seed).standard_normal(len(F))
+        X = vertex_line_field(F, np.column_stack([off, np.ones(len(F))]), area, len(moved))
+        assert np.any(X[:, 1] < 0) and np.any(X[:, 1] > 0)    # the representatives disagree
+        lines = StripeSolver(moved, F).solve(X, nu).isolines(0.0)
+        offsets.append(wrapped(lines.points @ up, period))
+    assert spread(np.concatenate(offsets)) < 1e-5
+
+
+def test_the_pattern_is_the_smallest_eigenvector_where_the_next_is_close() -> None:
+    """Concentric lines on a disk: the two smallest eigenvalues (each a complex pair) lie 2.5 %
+    apart, so the Rayleigh quotient settles long before ψ does. The solver's ψ lies in the
+    smallest eigenspace (ARPACK's, shift-invert), not in a mix of the two."""
+    uv, F = disk(20)
+    r = np.linalg.norm(uv, axis=1)
+    X = np.column_stack([-uv[:, 1], uv[:, 0]]) / np.maximum(r, 1e-9)[:, None]
+    X[r < 1e-9] = [1.0, 0.0]
+    nu = np.full(len(uv), 2 * np.pi / 7.0)
+    solver = StripeSolver(uv, F)
+    pattern = solver.solve(X, nu)
+    A = solver.energy_matrix(*solver.edge_rotations(X, nu))
+    values, vectors = spla.eigsh(A, k=4, M=solver.mass, sigma=-1e-6)
+    order = np.argsort(values)
+    assert values[order[2]] < 1.05 * values[order[0]]                     # a close next pair
+    x = np.column_stack([pattern.psi.real, pattern.psi.imag]).ravel()
+    x /= np.sqrt(x @ (solver.mass @ x))
+    smallest = vectors[:, order[:2]]                                       # M-orthonormal
+    assert np.linalg.norm(smallest.T @ (solver.mass @ x)) > 0.99
 
 
 def test_graded_frequency_across_the_lines_spaces_them_by_the_local_period() -> None:
