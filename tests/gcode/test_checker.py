@@ -470,8 +470,9 @@ def test_the_refusals_say_why_and_what_to_do() -> None:
                                  "follow (G92 E… is fine)")
     assert refused("G29") == ("program, line 1: G29 is not a command the check follows (it may move the head where "
                               "the frame and fabric check cannot see); send G0/G1 moves instead")
-    assert refused("M220 S101") == ("program, line 1: M220 S101 sets the feed override above 100 %, so moves would "
-                                    "run faster than the profile's limits allow")
+    assert refused("M220 S101") == ("program, line 1: M220 S101 sets the feed override above 100 % (the profile's "
+                                    "adjust.speed_percent is 25-100 %), so moves would run faster than the "
+                                    "profile's limits allow")
     assert "M48 probes the bed" in refused("M48.1")     # a subcode of a refused command is refused
     run(f"M220 S{100 + 1e-6!r}")                          # 100 % within the tolerance
 
