@@ -16,7 +16,9 @@ period, ± μ1 along and ± μ2 across), and compares it with what was asked:
   against |κ1|, on faces where the table's range at that μ2 holds |κ1|; the share of ribbons whose τ
   is at the table's limits;
 - ∫K of the intended metric (per-face lengths of the edges, averaged over an edge's two faces, angle
-  defects at the interior vertices) against the target's.
+  defects at the interior vertices) against the target's, and ∫K of the realized one (the rest metric
+  the prediction builds from the same coverage, ``rest_forms``; faces not measured take their nearest
+  measured face's): where the realized metric loses curvature the prediction cannot keep it.
 
 Pure: arrays and ribbons in, arrays and a report dict out; nothing here reads the target's shape but
 its ∫K, which is the reference the intended metric is compared with.
@@ -34,9 +36,11 @@ from ribbond.design.format import Ribbon
 from ribbond.design.thickness import CurvatureTable, table_curvature
 
 from .agreement import angle_defects, total_gaussian_curvature
-from .rest_forms import Coverage, contraction, face_coverage, layout_raster
+from scipy.spatial import cKDTree
 
-__all__ = ["Realization", "realization", "plastic_share", "metric_total_curvature"]
+from .rest_forms import Coverage, contraction, face_coverage, layout_raster, rest_forms
+
+__all__ = ["Realization", "realization", "plastic_share", "metric_total_curvature", "realized_total_curvature"]
 
 
 def plastic_share(sigma: np.ndarray, prestretch: float) -> np.ndarray:
@@ -91,7 +95,7 @@ class Realization:
     curvature : 100 (κ_rest / |κ1| − 1), % (nan where the table's range cannot give |κ1| or bare).
     plastic_printed, plastic_eq10 : plastic area, % of the flat area.
     clamped_pct : ribbons at the table's τ limits, %.
-    k_target, k_intended : ∫K of the target and of the intended metric.
+    k_target, k_intended, k_realized : ∫K of the target, of the intended metric and of the realized one.
     coverage : the measured coverage the figures come from.
     """
 
@@ -106,6 +110,7 @@ class Realization:
     clamped_pct: float
     k_target: float
     k_intended: float
+    k_realized: float
     coverage: Coverage
 
     def report(self) -> dict:
@@ -124,12 +129,25 @@ class Realization:
                 "bare_pct": round(100.0 * float(np.mean(self.bare)), 2),
                 "curvature_pct": q(self.curvature), "clamped_pct": round(self.clamped_pct, 2),
                 "total_gaussian_curvature": {"target": round(self.k_target, 4),
-                                             "intended": round(self.k_intended, 4)}}
+                                             "intended": round(self.k_intended, 4),
+                                             "realized": round(self.k_realized, 4)}}
 
 
 def _areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
     return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def realized_total_curvature(uv: np.ndarray, F: np.ndarray, faces: np.ndarray, cov: Coverage,
+                             prestretch: float) -> float:
+    """∫K of the rest metric the printed plastic realizes (``rest_forms`` of the coverage measured on
+    ``faces`` (k,) of F (m, 3); every other face takes its nearest measured face's), on the flat uv (n, 2)."""
+    abar = rest_forms(cov, prestretch).abar
+    centroid = uv[F].mean(axis=1)
+    if len(faces) < len(F):
+        _, nearest = cKDTree(centroid[faces]).query(centroid, workers=-1)
+        abar = abar[nearest]
+    return metric_total_curvature(uv, F, abar)
 
 
 def _rest_curvature_error(cov: Coverage, kappa1: np.ndarray, table: CurvatureTable) -> np.ndarray:
@@ -176,8 +194,10 @@ def realization(uv: np.ndarray, F: np.ndarray, sigma: np.ndarray, direction: np.
     k_int = metric_total_curvature(uv, F, intended_metric(sigma, direction))
     k_tgt = total_gaussian_curvature(target_V, F) if target_V is not None else float("nan")
     outline = shapely.union_all(shapely.polygons(uv[F]))
+    F_all = F
     F, sigma, kappa1 = F[faces], sigma[faces], np.asarray(kappa1, dtype=float)[faces]
     cov = face_coverage(uv, F, ribbons, ribbon_width, table, raster=raster)
+    k_real = realized_total_curvature(uv, F_all, faces, cov, s)
     along = 100.0 * (contraction(cov.f_along, s) * sigma[:, 0] - 1.0)
     across = 100.0 * (contraction(cov.f_across, s) * sigma[:, 1] - 1.0)
     f1, f2 = plastic_share(sigma[:, 0], s), plastic_share(sigma[:, 1], s)
@@ -195,4 +215,5 @@ def realization(uv: np.ndarray, F: np.ndarray, sigma: np.ndarray, direction: np.
     clamped = 100.0 * float(at_limit.mean()) if len(tau) else 0.0
     return Realization(faces=faces, along=along, across=across, interior=interior, bare=bare,
                        curvature=_rest_curvature_error(cov, kappa1, table), plastic_printed=printed,
-                       plastic_eq10=eq10, clamped_pct=clamped, k_target=k_tgt, k_intended=k_int, coverage=cov)
+                       plastic_eq10=eq10, clamped_pct=clamped, k_target=k_tgt, k_intended=k_int,
+                       k_realized=k_real, coverage=cov)

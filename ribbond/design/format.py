@@ -380,11 +380,13 @@ class PlasticShare(BaseModel):
 
 
 class IntendedCurvature(BaseModel):
-    """∫K of the target and of the metric the flattening asks for (dimensionless)."""
+    """∫K of the target, of the metric the flattening asks for and of the one the printed plastic
+    realizes (dimensionless; ``realized`` absent in older folders)."""
 
     model_config = _CONFIG
     target: float
     intended: float
+    realized: float | None = None
 
 
 class RealizationReport(BaseModel):

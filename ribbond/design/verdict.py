@@ -223,7 +223,8 @@ def _bounds_status(report: dict[str, Any]) -> str:
 def shape_chain(report: dict[str, Any]) -> list[tuple[str, str, float]]:
     """The steps from the target to the prediction, each as (step, what it keeps, its loss in %):
     the flattening (∫K of the intended metric against the target's), the layout (how far the printed
-    ribbons realize that metric: the largest |median| of along and across), the release (the predicted
+    ribbons realize that metric: the largest |median| of along and across; and, where the report has it,
+    ∫K of the realized metric against the target's), the release (the predicted
     ∫K against the target's; its loss is what it loses beyond the flattening). A step is left out when
     the report lacks its field (older reports, no prediction); a nearly developable target (|∫K| <
     ``NEARLY_DEVELOPABLE``) is compared in ∫K, not in %, and its loss is not ranked."""
@@ -239,8 +240,11 @@ def shape_chain(report: dict[str, Any]) -> list[tuple[str, str, float]]:
     metric = [(name, real[key]) for name, key in (("along", "along_pct"), ("across", "across_pct")) if real.get(key)]
     if metric:
         name, q = max(metric, key=lambda item: abs(item[1]["median"]))
+        held = _ratio(k["realized"], k["target"]) if k and k.get("realized") is not None else None
+        held_text = f", a metric that keeps {held:.0f} % of the target's curvature" if held is not None else ""
         steps.append(("the layout", f"realizes its metric within {abs(q['median']):.1f} % ({name} the ribbons: "
-                      f"median {q['median']:+.1f} %, p5–p95 {q['p5']:+.1f} to {q['p95']:+.1f} %)", abs(q["median"])))
+                      f"median {q['median']:+.1f} %, p5–p95 {q['p5']:+.1f} to {q['p95']:+.1f} %{held_text})",
+                      abs(q["median"])))
     kd = deployed.get("total_gaussian_curvature")
     if kd:
         predicted = _ratio(kd["predicted"], kd["target"])

@@ -154,3 +154,47 @@ def test_wrong_shapes_are_refused(rectangle) -> None:
     with pytest.raises(ValueError, match="sigma"):
         realization(uv, F, np.ones((3, 2)), d, np.zeros(len(F)), [], prestretch=S, ribbon_width=WR,
                     ribbon_length=LR, table=TABLE)
+
+
+def test_the_realized_metric_is_eq_10s_where_the_dashes_are(rectangle) -> None:
+    # dashes placed by Eq. 10 on a constant σ: the rest metric built from the measured coverage (the
+    # one the prediction uses) is d dᵀ/σ1² + n nᵀ/σ2² in the interior, and a constant metric on a flat
+    # rectangle has no Gaussian curvature: ∫K realized = intended = 0 (up to the outline's rim, where
+    # the measuring windows leave the pattern)
+    from ribbond.deploy.rest_forms import rest_forms
+    uv, F, d = rectangle
+    r = measure(uv, F, staggered_rows(W, H, LR), d)
+    abar = rest_forms(r.coverage, S).abar[r.interior]
+    want = intended_metric(np.tile([SIG1, SIG2], (len(abar), 1)), d[r.faces][r.interior])
+    assert np.abs(abar - want).max() <= 0.01 * np.abs(want).max()
+    assert abs(r.k_intended) < 1e-9
+    assert abs(r.k_realized) < 0.01
+    assert r.report()["total_gaussian_curvature"]["realized"] == pytest.approx(r.k_realized, abs=1e-4)
+
+
+def test_rows_short_of_plastic_inside_a_radius_realize_the_curvature_geometry_gives() -> None:
+    # the half annulus of concentric rows, dashes half as long inside r = 60 mm. The realized metric is
+    # a² dr² + g(r)² dθ² with a = 1/σ2 (across unchanged) and g' = c the circles' contraction (Eq. 10:
+    # 1/σ1 outside, c_half = f/2 + (1 − f/2)/s inside); a rotationally symmetric metric has
+    # ∫K dA = −∫∫ (g'/a)' dr dθ = −(π/a) (g'(R1) − g'(R0)) over θ ∈ [0, π]: −π σ2 (1/σ1 − c_half).
+    # With whole dashes g' = 1/σ1 everywhere and ∫K = 0; the measuring windows at the two rims cost
+    # 0.16 there, the tolerance.
+    R0, R1 = 30.0, 90.0
+    r, t = np.meshgrid(np.linspace(R0, R1, 80), np.linspace(0, np.pi, 200))
+    uv = np.column_stack([(r * np.cos(t)).ravel(), (r * np.sin(t)).ravel()])
+    _, F = grid_mesh(1.0, 1.0, 80, 200)
+    C = uv[F].mean(axis=1)
+    d = np.column_stack([-C[:, 1], C[:, 0]]) / np.linalg.norm(C, axis=1, keepdims=True)
+    full = arc_rows(R0, R1)
+    short = [Ribbon(side=rb.side, points=(np.asarray(rb.points)[10:30] if np.linalg.norm(rb.points[0]) < 60 else
+                                          np.asarray(rb.points)).tolist(), thickness=rb.thickness,
+                    kappa1=rb.kappa1, spacing=rb.spacing) for rb in full]
+    m = len(F)
+    kw = dict(prestretch=S, ribbon_width=WR, ribbon_length=LR, table=TABLE)
+    whole = realization(uv, F, np.tile([SIG1, SIG2], (m, 1)), d, np.full(m, KAPPA), full, **kw)
+    half = realization(uv, F, np.tile([SIG1, SIG2], (m, 1)), d, np.full(m, KAPPA), short, **kw)
+    f_half = 0.5 * LR / MU1
+    expected = -np.pi * SIG2 * (1 / SIG1 - (f_half + (1 - f_half) / S))
+    assert expected < -0.5
+    assert abs(whole.k_realized) < 0.2
+    assert half.k_realized == pytest.approx(expected, abs=0.2)

@@ -339,3 +339,15 @@ def test_an_older_project_json_is_judged_by_its_verdicts_words() -> None:
     for q in project["panels"]:
         del q["deployed"]["reached"]                  # written before the field existed
     assert project_reached(project) is False
+
+
+def test_the_layout_says_how_much_curvature_its_realized_metric_keeps() -> None:
+    # make demo's saddle as measured: a metric off by 12 % along whose own ∫K is 55 % of the target's;
+    # said only where the report has it (older reports have no "realized")
+    target = -1.337
+    report = chain_report(target, (-18.3, -12.1, -4.3), 0.4 * target, target)
+    report["realization"]["total_gaussian_curvature"]["realized"] = 0.55 * target
+    line = shape_line(report)
+    assert ("the layout realizes its metric within 12.1 % (along the ribbons: median -12.1 %, p5–p95 -18.3 to "
+            "-4.3 %, a metric that keeps 55 % of the target's curvature)") in line
+    assert "a metric that keeps" not in shape_line(chain_report(target, (-18.3, -12.1, -4.3), 0.4 * target, target))
