@@ -2,11 +2,11 @@
 
 ``ribbonctl design MESH -o DIR [--size MM] [--params FILE] [--profile NAME]`` runs the design
 engine locally (no daemon) and writes the design folder; with ``--panels auto|N [--seam-allowance MM]``
-it cuts the target into panels and writes the project folder (``ribbond.design.project``). The daemon commands (``submit``,
+it cuts the target into panels and writes the project folder (``ribbond.panels.project``). The daemon commands (``submit``,
 ``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``frame-ok``, ``align``,
 ``printer``, ``stop``) are in ``ribbond.client.http``.
 ``ribbonctl predict DESIGN_DIR [--table NAME]`` predicts again the deployed shape of a
-design folder, locally (``ribbond.design.repredict``).
+design folder, locally (``ribbond.pipeline.repredict``).
 
 Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still
 written, and the summary says so); 1 the design cannot be made as asked; 2 bad input (mesh,
@@ -31,7 +31,7 @@ from ribbond.design.verdict import project_verdict_lines
 from .http import ClientError, add_commands, add_global_options
 
 if TYPE_CHECKING:
-    from ribbond.design.pipeline import DesignResult
+    from ribbond.pipeline.compile import DesignResult
 
 
 class _Lazy:
@@ -199,7 +199,7 @@ def _cmd_design(args: argparse.Namespace) -> int:
     # the engine is imported here only: the daemon commands start without it
     from ribbond.design.params import DesignSettings, SizeSpec, load_settings
     from ribbond.design.folder import check_destination
-    from ribbond.design.pipeline import design_mesh, write_design
+    from ribbond.pipeline.compile import design_mesh, write_design
     from ribbond.gcode.profiles import load_profile
 
     settings = load_settings(args.params) if args.params else DesignSettings()
@@ -273,7 +273,7 @@ def _design_project(args: argparse.Namespace, params: Any, solver: Any) -> int:
     panel-K/ design folders) and its summary."""
     import json
 
-    from ribbond.design.project import check_project_destination, design_project, write_project
+    from ribbond.panels.project import check_project_destination, design_project, write_project
 
     panels: int | str = args.panels
     if panels != "auto":
@@ -407,7 +407,7 @@ def _print_prediction(args: argparse.Namespace, deployed: dict[str, Any], verdic
 
 
 def _cmd_predict(args: argparse.Namespace) -> int:
-    from ribbond.design.repredict import repredict_folder
+    from ribbond.pipeline.repredict import repredict_folder
 
     if (args.design_dir is None) == (args.job is None):
         raise ValueError("give either a design folder or --job ID (a job of the daemon)")
