@@ -31,7 +31,7 @@ from ..design.intake import TargetMesh, load_target
 from ..design.line_field import ANISOTROPY_THRESHOLD, curvature_line_field
 from ..mesh.files import write_obj
 from .cut import (bisect, boundary_loops, grid_partition, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
-                     spectral_embedding)
+                  spectral_embedding)
 from ..design.params import DesignParameters, SizeSpec, SolverSettings
 from ..pipeline.compile import DesignProgress, DesignResult, NoProgress, design_mesh, finish_design
 from .stitch import make_stitch_marks

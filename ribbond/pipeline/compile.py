@@ -32,8 +32,8 @@ from ..design.errors import DesignError
 from ..design.flatten import BoundedFlattener, FlatteningResult
 from ..design.folder import write_design_folder
 from ..design.format import (DeployedReport, Deviation, Design, Faces, OptimizationReport, Parameters, PrintReport,
-                     Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, ScaleReport, SidePrintReport,
-                     Source, StitchMark, ThicknessFit)
+                             Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, ScaleReport, SidePrintReport,
+                             Source, StitchMark, ThicknessFit)
 from ..design.frames import FaceFrames, face_frames
 from ..design.intake import TargetMesh, check_disk, load_target
 from ..mesh.files import obj_bytes

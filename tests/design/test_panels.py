@@ -8,7 +8,7 @@ import pytest
 from ribbond.design import surfaces
 from ribbond.design.frames import face_frames
 from ribbond.panels.cut import (bisect, boundary_loops, cut_weight, grid_partition, interior_edges, longest_axis,
-                                   panel_submesh, partition, seam_weights, spectral_embedding, straighten_seams)
+                                panel_submesh, partition, seam_weights, spectral_embedding, straighten_seams)
 from ribbond.panels.seams import (mark_fractions, outward_normals, points_at_fractions, polyline_length,
                                   seam_chains, seam_label)
 
