@@ -117,10 +117,10 @@ def ribbons_vs_exact(folder, V: np.ndarray, exact: Exact) -> tuple[np.ndarray, n
 
 def ribbon_table(weights: list[float | None], cases: list[tuple[str, tuple[np.ndarray, np.ndarray], Exact]]) -> None:
     from ribbond.design.folder import read_design_folder
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SolverSettings
     from ribbond.design.report import BAD_TOLERANCE, bounds_deviation
-    from ribbond.design.pipeline import design_mesh, write_design
+    from ribbond.pipeline.compile import design_mesh, write_design
 
     params = DesignParameters()
     (lo1, hi1), (lo2, hi2) = params.bounds
@@ -240,9 +240,9 @@ def coarse_table(cases, refine_to: list[int | None]) -> None:
     ``refine_to`` value, None: the settings' default) and at ~40k; each coarse figure against the
     fine one, goal and met / NOT met."""
     from ribbond.design.folder import read_design_folder
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SolverSettings
-    from ribbond.design.pipeline import design_mesh, write_design
+    from ribbond.pipeline.compile import design_mesh, write_design
 
     def figures(V: np.ndarray, F: np.ndarray, exact: Exact, solver: SolverSettings, d: Path) -> tuple[float, ...]:
         d.mkdir()

@@ -1,7 +1,7 @@
 """Streaming while a design compiles beside it, as the daemon does (a benchmark, not a test).
 
 The daemon streams to the printer from one asyncio event loop while a compile runs in a worker
-process (``python -m ribbond.design.worker``, at a lower CPU priority) whose JSON progress lines that same
+process (``python -m ribbond.pipeline.worker``, at a lower CPU priority) whose JSON progress lines that same
 loop reads. This benchmark measures what that design guarantees, against the simulated printer run
 as its own process in real time (``--time-scale 1``) at 250000 baud:
 
@@ -243,7 +243,7 @@ async def run(name: str, lines: list[str], limit: float, book: Bookkeeping,
 def write_mesh(faces: int, workdir: Path) -> Path:
     from make_meshes import examples
 
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
 
     file = "torus_patch.obj"
     _, f1 = examples(1.0)[file][1]()

@@ -61,9 +61,9 @@ def _mesh(name: str):
 
 
 def _design(name: str, workdir: Path):
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SizeSpec
-    from ribbond.design.pipeline import design_mesh
+    from ribbond.pipeline.compile import design_mesh
     from ribbond.design.thickness import load_curvature_table
     V, F, size = _mesh(name)
     path = workdir / f"{name}.obj"

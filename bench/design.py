@@ -45,7 +45,7 @@ RESULT_TAG = "BENCH-RESULT "
 def child(mesh: Path) -> int:
     """Run the engine on ``mesh`` and print one JSON line (tagged) with the times and peak memory."""
     from ribbond.design.params import DesignParameters, SolverSettings
-    from ribbond.design.pipeline import design_mesh
+    from ribbond.pipeline.compile import design_mesh
 
     t = time.perf_counter()
     result = design_mesh(mesh, DesignParameters(), SolverSettings(), predict=False)
@@ -72,7 +72,7 @@ def write_meshes(surface: str, targets: list[int], workdir: Path) -> list[Path]:
     """The surface at resolutions giving about ``targets`` faces; the OBJ paths."""
     from make_meshes import examples
 
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
 
     file = f"{surface}.obj"
     _, F1 = examples(1.0)[file][1]()

@@ -34,9 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from ribbond.design import surfaces  # noqa: E402
 from ribbond.design.flatten import BoundedFlattener  # noqa: E402
-from ribbond.design.mesh_io import write_obj  # noqa: E402
+from ribbond.mesh.files import write_obj  # noqa: E402
 from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings  # noqa: E402
-from ribbond.design.pipeline import design_mesh  # noqa: E402
+from ribbond.pipeline.compile import design_mesh  # noqa: E402
 
 def scanned(coarse: tuple[np.ndarray, np.ndarray], k: float) -> tuple[np.ndarray, np.ndarray]:
     """A mesh as scans come: a coarse mesh of an analytic surface (1-3k faces) upsampled by midpoint

@@ -35,9 +35,9 @@ sys.path.insert(0, str(ROOT / "examples" / "meshes"))
 
 from ribbond.design.errors import DesignError, MeshError  # noqa: E402
 from ribbond.design.format import Design  # noqa: E402
-from ribbond.design.mesh_io import write_obj  # noqa: E402
+from ribbond.mesh.files import write_obj  # noqa: E402
 from ribbond.design.params import DesignParameters, SizeSpec  # noqa: E402
-from ribbond.design.pipeline import design_mesh  # noqa: E402
+from ribbond.pipeline.compile import design_mesh  # noqa: E402
 from ribbond.gcode.ordering import MOVE_BUDGET  # noqa: E402
 from ribbond.gcode.profiles import PrinterProfile, load_profile  # noqa: E402
 from ribbond.gcode.program import Correction, GcodeError, mirror, plan_side, render_side  # noqa: E402

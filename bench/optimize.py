@@ -55,9 +55,9 @@ def _mesh(name: str):
 def run(name: str) -> dict:
     from ribbond.deploy.optimize import optimize_layout
     from ribbond.deploy.predict import predict_deployed
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
-    from ribbond.design.pipeline import design_mesh
+    from ribbond.pipeline.compile import design_mesh
     from ribbond.design.thickness import load_curvature_table
     V, F, size = _mesh(name)
     with tempfile.TemporaryDirectory() as tmp:
@@ -73,7 +73,7 @@ def run(name: str) -> dict:
     opt = optimize_layout(uv, V, F, rib, forward, budget_s=budget, **kw)
     optimized = predict_deployed(uv, V, F, opt.ribbons, **kw)                    # from the flat sheet, every release
     stage_s = time.perf_counter() - t0
-    from ribbond.design.pipeline import optimization_kept
+    from ribbond.pipeline.compile import optimization_kept
     kept, why = optimization_kept(forward, optimized)
     return {"kept": kept, "why": why, "surface": name, "faces": len(F), "ribbons": len(rib), "forward": forward, "optimized": optimized,
             "opt": opt, "stage_s": stage_s}

@@ -31,11 +31,11 @@ sys.path.insert(0, str(ROOT))
 from ribbond.design import surfaces  # noqa: E402
 from ribbond.design.errors import DesignError  # noqa: E402
 from ribbond.design.intake import load_target  # noqa: E402
-from ribbond.design.mesh_io import write_obj  # noqa: E402
-from ribbond.design.panels import panel_submesh  # noqa: E402
+from ribbond.mesh.files import write_obj  # noqa: E402
+from ribbond.panels.cut import panel_submesh  # noqa: E402
 from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings  # noqa: E402
-from ribbond.design.pipeline import design_mesh  # noqa: E402
-from ribbond.design.project import MAX_BAD_PCT, design_project, panel_margin, write_project  # noqa: E402
+from ribbond.pipeline.compile import design_mesh  # noqa: E402
+from ribbond.panels.project import MAX_BAD_PCT, design_project, panel_margin, write_project  # noqa: E402
 
 GOAL_DEVIATION_PCT = 2.0
 GOAL_SEAM_PCT = 1.0

@@ -36,9 +36,9 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 def _design(name: str):
     from realization import _meshes
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SizeSpec
-    from ribbond.design.pipeline import design_mesh
+    from ribbond.pipeline.compile import design_mesh
     V, F, size, _ = _meshes()[name]
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"{name.replace('/', '_')}.obj"
@@ -61,7 +61,7 @@ class _Relayout:
 
     def ribbons(self, sigma: np.ndarray) -> list:
         import shapely
-        from ribbond.design.pipeline import _ribbons
+        from ribbond.pipeline.compile import _ribbons
         from ribbond.design.ribbons import layout_ribbons, stripe_grid
         r, sv = self.res, self.solver
         grid = stripe_grid(r.flat_uv, r.F, r.target.boundary, sigma, r.ribbon_direction, r.kappa1, self.params,

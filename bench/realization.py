@@ -91,9 +91,9 @@ def _predict(res, kw, intended: bool):
 
 
 def run(name: str, V, F, size: float, feasible: bool, do_predict: bool) -> dict:
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SizeSpec
-    from ribbond.design.pipeline import design_mesh
+    from ribbond.pipeline.compile import design_mesh
     from ribbond.design.thickness import load_curvature_table
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / (name.replace("/", "_") + ".obj")

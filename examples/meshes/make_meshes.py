@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from ribbond.design import surfaces  # noqa: E402
-from ribbond.design.mesh_io import write_obj  # noqa: E402
+from ribbond.mesh.files import write_obj  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from ribbond.design.worker import lower_priority
+from ribbond.pipeline.worker import lower_priority
 
 
 def main(argv: list[str] | None = None) -> int:

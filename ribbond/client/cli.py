@@ -2,18 +2,18 @@
 
 ``ribbonctl design MESH -o DIR [--size MM] [--params FILE] [--profile NAME]`` runs the design
 engine locally (no daemon) and writes the design folder; with ``--panels auto|N [--seam-allowance MM]``
-it cuts the target into panels and writes the project folder (``ribbond.design.project``). The daemon commands (``submit``,
+it cuts the target into panels and writes the project folder (``ribbond.panels.project``). The daemon commands (``submit``,
 ``status``, ``watch``, ``start``, ``pause``, ``resume``, ``cancel``, ``flip-done``, ``frame-ok``, ``align``,
-``printer``, ``stop``) are in ``ribbond.client.http``.
+``printer``, ``stop``) are in ``ribbond.client.commands``.
 ``ribbonctl predict DESIGN_DIR [--table NAME]`` predicts again the deployed shape of a
-design folder, locally (``ribbond.design.repredict``).
+design folder, locally (``ribbond.pipeline.repredict``).
 
 Exit status of ``design``: 0 the design was written (a design outside its stretch bounds is still
 written, and the summary says so); 1 the design cannot be made as asked; 2 bad input (mesh,
 parameters); 130 interrupted. ``predict``: 0 the prediction was replaced; 2 bad input (not a design
 folder, a ``design.json`` that does not parse, an unknown table): nothing rewritten. ``predict --job ID``
 asks the daemon (``POST /jobs/{id}/predict``) and follows it: 1 refused or failed, 4 no such job.
-The daemon commands: see ``ribbond.client.http``.
+The daemon commands: see ``ribbond.client.commands``.
 """
 
 from __future__ import annotations
@@ -28,10 +28,11 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from ribbond.design.errors import DesignError, MeshError
 from ribbond.design.verdict import project_verdict_lines
-from .http import ClientError, add_commands, add_global_options
+from .commands import add_commands, add_global_options
+from .http import ClientError
 
 if TYPE_CHECKING:
-    from ribbond.design.pipeline import DesignResult
+    from ribbond.pipeline.compile import DesignResult
 
 
 class _Lazy:
@@ -199,7 +200,7 @@ def _cmd_design(args: argparse.Namespace) -> int:
     # the engine is imported here only: the daemon commands start without it
     from ribbond.design.params import DesignSettings, SizeSpec, load_settings
     from ribbond.design.folder import check_destination
-    from ribbond.design.pipeline import design_mesh, write_design
+    from ribbond.pipeline.compile import design_mesh, write_design
     from ribbond.gcode.profiles import load_profile
 
     settings = load_settings(args.params) if args.params else DesignSettings()
@@ -273,7 +274,7 @@ def _design_project(args: argparse.Namespace, params: Any, solver: Any) -> int:
     panel-K/ design folders) and its summary."""
     import json
 
-    from ribbond.design.project import check_project_destination, design_project, write_project
+    from ribbond.panels.project import check_project_destination, design_project, write_project
 
     panels: int | str = args.panels
     if panels != "auto":
@@ -407,7 +408,7 @@ def _print_prediction(args: argparse.Namespace, deployed: dict[str, Any], verdic
 
 
 def _cmd_predict(args: argparse.Namespace) -> int:
-    from ribbond.design.repredict import repredict_folder
+    from ribbond.pipeline.repredict import repredict_folder
 
     if (args.design_dir is None) == (args.job is None):
         raise ValueError("give either a design folder or --job ID (a job of the daemon)")
@@ -443,7 +444,7 @@ def _spec_from_args(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _cmd_calibrate_plan(args: argparse.Namespace) -> int:
-    from .http import calibrate_remote
+    from .tables import calibrate_remote
 
     spec = _spec_from_args(args)
     if args.output is None:
@@ -479,7 +480,7 @@ def _cmd_calibrate_record(args: argparse.Namespace) -> int:
     if plan_path.is_dir():
         plan = read_plan(plan_path)
     else:
-        from .http import fetch_plan
+        from .tables import fetch_plan
 
         got = fetch_plan(args, args.plan)
         plan = got if isinstance(got, dict) else json.loads(got)
@@ -505,7 +506,7 @@ def _cmd_calibrate_record(args: argparse.Namespace) -> int:
               f"leave-one-out RMS {f.loo_rms:.3g} 1/mm" for s, f in fit.sides.items()]
     lines += [f"  warning: {w}" for w in fit.warnings]
     if args.add:
-        from .http import add_table_text
+        from .tables import add_table_text
 
         add_table_text(args, fit.text)
         lines.append(f"  added to the daemon: designs use it with curvature_table = \"{name}\"")

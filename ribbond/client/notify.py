@@ -9,7 +9,8 @@ import argparse
 import time
 from typing import Any
 
-from .http import Client, ClientError, _client, _out
+from .http import Client, ClientError, _client
+from .output import _out
 
 #: Seconds beyond the daemon's own timeout that ``notify test`` waits for the deliveries.
 WAIT_MARGIN_S = 3.0

@@ -14,7 +14,8 @@ import sys
 import time
 from typing import Any
 
-from .http import Bar, Client, _client, _out, bar_text
+from .http import Client, _client
+from .output import Bar, _out, bar_text
 
 #: Project states in which nothing more happens by itself.
 OVER = {"done", "failed", "cancelled"}

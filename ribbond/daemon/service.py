@@ -8,7 +8,7 @@ and the next thing to do). The rest is one component per concern, each given onl
 
 - ``records.JobRecords``: reads and state changes of the store, each committed before it is published
   on the ``events.EventBus``;
-- ``compiler.Compiler``: the compile queue (each compile a ``ribbond.design.worker`` subprocess, so the
+- ``compiler.Compiler``: the compile queue (each compile a ``ribbond.pipeline.worker`` subprocess, so the
   event loop that feeds the printer never computes a design);
 - ``run.PrintState``: the print queue and the run on the printer (one job at a time);
 - ``printing.PrintTask``: the print task (heating, front, flip, back, done; the safe stops);
@@ -18,7 +18,7 @@ and the next thing to do). The rest is one component per concern, each given onl
 - ``manual.ManualControl``: home, jog, goto, G-code, heat, cool, never while a program streams;
 - ``head.Head``: the link, the lock of the head's moves and the head's commanded position;
 - ``tables.TableLibrary`` and ``calibrations.Calibrations``: curvature tables and calibration plans;
-- ``predictor.Predictor``: a design's deployed shape predicted again (a ``ribbond.deploy.worker``
+- ``predictor.Predictor``: a design's deployed shape predicted again (a ``ribbond.pipeline.predict_worker``
   subprocess), its progress and result in the job's status;
 - ``octoprint.OctoPrintCompat``: slicers' uploads made jobs, and the job and printer in OctoPrint's words;
 - ``notifier.Notifier``: notifications through Apprise (``[notify]``), from the bus's events, off the

@@ -1,23 +1,11 @@
-"""Errors of the design engine: both are ``ValueError`` so callers can catch bad input uniformly."""
+"""Errors of the design engine: ``MeshError`` (the mesh readers', from ``ribbond.mesh.errors``) and
+``DesignError``; both are ``ValueError`` so callers can catch bad input uniformly."""
 
 from __future__ import annotations
 
+from ..mesh.errors import MeshError
 
-class MeshError(ValueError):
-    """The input mesh cannot be used; the message names the problem and, where possible, where it is.
-
-    Attributes
-    ----------
-    problem : str
-        a short, stable key for the kind of problem (``"unreadable"``, ``"empty"``, ``"too_small"``,
-        ``"non_finite"``, ``"zero_area"``, ``"non_manifold_edge"``, ``"non_manifold_vertex"``,
-        ``"orientation"``, ``"components"``, ``"closed"``, ``"not_disk"``, ``"too_many_faces"``,
-        ``"bad_index"``), for programs (the daemon's API) that react to it.
-    """
-
-    def __init__(self, problem: str, message: str) -> None:
-        super().__init__(message)
-        self.problem = problem
+__all__ = ["DesignError", "MeshError"]
 
 
 class DesignError(ValueError):

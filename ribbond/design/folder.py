@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ribbond.design.format import Design, design_from_json, design_to_json
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 
 #: The files a design folder may hold (the format document's table).
 CORE_FILES = ("target.obj", "flat.obj", "design.json")

@@ -158,7 +158,7 @@ class Ribbon(BaseModel):
 
 class StitchMark(BaseModel):
     """A stitch mark on a panel's seam allowance (issue 26): a tick from the seam line to the cutting
-    line and its label, printed on the front as one-layer lines (``ribbond.design.stitch``)."""
+    line and its label, printed on the front as one-layer lines (``ribbond.panels.stitch``)."""
 
     model_config = _CONFIG
     label: str = Field(pattern=r"^[A-Z0-9]+$", description="the mark's label, A-Z and 0-9 (\"A1\")")

@@ -23,7 +23,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from . import mesh_io
+from ..mesh import files as mesh_io
 from .errors import MeshError
 
 __all__ = ["CleanedMesh", "TargetMesh", "check_disk", "clean_mesh", "load_target"]

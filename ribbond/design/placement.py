@@ -6,10 +6,24 @@ orientation: +z stays the front of the fabric.
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from ..gcode.profiles import FrameSpec
+
+class Frame(Protocol):
+    """The printable rectangle, as placing a layout needs it (a printer profile's ``FrameSpec``,
+    ``ribbond.gcode.profiles``, is one: the design engine reads no profile, so it names only this)."""
+
+    @property
+    def center(self) -> tuple[float, float]: ...
+
+    @property
+    def size(self) -> tuple[float, float]: ...
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]: ...
 
 
 def _hull(uv: np.ndarray) -> np.ndarray:
@@ -19,7 +33,7 @@ def _hull(uv: np.ndarray) -> np.ndarray:
         return uv
 
 
-def fit_scale(uv: np.ndarray, frame: FrameSpec, margin: float) -> float:
+def fit_scale(uv: np.ndarray, frame: Frame, margin: float) -> float:
     """The factor by which ``uv`` (n, 2) could be scaled and still fit the frame less ``margin``."""
     w, h = uv.max(axis=0) - uv.min(axis=0)
     room_w, room_h = frame.size[0] - 2 * margin, frame.size[1] - 2 * margin
@@ -28,7 +42,7 @@ def fit_scale(uv: np.ndarray, frame: FrameSpec, margin: float) -> float:
     return float(min(room_w / max(w, 1e-12), room_h / max(h, 1e-12)))
 
 
-def place_in_frame(uv: np.ndarray, frame: FrameSpec, margin: float = 0.0,
+def place_in_frame(uv: np.ndarray, frame: Frame, margin: float = 0.0,
                    samples: int = 720) -> tuple[np.ndarray, float]:
     """Turn the layout so that it fits the frame best, and centre it there.
 
@@ -60,7 +74,7 @@ def place_in_frame(uv: np.ndarray, frame: FrameSpec, margin: float = 0.0,
     return placed - centre + np.asarray(frame.center), angle
 
 
-def registration_marks(uv: np.ndarray, frame: FrameSpec, offset: float = 5.0) -> np.ndarray:
+def registration_marks(uv: np.ndarray, frame: Frame, offset: float = 5.0) -> np.ndarray:
     """Three registration marks (3, 2) just outside the layout ``uv`` (n, 2), inside the frame.
 
     Candidates are the layout's convex-hull corners pushed ``offset`` mm outward (so a mark is at

@@ -20,7 +20,7 @@ from typing import Any
 import httpx
 import pytest
 
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.surfaces import saddle
 from sim.process import SimProcess
 

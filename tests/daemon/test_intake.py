@@ -23,7 +23,7 @@ import httpx
 import numpy as np
 import pytest
 
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.surfaces import saddle
 from ribbond.design.thickness import load_curvature_table
 

@@ -24,7 +24,7 @@ import httpx
 import pytest
 
 from ribbond.daemon.components.temperatures import TemperatureHistory
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.surfaces import plane_disk, sphere_cap
 from ribbond.design.thickness import load_curvature_table
 from ribbond.design.verdict import BADLY_BROKEN_PCT, verdict_lines

@@ -23,7 +23,7 @@ import pytest
 from ribbond.daemon.config import DaemonConfig
 from ribbond.daemon.service import MAX_NAME_BYTES, RibbonService, mesh_file_name
 from ribbond.daemon.store import JobStore
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.surfaces import saddle
 from ribbond.gcode.profiles import load_profile
 

@@ -1,4 +1,4 @@
-"""The assembled prediction of a target cut into panels (ribbond.deploy.assembly, issue 26).
+"""The assembled prediction of a target cut into panels (ribbond.panels.sewing, issue 26).
 
 - the seams' springs: gradient and Hessian against central finite differences;
 - two bare halves of a rectangle, each in its own print frame and meshed differently, released and
@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from ribbond.deploy.assembly import ReleasedPanel, SeamPairing, assemble, place_panels, seam_energy
+from ribbond.panels.sewing import ReleasedPanel, SeamPairing, assemble, place_panels, seam_energy
 from ribbond.deploy.compare import surface_deviation
 from ribbond.deploy.predict import RELEASES, predict_deployed, sheet_for_layout
 from ribbond.deploy.release import release
 from ribbond.design import surfaces
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
-from ribbond.design.pipeline import design_mesh
+from ribbond.pipeline.compile import design_mesh
 from ribbond.design.thickness import load_curvature_table, table_curvature
 
 from .patterns import staggered_pattern

@@ -102,9 +102,9 @@ def test_optimization_stops_at_its_budget(sheet):
 def test_forward_design_has_no_optimization(tmp_path):
     """``optimize=False`` (``--no-optimize``) and ``[solver] optimize = false``: the paper's forward design,
     each ribbon's thickness the table's inverse at its κ1 and μ2, no report.optimization."""
-    from ribbond.design.mesh_io import write_obj
+    from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
-    from ribbond.design.pipeline import design_mesh
+    from ribbond.pipeline.compile import design_mesh
     from ribbond.design.thickness import ribbon_thickness
     V, F = surfaces.cylinder_patch()
     path = tmp_path / "cylinder.obj"
@@ -122,7 +122,7 @@ def test_forward_design_has_no_optimization(tmp_path):
 
 def test_the_daemon_passes_its_design_switches_to_the_compile_worker():
     from ribbond.daemon.components.compiler import COMPILE_STAGES, worker_command
-    from ribbond.design.pipeline import STAGES
+    from ribbond.pipeline.compile import STAGES
     assert [s.name for s in STAGES] == [s for s in COMPILE_STAGES if s != "write"]
     cmd = worker_command("py", "m.obj", "out", {}, "plans")
     assert "--no-optimize" not in cmd and "--no-predict" not in cmd
@@ -153,6 +153,6 @@ def _prediction(mean: float, worst: float, reached: bool):
     ((1.0, 1.1, True), (0.9, 1.0, False), False, "reached"),               # keeps ``reached``
 ])
 def test_the_optimized_layout_is_kept_only_where_its_own_prediction_is_better(forward, optimized, kept, words):
-    from ribbond.design.pipeline import optimization_kept
+    from ribbond.pipeline.compile import optimization_kept
     ok, why = optimization_kept(_prediction(*forward), _prediction(*optimized))
     assert ok is kept and words in why

@@ -21,9 +21,9 @@ from ribbond.deploy import predict_deployed
 from ribbond.deploy.compare import kabsch
 from ribbond.deploy.predict import RELEASES, interpolate
 from ribbond.design import surfaces
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
-from ribbond.design.pipeline import design_mesh
+from ribbond.pipeline.compile import design_mesh
 from ribbond.design.thickness import load_curvature_table, table_curvature
 from ribbond.design.verdict import verdict_lines
 

@@ -20,7 +20,7 @@ import pytest
 
 from ribbond.design import surfaces
 from ribbond.design.folder import read_design_folder
-from ribbond.design.mesh_io import read_mesh, write_obj
+from ribbond.mesh.files import read_mesh, write_obj
 from ribbond.design.params import SolverSettings
 from ribbond.design.refine import Refined, levels_for, refine
 from ribbond.gcode.profiles import load_profile

@@ -26,7 +26,7 @@ import pytest
 from ribbond.design import surfaces
 from ribbond.design.folder import read_design_folder
 from ribbond.design.format import DeployedReport
-from ribbond.design.mesh_io import read_mesh, write_obj
+from ribbond.mesh.files import read_mesh, write_obj
 from ribbond.design.thickness import TABLE_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -184,7 +184,7 @@ def test_refused_input_rewrites_nothing(folder: Path, tmp_path: Path, problem: s
 def test_a_failure_while_writing_leaves_the_old_folder(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The disk fails after deployed.obj is written, before deployed.png: the folder is as it was."""
     from ribbond.design import folder as folder_module
-    from ribbond.design.repredict import repredict_folder
+    from ribbond.pipeline.repredict import repredict_folder
 
     before = snapshot(folder)
     real = folder_module._write_synced

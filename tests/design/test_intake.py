@@ -14,7 +14,7 @@ import pytest
 
 from ribbond.design.errors import MeshError
 from ribbond.design.intake import CleanedMesh, TargetMesh, check_disk, clean_mesh, load_target
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from tests.design.test_mesh_io import grid, write_stl_binary
 
 

@@ -21,9 +21,9 @@ import scipy.sparse as sp
 
 from ribbond.design import linalg, surfaces
 from ribbond.design.linalg import SymmetricFactor
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters
-from ribbond.design.pipeline import design_mesh
+from ribbond.pipeline.compile import design_mesh
 from ribbond.design.stripes import StripeSolver, integrable_frequency
 from tests.test_wheels import absent_on
 

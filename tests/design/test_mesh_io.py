@@ -15,8 +15,8 @@ import pytest
 
 from ribbond.design.errors import MeshError
 from ribbond.design.intake import clean_mesh
-from ribbond.design import mesh_io
-from ribbond.design.mesh_io import read_mesh, write_obj
+from ribbond.mesh import files as mesh_io
+from ribbond.mesh.files import read_mesh, write_obj
 
 # ---------------------------------------------------------------------------------------------
 # Meshes and independent writers (also used by test_intake)

@@ -1,4 +1,4 @@
-"""The cut into panels (ribbond.design.panels) and the seams (ribbond.design.seams), against geometry."""
+"""The cut into panels (ribbond.panels.cut) and the seams (ribbond.panels.seams), against geometry."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import pytest
 
 from ribbond.design import surfaces
 from ribbond.design.frames import face_frames
-from ribbond.design.panels import (bisect, boundary_loops, cut_weight, grid_partition, interior_edges, longest_axis,
-                                   panel_submesh, partition, seam_weights, spectral_embedding, straighten_seams)
-from ribbond.design.seams import (mark_fractions, outward_normals, points_at_fractions, polyline_length,
+from ribbond.panels.cut import (bisect, boundary_loops, cut_weight, grid_partition, interior_edges, longest_axis,
+                                panel_submesh, partition, seam_weights, spectral_embedding, straighten_seams)
+from ribbond.panels.seams import (mark_fractions, outward_normals, points_at_fractions, polyline_length,
                                   seam_chains, seam_label)
 
 
@@ -144,7 +144,7 @@ def test_grid_partition_tiles_a_wide_rectangle_into_equal_cells():
 
 def test_fewest_panels_is_the_flat_area_over_the_frame():
     from ribbond.design.params import DesignParameters
-    from ribbond.design.project import fewest_panels
+    from ribbond.panels.project import fewest_panels
     from ribbond.gcode.profiles import FrameSpec
     frame = FrameSpec(center=(100.0, 100.0), size=(120.0, 120.0))
     p = DesignParameters()                               # σ1 ≥ 1.0, σ2 ≥ 1.3: flat area ≥ 1.3 × the target's

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from ribbond.design.errors import DesignError
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.params import (DesignParameters, SolverSettings, check_printable, load_settings,
                                    parameters_from_json, settings_from_dict)
-from ribbond.design.pipeline import design_mesh
+from ribbond.pipeline.compile import design_mesh
 from ribbond.design.stripes import chain_segments
 from ribbond.design.surfaces import saddle
 from ribbond.gcode.profiles import load_profile

@@ -1,4 +1,4 @@
-"""A project of panels (ribbond.design.project): a hemisphere one sheet cannot make, cut, designed, written."""
+"""A project of panels (ribbond.panels.project): a hemisphere one sheet cannot make, cut, designed, written."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from ribbond.deploy.predict import interpolate
 from ribbond.design import surfaces
 from ribbond.design.errors import DesignError
 from ribbond.design.folder import read_design_folder
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters, SolverSettings
-from ribbond.design.project import MAX_BAD_PCT, PROJECT_FILE, design_project, write_project
+from ribbond.panels.project import MAX_BAD_PCT, PROJECT_FILE, design_project, write_project
 from ribbond.gcode.profiles import load_profile
 
 RADIUS = 50.0
@@ -131,7 +131,7 @@ def test_stitch_marks_pin_the_same_points_of_the_target_on_both_sides(project):
 def test_one_sheet_says_how_many_panels_auto_would_make(tmp_path):
     """The verdict of a design one sheet cannot make (a 120° cap: a quarter of its faces out of bounds)
     names the panel count, found by the same cut as --panels auto."""
-    from ribbond.design.pipeline import design_mesh
+    from ribbond.pipeline.compile import design_mesh
     from ribbond.design.verdict import verdict_lines
     write_obj(tmp_path / "cap.obj", *surfaces.sphere_cap(RADIUS, 60.0, rings=12))
     r = design_mesh(tmp_path / "cap.obj", DesignParameters(), SOLVER, predict=False)

@@ -20,9 +20,9 @@ from ribbond.design import surfaces as S
 from ribbond.design.curvature import face_curvature
 from ribbond.design.folder import read_design_folder
 from ribbond.design.frames import face_frames
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters, SolverSettings, settings_from_dict
-from ribbond.design.pipeline import design_mesh, write_design
+from ribbond.pipeline.compile import design_mesh, write_design
 from ribbond.design.refine import _subdivision, levels_for, refine
 
 Mesh = tuple[np.ndarray, np.ndarray]

@@ -20,9 +20,9 @@ import shapely
 from ribbond.design import surfaces
 from ribbond.design.errors import DesignError
 from ribbond.design.folder import read_design_folder
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters, SizeSpec, spacing_for_sigma
-from ribbond.design.pipeline import design_mesh, write_design
+from ribbond.pipeline.compile import design_mesh, write_design
 from ribbond.design.ribbons import MAX_DASH, across_spacing
 from ribbond.design.stripes import edge_topology
 from ribbond.design.thickness import load_curvature_table

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from ribbond.design.format import FORMAT, StitchMark, design_from_json, design_to_json
-from ribbond.design.stitch import (ADVANCE, CELL_H, CELL_W, GLYPHS, TEXT_GAP, make_stitch_marks, seam_of,
+from ribbond.panels.stitch import (ADVANCE, CELL_H, CELL_W, GLYPHS, TEXT_GAP, make_stitch_marks, seam_of,
                                    stitch_mark_strokes, strokes_length, text_strokes, text_width)
 
 from .test_format import make_design

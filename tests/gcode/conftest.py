@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 import shapely
 
-from ribbond.design.mesh_io import write_obj
-from ribbond.design.pipeline import DesignResult, design_mesh, write_design
+from ribbond.mesh.files import write_obj
+from ribbond.pipeline.compile import DesignResult, design_mesh, write_design
 from ribbond.design.surfaces import saddle
 from ribbond.gcode.profiles import PrinterProfile, load_profile
 

@@ -13,7 +13,7 @@ import pytest
 import shapely
 
 from ribbond.design.format import Ribbon
-from ribbond.design.stitch import make_stitch_marks, strokes_length
+from ribbond.panels.stitch import make_stitch_marks, strokes_length
 from ribbond.gcode.checker import check_stitch_marks
 from ribbond.gcode.profiles import load_profile
 from ribbond.gcode.program import GcodeError, make_programs

@@ -17,7 +17,7 @@ from typing import Any
 import httpx
 import pytest
 
-from ribbond.design.mesh_io import write_obj
+from ribbond.mesh.files import write_obj
 from ribbond.design.preview import SIDE_COLORS
 from ribbond.design.surfaces import sphere_cap
 from ribbond.gcode.profiles import load_profile

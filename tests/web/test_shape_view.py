@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from ribbond.design.mesh_io import read_mesh
+from ribbond.mesh.files import read_mesh
 from tests.daemon.conftest import PREDICT, Daemon, submit, wait_for
 
 from .conftest import DESKTOP, PHONE, shot

@@ -1,4 +1,4 @@
-"""The compile queue: each design compiled by a ``python -m ribbond.design.worker`` subprocess, one at a
+"""The compile queue: each design compiled by a ``python -m ribbond.pipeline.worker`` subprocess, one at a
 time, so the event loop that feeds the printer never computes a design. The worker's JSON lines
 (stages, iterations, done or error) become the job's stage and events; its stderr is kept as the
 job's ``compile.log``."""
@@ -21,18 +21,18 @@ from ..store import JobRecord
 
 log = logging.getLogger(__name__)
 
-#: The compile's stages in order (``ribbond.design.pipeline``): a compile's progress.
+#: The compile's stages in order (``ribbond.pipeline.compile``): a compile's progress.
 COMPILE_STAGES = ("load", "curvature", "flatten", "stripes", "ribbons", "optimize", "gcode", "deploy", "preview", "write")
 
 
 def worker_command(python: str, mesh: str, out: Path, parameters: dict[str, Any], plans: Path,
                    tables: Path | None = None, max_faces: int | None = None, predict: bool = True,
                    optimize: bool = True) -> list[str]:
-    """The command line of one compile (``python -m ribbond.design.worker``); ``parameters`` in the
+    """The command line of one compile (``python -m ribbond.pipeline.worker``); ``parameters`` in the
     ``--params`` layout (design parameters, an optional ``solver`` table), ``max_faces`` the
     daemon's ``[limits] max_faces``, ``predict`` its ``[design] predict``, ``optimize`` its
     ``[design] optimize``."""
-    return [python, "-m", "ribbond.design.worker", mesh, str(out), "--params", json.dumps(parameters),
+    return [python, "-m", "ribbond.pipeline.worker", mesh, str(out), "--params", json.dumps(parameters),
             "--plans", str(plans)] + (["--tables", str(tables)] if tables is not None else []) \
         + (["--max-faces", str(max_faces)] if max_faces is not None else []) \
         + ([] if predict else ["--no-predict"]) + ([] if optimize else ["--no-optimize"])

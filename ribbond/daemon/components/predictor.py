@@ -1,11 +1,11 @@
 """Predicting a job's design again (``POST /jobs/{id}/predict``, issue 23 item 4): each prediction a
-``python -m ribbond.deploy.worker`` subprocess, as a compile is a ``ribbond.design.worker`` one, so the
+``python -m ribbond.pipeline.predict_worker`` subprocess, as a compile is a ``ribbond.pipeline.worker`` one, so the
 event loop that feeds the printer never computes. Its JSON lines become the job's ``prediction``
 (state, fraction, message; then the new ``report.deployed`` and verdict, or the error), published
 with the job as compile progress is; its stderr is kept as the job's ``predict.log``.
 
 The job's state does not change: a prediction replaces ``deployed.obj``, ``deployed.png`` and
-``report.deployed`` of its design folder atomically (``ribbond.design.repredict``) and nothing the
+``report.deployed`` of its design folder atomically (``ribbond.pipeline.repredict``) and nothing the
 printer reads. It is refused (409) while the job compiles or holds the printer, when the job has no
 design folder, and while a prediction of it runs; the job cannot be deleted meanwhile.
 """
@@ -29,8 +29,8 @@ log = logging.getLogger(__name__)
 
 def predict_command(python: str, design_dir: str, *, table: str | None,
                     tables: Path | None) -> list[str]:
-    """The command line of one prediction (``python -m ribbond.deploy.worker``)."""
-    return [python, "-m", "ribbond.deploy.worker", design_dir] + (["--table", table] if table else []) \
+    """The command line of one prediction (``python -m ribbond.pipeline.predict_worker``)."""
+    return [python, "-m", "ribbond.pipeline.predict_worker", design_dir] + (["--table", table] if table else []) \
         + (["--tables", str(tables)] if tables is not None else [])
 
 

@@ -1,10 +1,10 @@
 """The project compile worker: one mesh cut into panels, each an ordinary design folder, in its own
-process (issue 26), reporting progress as JSON lines as ``ribbond.design.worker`` does.
+process (issue 26), reporting progress as JSON lines as ``ribbond.pipeline.worker`` does.
 
     python -m ribbond.daemon.components.project_worker MESH OUT_DIR --panels auto|N [--seam-allowance MM]
         [--params JSON] [--plans DIR] [--tables DIR] [--max-faces N] [--no-predict] [--no-optimize]
 
-It runs ``ribbond.design.project.design_project`` and ``write_project`` (OUT_DIR: ``project.json``,
+It runs ``ribbond.panels.project.design_project`` and ``write_project`` (OUT_DIR: ``project.json``,
 ``panels.png``, ``panel-1/`` …) and, with ``--plans``, writes each panel's front and back plans as
 ``panel-K-front-plan.npz`` / ``panel-K-back-plan.npz`` (the daemon renders the back again with the
 alignment's correction from them). Its last line is ``{"event": "done", "project_dir": …, "panels": N,
@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ribbond.design.worker import JsonProgress, lower_priority
+from ribbond.pipeline.worker import JsonProgress, lower_priority
 
 
 def _emit(obj: dict[str, object]) -> None:
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     lower_priority(args.nice)
     from ribbond.design.errors import DesignError, MeshError
     from ribbond.design.params import settings_from_dict
-    from ribbond.design.project import design_project, write_project
+    from ribbond.panels.project import design_project, write_project
 
     try:
         settings = settings_from_dict(json.loads(args.params))

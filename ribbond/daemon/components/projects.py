@@ -55,7 +55,7 @@ def panel_instruction(job: JobRecord) -> str:
     return f"panel {job.panel} of {job.panels}: {FRESH_FRAME}"
 
 
-#: The most panels a project may ask for (the engine's ``ribbond.design.project.MAX_PANELS``).
+#: The most panels a project may ask for (the engine's ``ribbond.panels.project.MAX_PANELS``).
 MAX_PANELS = 16
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ribbond.deploy.compare import registered_deviation
-from ribbond.design.mesh_io import read_mesh
+from ribbond.mesh.files import read_mesh
 
 from ..records import NotFound
 from ..store import JobRecord

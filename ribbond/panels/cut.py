@@ -17,7 +17,7 @@ eigenvectors (on a disk-like surface they are sectors: gores, as a tailor cuts a
 each panel one connected piece, a topological disk.
 
 Pure functions over arrays; the search for how many panels are needed (each must flatten within the
-stretch bounds and fit the frame) is ``ribbond.design.project``'s.
+stretch bounds and fit the frame) is ``ribbond.panels.project``'s.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The compile worker: one design, in its own process, reporting progress as JSON lines.
 
-    python -m ribbond.design.worker MESH OUT_DIR [--params JSON] [--plans DIR] [--max-faces N]
+    python -m ribbond.pipeline.worker MESH OUT_DIR [--params JSON] [--plans DIR] [--max-faces N]
 
 ``--params`` has the layout of a ``--params`` file: design parameters at the top level and an
 optional ``solver`` table (``SolverSettings``), both applied; ``--max-faces`` is the daemon's
@@ -69,7 +69,7 @@ def lower_priority(nice: int) -> None:
             pass
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m ribbond.design.worker", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m ribbond.pipeline.worker", description=__doc__.split("\n\n")[0])
     parser.add_argument("mesh", type=Path)
     parser.add_argument("out", type=Path)
     parser.add_argument("--params", default="{}", help="design parameters (and a 'solver' table) as a JSON object")
@@ -83,10 +83,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     args = parser.parse_args(argv)
     lower_priority(args.nice)
-    from .errors import DesignError, MeshError
-    from .format import design_to_dict
-    from .params import settings_from_dict
-    from .pipeline import design_mesh, write_design
+    from ..design.errors import DesignError, MeshError
+    from ..design.format import design_to_dict
+    from ..design.params import settings_from_dict
+    from .compile import design_mesh, write_design
 
     limited = False                                   # the daemon's limit is below the solver's
     try:

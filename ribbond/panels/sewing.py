@@ -53,11 +53,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .compare import kabsch, surface_deviation
-from .predict import Prediction, barycentric
-from .release import FORCE_TOLERANCE, STEP_TOLERANCE, Sheet
-from .shell import ShellEnergy
-from .solver import newton
+from ..deploy.compare import kabsch, surface_deviation
+from ..deploy.predict import Prediction, barycentric
+from ..deploy.release import FORCE_TOLERANCE, STEP_TOLERANCE, Sheet
+from ..deploy.shell import ShellEnergy
+from ..deploy.solver import newton
 
 __all__ = ["SEAM_STIFFNESS", "SEAM_BENDING", "SeamPairing", "ReleasedPanel", "Assembly", "seam_operator", "seam_energy",
            "SewnEnergy", "place_panels", "assemble"]
@@ -146,7 +146,7 @@ class Assembly:
 
     def render_png(self, target_V: np.ndarray, target_F: np.ndarray, title: str = "") -> bytes:
         """The whole target (target_V (n, 3), target_F (m, 3)) beside the assembly coloured by distance."""
-        from .picture import render_deployed_png
+        from ..deploy.picture import render_deployed_png
         return render_deployed_png(target_V, target_F, self.V, self.F, self.distance, title=title)
 
     def report(self) -> dict:

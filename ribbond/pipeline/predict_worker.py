@@ -1,7 +1,7 @@
 """The prediction worker: one design folder predicted again, in its own process, reporting progress
-as JSON lines (as ``ribbond.design.worker`` does for a compile).
+as JSON lines (as ``ribbond.pipeline.worker`` does for a compile).
 
-    python -m ribbond.deploy.worker DESIGN_DIR [--table NAME] [--tables DIR]
+    python -m ribbond.pipeline.predict_worker DESIGN_DIR [--table NAME] [--tables DIR]
 
 Every line on stdout is one JSON object:
 
@@ -17,18 +17,18 @@ import sys
 import time
 from pathlib import Path
 
-from ribbond.design.worker import _emit, lower_priority
+from ribbond.pipeline.worker import _emit, lower_priority
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m ribbond.deploy.worker", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m ribbond.pipeline.predict_worker", description=__doc__.split("\n\n")[0])
     parser.add_argument("design_dir", type=Path)
     parser.add_argument("--table", help="curvature table (default: the design's)")
     parser.add_argument("--tables", type=Path, help="named curvature tables (the daemon's) before the shipped ones")
     parser.add_argument("--nice", type=int, default=10, help="lower the CPU priority by this much")
     args = parser.parse_args(argv)
     lower_priority(args.nice)
-    from ribbond.design.repredict import repredict_folder      # the engine, after the priority is lowered
+    from ribbond.pipeline.repredict import repredict_folder      # the engine, after the priority is lowered
 
     last = [0.0]
 

@@ -11,7 +11,7 @@ What ``table`` changes: only the prediction. The ribbons, their thicknesses (cho
 design's table), ``parameters.curvature_table`` and the print programs stay as they are;
 ``report.deployed.table`` records the table the prediction was made with, so the report says which
 material it describes. Used by ``ribbonctl predict`` and by the daemon's ``POST /jobs/{id}/predict``
-(through ``python -m ribbond.deploy.worker``, which prints JSON lines as the compile worker does).
+(through ``python -m ribbond.pipeline.predict_worker``, which prints JSON lines as the compile worker does).
 """
 
 from __future__ import annotations
@@ -23,11 +23,11 @@ from pathlib import Path
 from typing import Any
 
 from ..deploy.predict import Prediction, predict_deployed
-from .folder import DesignFolder, read_design_folder, replace_design_files
-from .format import FORMAT, DeployedReport, Design, design_to_dict, design_to_json
-from .mesh_io import obj_bytes
-from .thickness import CurvatureTable, load_curvature_table
-from .verdict import verdict_lines
+from ..design.folder import DesignFolder, read_design_folder, replace_design_files
+from ..design.format import FORMAT, DeployedReport, Design, design_to_dict, design_to_json
+from ..mesh.files import obj_bytes
+from ..design.thickness import CurvatureTable, load_curvature_table
+from ..design.verdict import verdict_lines
 
 #: The files a re-prediction replaces.
 REPLACED = ("design.json", "deployed.obj", "deployed.png")

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .format import StitchMark
+from ..design.format import StitchMark
 
 #: A glyph's cell, units (x 0..CELL_W to the right, y 0..CELL_H up from the baseline).
 CELL_W, CELL_H = 4.0, 6.0

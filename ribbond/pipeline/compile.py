@@ -26,25 +26,25 @@ from ..deploy.predict import RELEASES, Prediction, predict_deployed
 from ..deploy.realization import realization
 from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
 from ..gcode.program import GcodeError, Programs, make_programs
-from . import linalg
-from .curvature import Curvature, face_curvature
-from .errors import DesignError
-from .flatten import BoundedFlattener, FlatteningResult
-from .folder import write_design_folder
-from .format import (DeployedReport, Deviation, Design, Faces, OptimizationReport, Parameters, PrintReport,
-                     Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, ScaleReport, SidePrintReport,
-                     Source, StitchMark, ThicknessFit)
-from .frames import FaceFrames, face_frames
-from .intake import TargetMesh, check_disk, load_target
-from .mesh_io import obj_bytes
-from .line_field import ANISOTROPY_THRESHOLD, LineField, curvature_line_field, field_k1_deviation
-from .params import DesignParameters, SolverSettings, check_printable, check_smoothing
-from .placement import fit_scale, place_in_frame, registration_marks
-from .preview import render_preview
-from .refine import Refined, refine_target
-from .report import flattening_report, umbilic_split
-from .ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
-from .thickness import CurvatureTable, ThicknessResult, fitting_scale, load_curvature_table, ribbon_thickness
+from ..design import linalg
+from ..design.curvature import Curvature, face_curvature
+from ..design.errors import DesignError
+from ..design.flatten import BoundedFlattener, FlatteningResult
+from ..design.folder import write_design_folder
+from ..design.format import (DeployedReport, Deviation, Design, Faces, OptimizationReport, Parameters, PrintReport,
+                             Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, ScaleReport, SidePrintReport,
+                             Source, StitchMark, ThicknessFit)
+from ..design.frames import FaceFrames, face_frames
+from ..design.intake import TargetMesh, check_disk, load_target
+from ..mesh.files import obj_bytes
+from ..design.line_field import ANISOTROPY_THRESHOLD, LineField, curvature_line_field, field_k1_deviation
+from ..design.params import DesignParameters, SolverSettings, check_printable, check_smoothing
+from ..design.placement import fit_scale, place_in_frame, registration_marks
+from ..design.preview import render_preview
+from ..design.refine import Refined, refine_target
+from ..design.report import flattening_report, umbilic_split
+from ..design.ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
+from ..design.thickness import CurvatureTable, ThicknessResult, fitting_scale, load_curvature_table, ribbon_thickness
 
 #: How far outside the layout's bounding box the registration marks sit, mm.
 MARK_OFFSET = 5.0
@@ -382,7 +382,7 @@ def _fit_in_frame(run: _Run) -> None:
 
 def _panels_hint(run: _Run) -> str:
     """How many panels ``--panels auto`` would cut a design too large for one sheet into (issue 26)."""
-    from .project import SEAM_ALLOWANCE, cut_target, panel_margin
+    from ..panels.project import SEAM_ALLOWANCE, cut_target, panel_margin
     margin = panel_margin(run.solver, SEAM_ALLOWANCE, run.params.prestretch)
     cut = cut_target(*_search_copy(run.V, run.F), run.params, _search_settings(run.solver), run.frame, "auto", margin)
     return (f", or --panels auto would cut it into about {cut.count} panels that fit" if cut.feasible
@@ -409,7 +409,7 @@ def _in_print_coordinates(run: _Run) -> None:
 
 def _suggest_panels(run: _Run) -> None:
     """A surface one sheet cannot make: how many panels ``--panels auto`` would make (issue 26)."""
-    from .project import MAX_BAD_PCT, SEAM_ALLOWANCE, cut_target, panel_margin
+    from ..panels.project import MAX_BAD_PCT, SEAM_ALLOWANCE, cut_target, panel_margin
     bad = max(run.report["sigma1_bad_pct"], run.report["sigma2_bad_pct"])
     if bad <= MAX_BAD_PCT:
         return

@@ -20,24 +20,24 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..deploy.assembly import Assembly, ReleasedPanel, SeamPairing, assemble
+from .sewing import Assembly, ReleasedPanel, SeamPairing, assemble
 from ..gcode.profiles import FrameSpec, load_profile
 from ..gcode.program import GcodeError
-from .curvature import face_curvature
-from .errors import DesignError
-from .flatten import BoundedFlattener
-from .frames import face_frames
-from .intake import TargetMesh, load_target
-from .line_field import ANISOTROPY_THRESHOLD, curvature_line_field
-from .mesh_io import write_obj
-from .panels import (bisect, boundary_loops, grid_partition, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
-                     spectral_embedding)
-from .params import DesignParameters, SizeSpec, SolverSettings
-from .pipeline import DesignProgress, DesignResult, NoProgress, design_mesh, finish_design
+from ..design.curvature import face_curvature
+from ..design.errors import DesignError
+from ..design.flatten import BoundedFlattener
+from ..design.frames import face_frames
+from ..design.intake import TargetMesh, load_target
+from ..design.line_field import ANISOTROPY_THRESHOLD, curvature_line_field
+from ..mesh.files import write_obj
+from .cut import (bisect, boundary_loops, grid_partition, interior_edges, longest_axis, straighten_seams, panel_submesh, partition, seam_weights,
+                  spectral_embedding)
+from ..design.params import DesignParameters, SizeSpec, SolverSettings
+from ..pipeline.compile import DesignProgress, DesignResult, NoProgress, design_mesh, finish_design
 from .stitch import make_stitch_marks
-from .placement import fit_scale, place_in_frame
-from .refine import refine_target
-from .report import BAD_TOLERANCE, bounds_deviation
+from ..design.placement import fit_scale, place_in_frame
+from ..design.refine import refine_target
+from ..design.report import BAD_TOLERANCE, bounds_deviation
 from .seams import (SeamChain, mark_fractions, outward_normals, points_at_fractions, polyline_length, seam_chains,
                     seam_label)
 
@@ -538,7 +538,7 @@ SEWING_SPACING = 2.0
 
 
 def assemble_prediction(V: np.ndarray, F: np.ndarray, panels: list[PanelDesign], seams: list[Seam]) -> Assembly:
-    """The panels as released, sewn along their seams (``ribbond.deploy.assembly``): each seam's two
+    """The panels as released, sewn along their seams (``ribbond.panels.sewing``): each seam's two
     sides paired at matched fractions of their deployed lengths, as the stitch marks pin them. The whole
     target (V (n, 3), F (m, 3)) only registers and measures the result."""
     released = []
@@ -612,7 +612,7 @@ def project_document(result: ProjectResult) -> dict:
 
 def render_project_png(result: ProjectResult) -> bytes:
     """``panels.png`` of the project."""
-    from .panels_picture import render_panels_png
+    from .picture import render_panels_png
     seams = [(s.label, s.panels[0], s.panels[1], s.flat[0], s.flat[1]) for s in result.seams]
     return render_panels_png(result.V, result.F, result.cut.labels, [p.outline() for p in result.panels], seams,
                              title=f"{result.target.name}: {result.cut.count} panels, {len(result.seams)} seams")
@@ -637,7 +637,7 @@ def write_project(result: ProjectResult, out_dir: str | Path, progress: DesignPr
     import secrets
     import shutil
 
-    from .pipeline import write_design
+    from ..pipeline.compile import write_design
     progress = progress or NoProgress()
     out_dir = Path(out_dir)
     check_project_destination(out_dir)
