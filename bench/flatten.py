@@ -14,9 +14,16 @@ same iteration count and the same bits every time, and from the target's vertice
 1e-12 (Gaussian, seeded) its iteration count changes by at most 10 %.
 
 The scanned_* surfaces are meshes as scans come: a coarse mesh (1,944-2,048 faces) of an analytic
-surface upsampled by midpoint subdivision, three times, to 124-131k faces (``scanned``).
+surface, given to the engine as it is, so that the intake refines it as it refines every target under
+``refine_below_faces`` (midpoint subdivision with the new vertices on local quadric fits,
+``ribbond/design/refine.py``), here three rounds (64×, 124-131k faces; two with --quick).
+The upsampled_* surfaces are the same coarse meshes upsampled by plain midpoint subdivision before
+the engine sees them (``upsampled``: the new vertices on the flat coarse faces, 124-131k faces, so the
+intake leaves them as they are): their curvature sits in the coarse edges' creases and cone points,
+the k1 field follows the creases, and the bounds cannot all hold along it (docs/benchmarks.md).
 
     python bench/flatten.py [--quick] [--runs 3] [--surfaces torus,saddle,shallow_cap,scanned_saddle,...]
+    python bench/flatten.py --surfaces scanned_cap,scanned_saddle --runs 3
 """
 
 from __future__ import annotations
@@ -38,12 +45,22 @@ from ribbond.mesh.files import write_obj  # noqa: E402
 from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings  # noqa: E402
 from ribbond.pipeline.compile import design_mesh  # noqa: E402
 
-def scanned(coarse: tuple[np.ndarray, np.ndarray], k: float) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh as scans come: a coarse mesh of an analytic surface (1-3k faces) upsampled by midpoint
-    subdivision (each triangle into four, the new vertices on the flat coarse faces), three times
-    (64×, about 131k faces), two with --quick (16×)."""
+def levels(k: float) -> int:
+    """Rounds of midpoint subdivision of a coarse mesh: three (64×), two with --quick (16×)."""
+    return 3 if k >= 1 else 2
+
+
+def upsampled(coarse: tuple[np.ndarray, np.ndarray], k: float) -> tuple[np.ndarray, np.ndarray]:
+    """A coarse mesh of an analytic surface (1-3k faces) upsampled by plain midpoint subdivision
+    (each triangle into four, the new vertices on the flat coarse faces), ``levels(k)`` times."""
     V, F = coarse
-    return igl.upsample(V, F, number_of_subdivs=3 if k >= 1 else 2)
+    return igl.upsample(V, F, number_of_subdivs=levels(k))
+
+
+def refined(F: np.ndarray, k: float) -> SolverSettings:
+    """The solver settings that make the intake refine a coarse mesh of faces ``F`` ``levels(k)``
+    times (its ``refine_to_faces`` reached in that many rounds; the default stops at 10,000)."""
+    return SolverSettings(refine_to_faces=len(F) * 4 ** levels(k))
 
 
 # Resolutions giving about 112k faces each (a quarter of that with --quick); the scanned ones 124-131k.
@@ -54,11 +71,16 @@ SURFACES = {
     "shallow_cap": lambda k: surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=int(137 * k)),
     "cylinder": lambda k: surfaces.cylinder_patch(40.0, 120.0, 60.0, n_around=int(330 * k),
                                                   n_along=int(170 * k)),
-    "scanned_saddle": lambda k: scanned(surfaces.saddle(size=80.0, rings=18), k),
-    "scanned_cap": lambda k: scanned(surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=18), k),
-    "scanned_torus": lambda k: scanned(surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30),
-                                                            nu=32, nv=32), k),
 }
+# The coarse meshes of the scanned-style surfaces (1,944-2,048 faces).
+COARSE = {
+    "saddle": lambda: surfaces.saddle(size=80.0, rings=18),
+    "cap": lambda: surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=18),
+    "torus": lambda: surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30), nu=32, nv=32),
+}
+for _name, _coarse in COARSE.items():
+    SURFACES[f"scanned_{_name}"] = lambda k, c=_coarse: c()          # refined by the intake (``refined``)
+    SURFACES[f"upsampled_{_name}"] = lambda k, c=_coarse: upsampled(c(), k)
 GOAL_RATIO = 0.8
 GOAL_SECONDS = 10.0
 GOAL_ARAP_ITERATIONS = 60
@@ -80,13 +102,13 @@ def libigl_arap_per_iteration(V: np.ndarray, F: np.ndarray, uv0: np.ndarray, ite
     return (time.perf_counter() - t) / iterations
 
 
-def determinism(result, params: DesignParameters, runs: int) -> dict[str, object]:
+def determinism(result, params: DesignParameters, settings: SolverSettings, runs: int) -> dict[str, object]:
     """The flattening of ``result``'s mesh and field solved ``runs`` times and once from vertices
     moved by a relative 1e-12: iteration counts, whether every run gave the same bits."""
     from ribbond.design.line_field import ANISOTROPY_THRESHOLD
 
     def solve(V: np.ndarray):
-        flat = BoundedFlattener(V, result.F, result.field.angle, params.bounds, SolverSettings(),
+        flat = BoundedFlattener(V, result.F, result.field.angle, params.bounds, settings,
                                 prestretch=params.prestretch,
                                 k1_defined=result.field.anisotropy > ANISOTROPY_THRESHOLD).solve()
         return flat.iterations, flat.uv.tobytes()
@@ -106,7 +128,8 @@ def run(name: str, scale: float, workdir: Path, runs: int) -> dict[str, float]:
     # Large meshes: the frame is no limit here, the benchmark is about the solver.
     from ribbond.gcode.profiles import FrameSpec
     frame = FrameSpec(center=(0.0, 0.0), size=(1e4, 1e4))
-    result = design_mesh(path, params, SolverSettings(), frame=frame)
+    settings = refined(F, scale) if name.startswith("scanned_") else SolverSettings()
+    result = design_mesh(path, params, settings, frame=frame)
     rep = result.design.report
     flat = result.flattening
     per_iter = flat.time_iterations_s / max(flat.iterations, 1)
@@ -114,7 +137,7 @@ def run(name: str, scale: float, workdir: Path, runs: int) -> dict[str, float]:
     start = BoundedFlattener(result.V, result.F, result.field.angle, params.bounds).initial_map(
         result.target.boundary)
     igl_per_iter = libigl_arap_per_iteration(result.V, result.F, start, iterations=10)
-    det = determinism(result, params, runs) if runs > 0 else {"runs": [], "same_bits": True, "nudged": None}
+    det = determinism(result, params, settings, runs) if runs > 0 else {"runs": [], "same_bits": True, "nudged": None}
     return {**det,
         "faces": rep.faces, "iterations": flat.iterations, "converged": flat.converged,
         "curvature_s": rep.timings_s["curvature"], "flatten_s": rep.timings_s["flatten"],

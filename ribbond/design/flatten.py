@@ -714,21 +714,42 @@ class BoundedFlattener:
                                 and (bounds is None or motion < st.tolerance)) else 0
             stalled = (bounds is None and it > CALM_ITERATIONS
                        and history[-1 - CALM_ITERATIONS][0] - energy <= ENERGY_STALL * energy)
-            if calm >= CALM_ITERATIONS or stalled:
+            if calm >= CALM_ITERATIONS or stalled or (bounds is None and coupled is None
+                                                      and self._fits(uv, energy)):
                 converged = True
                 break
         return _Run(x_acc, e_acc, it, converged, accelerated, rejected, history)
 
-    def _result(self, uv: np.ndarray, energy: float, iterations: int,
-                converged: bool, accelerated: int, rejected: int, t_init: float, t_iter: float,
-                history: list[tuple[float, float, float]]) -> FlatteningResult:
-        J = self.jacobians(uv)
+    def _fits(self, uv: np.ndarray, energy: float) -> bool:
+        """Whether the map ``uv`` (n, 2) is a flattening to ``settings.residual_tolerance`` ε: the
+        root-mean-square misfit of Eq. 3, √(E / area), at most ε, and every face's stretches (as the
+        report measures them) within the bounds to ε. Eq. 3 never rises from one kept iterate to the
+        next, so the first test is a threshold crossed once: a 1e-12 nudge moves it only when E lies
+        within rounding of ε² × area. Past it the iterations crept along a valley of Eq. 3: the
+        scanned saddle (31k faces) went on for 470 iterations to halve the misfit (6e-4 -> 2.3e-4)
+        with every face in the bounds from the 10th and its k1 deviation 0.08° -> 0.03° (mean)."""
+        eps = self.settings.residual_tolerance
+        if not (eps > 0 and energy <= eps * eps * float(self.area.sum())):
+            return False
+        sigma, _ = self._k1_stretches(self.jacobians(uv))
+        low, high = self.bounds[:, 0] - eps, self.bounds[:, 1] + eps
+        return bool(np.all((sigma >= low) & (sigma <= high)))
+
+    def _k1_stretches(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(m, 2) the stretches of Jacobians ``J`` (m, 2, 2), σ1 the one whose direction is nearer
+        k1, and (m,) the angle from k1 to σ1's direction (radians, in [0, π/4])."""
         s_max, s_min, angle_max = principal_stretches(J)
         # Angle from k1 to the direction of largest stretch, as a line (mod π), in [0, π/2].
         off = np.abs(np.mod(self.k1_angle - angle_max + 0.5 * np.pi, np.pi) - 0.5 * np.pi)
         k1_on_max = off <= 0.25 * np.pi
         sig = np.column_stack([np.where(k1_on_max, s_max, s_min), np.where(k1_on_max, s_min, s_max)])
-        deviation = np.where(k1_on_max, off, 0.5 * np.pi - off)
+        return sig, np.where(k1_on_max, off, 0.5 * np.pi - off)
+
+    def _result(self, uv: np.ndarray, energy: float, iterations: int,
+                converged: bool, accelerated: int, rejected: int, t_init: float, t_iter: float,
+                history: list[tuple[float, float, float]]) -> FlatteningResult:
+        J = self.jacobians(uv)
+        sig, deviation = self._k1_stretches(J)
         d1 = np.column_stack([np.cos(self.k1_angle), np.sin(self.k1_angle)])
         pushed = np.einsum("mij,mj->mi", J, d1)
         norm = np.linalg.norm(pushed, axis=1)

@@ -113,6 +113,10 @@ class SolverSettings(BaseModel):
     tolerance: float = Field(1e-6, gt=0, description="stop when the mean change of σ1 and of σ2 is below")
     max_iterations: int = Field(3000, ge=1, description="cap on local/global iterations (the flattening's "
                                 "row-count phase and the paper's iteration together)")
+    residual_tolerance: float = Field(
+        1e-3, ge=0, description="the paper's iteration also stops once the root-mean-square misfit of "
+        "Eq. 3, √(E / target area), is at most this and every face's stretches lie within the bounds "
+        "to it: the precision the report measures the bounds to (1e-3); 0: only the change of σ stops it")
     local_passes: int = Field(2, ge=1, description="R/Σ alternations per global step (§4.3: twice)")
     anderson_window: int = Field(6, ge=0, description="Anderson acceleration history; 0 turns it off")
     slim_iterations: int = Field(2, ge=0, description="SLIM iterations after the Tutte embedding")

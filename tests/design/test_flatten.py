@@ -324,7 +324,8 @@ def test_integrability_phase_makes_the_rows_countable_along_k1():
 
 def test_max_iterations_caps_the_row_count_phase_and_the_paper_iteration_together():
     V, F = surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30), nu=40, nv=20)
-    _, _, _, capped = flatten(V, F, max_iterations=10)
+    # without the residual stop, which would end the paper's iteration before the cap here
+    _, _, _, capped = flatten(V, F, max_iterations=10, residual_tolerance=0.0)
     assert capped.iterations == 10 and capped.coupled_iterations == 5 and not capped.converged
     _, _, _, one = flatten(V, F, max_iterations=1)
     assert one.iterations == 1 and one.coupled_iterations == 0
@@ -351,3 +352,24 @@ def test_integrability_weight_is_refused_below_zero():
     V, F, fr, angle = _torus_with_exact_k1(6, 3)
     with pytest.raises(ValueError, match="weight"):
         RowCountCoupling(F, fr, angle, len(V), 1.6, weight=0.0)
+
+
+def test_the_residual_stop_ends_at_the_first_iterate_that_fits_the_bounds_to_its_tolerance():
+    # A saddle of 5,000 faces from a coarse start: the paper's stop creeps on along a valley of
+    # Eq. 3; the residual stop ends once √(E / area) ≤ ε and every face is within the bounds to ε.
+    V, F = surfaces.saddle(size=80.0, rings=28)
+    eps = 1e-3
+    fr, lf, solver, early = flatten(V, F, coarse_faces=1000, residual_tolerance=eps)
+    *_, full = flatten(V, F, coarse_faces=1000, residual_tolerance=0.0)
+    area = fr.area.sum()
+    assert early.converged and full.converged and not early.folded.any()
+    assert early.energy <= eps * eps * area
+    (lo1, hi1), (lo2, hi2) = BOUNDS
+    assert bounds_deviation(early.sigma[:, 0], lo1, hi1).max() <= eps
+    assert bounds_deviation(early.sigma[:, 1], lo2, hi2).max() <= eps
+    # the iterate before it did not fit yet: capped one iteration earlier, the same path has not stopped
+    assert early.iterations > 1
+    *_, before = flatten(V, F, coarse_faces=1000, residual_tolerance=eps, max_iterations=early.iterations - 1)
+    assert not before.converged and before.uv.tobytes() != early.uv.tobytes()
+    assert early.iterations < full.iterations and full.energy < early.energy
+    assert bad_pct(early) == (0.0, 0.0)
