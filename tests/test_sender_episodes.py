@@ -458,3 +458,115 @@ async def test_busy_keeps_a_move_alive_and_silence_after_it_is_probed() -> None:
     assert (await asyncio.wait_for(move, 1)).line == 0
     sender.stop(StreamCancelled("test over"))
 
+
+
+# ---- more edges the mutation run found
+
+async def test_each_silence_is_nudged_and_counted() -> None:
+    sender, wire = make(timeouts=Timeouts(nudge_s=0.1, default_s=5))
+    sender.start()
+    done = sender.stream(program(1))
+    await asyncio.sleep(0.35)
+    feed(sender, "Error:checksum mismatch, Last Line: -1", "Resend: 0", "ok")
+    await asyncio.sleep(0.3)
+    assert wire.nudges == 2 and sender.nudges == 2
+    feed(sender, "ok N0 P15 B3")
+    assert (await asyncio.wait_for(done, 1)).nudges == 2
+    sender.stop(StreamCancelled("test over"))
+
+
+async def test_a_request_past_the_last_resent_line_leaves_nothing_alone_and_the_probe_settles_it() -> None:
+    """The re-sent line was the last one numbered and its copy is refused (the printer had it):
+    nothing is left to send alone; the silence probe's answer acknowledges it."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=0.01, default_s=0.1, nudge_s=0))
+    sender.start()
+    done = sender.stream(moves(2))                    # lines 0 to 2
+    feed(sender, "ok", "ok")
+    plain_resend(sender, wire, 2)
+    assert wire.numbers()[-2:] == [2, 2]
+    feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: 2", "Resend: 3", "ok")
+    await until(wire, "M105")
+    feed(sender, TEMPERATURES)
+    assert (await asyncio.wait_for(done, 1)).lines == 3
+    sender.stop(StreamCancelled("test over"))
+
+
+async def test_the_watchdog_still_probes_after_probing_behind_rewound_lines() -> None:
+    sender, wire = make(ping_pong=True, timeouts=Timeouts(default_s=0.15, probes=3, nudge_s=0,
+                                                          resend_settle_s=0.01))
+    sender.capabilities.advanced_ok = True
+    sender.start()
+    sender.send("G1 X1")
+    await until(wire, "M105")
+    feed(sender, "Error:Line Number is not Last Line Number+1, Last Line: -1", "Resend: 0", "ok")
+    await until(wire, "M105", count=2)                 # line 1 (the old probe) and the probe 2
+    await until(wire, "M105", count=4)                 # silence again: they go again, with a probe
+    sender.stop(StreamCancelled("test over"))
+
+
+async def test_the_watchdog_goes_on_through_a_hold_with_lines_in_flight() -> None:
+    sender, wire = make(rx=127, timeouts=Timeouts(default_s=0.15, probes=3, nudge_s=0, resend_settle_s=0.3))
+    sender.capabilities.advanced_ok = True
+    sender.start()
+    sender.stream(program(4))
+    feed(sender, "Error:checksum mismatch, Last Line: 0", "Resend: 1", "ok")  # line 0 still in flight
+    await asyncio.sleep(0.2)                           # holding: no probe
+    assert "M105" not in [c for _, c in wire.lines]
+    await until(wire, "M105")
+    sender.stop(StreamCancelled("test over"))
+
+
+async def test_a_silent_resent_command_during_a_program_stops_the_stream() -> None:
+    sender, wire = silent_resend()
+    sender.start()
+    done = sender.stream(STEPS)
+    temperature = sender.send("M104 S200")
+    feed(sender, "ok", "ok", "ok", "ok")               # lines 0 to 3; the M104 is line 4
+    assert (4, "M104 S200") in wire.lines
+    plain_resend(sender, wire, 4)
+    with pytest.raises(ProtocolError, match=r"no ok for line 4, which it had asked for again.*not a move"):
+        await asyncio.wait_for(temperature, 2)
+    with pytest.raises(ProtocolError):
+        await asyncio.wait_for(done, 1)
+
+
+async def test_answers_after_stop_in_a_hold_do_not_end_the_hold_again() -> None:
+    """Stopped while holding; the stale lines' requests and skips still arrive: taken quietly."""
+    sender, wire = make(rx=127, timeouts=Timeouts(resend_settle_s=10))
+    done = sender.stream(program(10))
+    sent = wire.numbers()
+    feed(sender, "Error:checksum mismatch, Last Line: -1", "Resend: 0", "ok")
+    sender.stop(ProtocolError("the operator stopped"))
+    feed(sender, *[f"skip {n}" for n in sent])
+    feed(sender, *["Resend: 0"] * len(sent))
+    assert wire.numbers() == sent
+    with pytest.raises(ProtocolError, match="the operator stopped"):
+        await asyncio.wait_for(done, 1)
+
+
+async def test_a_programs_m400_and_a_command_proven_by_one_wait_both_count() -> None:
+    """Repetier: the program's M400 and a command sent meanwhile, both received and not yet proven
+    run; its ``wait`` (buffer empty) proves both: the M400 counts and the program finishes."""
+    sender, wire = dialect("repetier")
+    done = sender.stream(["G1 X1", "M400", "G1 X2"])
+    temperature = sender.send("M104 S200")
+    feed(sender, "ok 0")                               # (four lines in flight at most)
+    assert wire.lines == [(0, "G1 X1"), (1, "M400"), (2, "M114"), (3, "M104 S200"), (4, "M114")]
+    feed(sender, "ok 1", "ok 2", "ok 3", "ok 4", "wait")
+    assert (await asyncio.wait_for(temperature, 1)).command == "M104 S200"
+    assert wire.lines[-1] == (5, "G1 X2")
+    feed(sender, "ok 5")
+    assert (await asyncio.wait_for(done, 1)).lines == 3
+
+
+async def test_a_line_error_during_the_proof_still_tells_the_window_governor() -> None:
+    sender, wire = silent_resend()
+    told: list[int | None] = []
+    sender.window.line_error = told.append
+    done = await proof_out(sender, wire, moves(4), acked=2, asked=2)
+    told.clear()
+    feed(sender, "Error:checksum mismatch")
+    assert told == [None]
+    sender.stop(StreamCancelled("test over"))
+    with pytest.raises(StreamCancelled):
+        await asyncio.wait_for(done, 1)
