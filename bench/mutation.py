@@ -345,10 +345,6 @@ EQUIVALENT: dict[str, str] = {
         "= 1 instead of += 1: Repetier prints each skip's ok right after it, so at most one is ever due",
     'ribbond.printer.sender.xǁSenderǁ_probe__mutmut_25':
         '<= vs <: with no line rewound the rewound branch sends exactly the probe, as the other branch does',
-    'ribbond.printer.sender.xǁSenderǁ_watch__mutmut_4':
-        'the tick min(0.05, nudge_s / 3) also when nudges are off (0 s): the watchdog looks more often, the same decisions',
-    'ribbond.printer.sender.xǁSenderǁ_watch__mutmut_12':
-        'the tick min(0.05, nudge_s / 3) also when nudges are off (0 s): the watchdog looks more often, the same decisions',
     'ribbond.printer.sender.xǁSenderǁ_watch__mutmut_3':
         'the tick for the 30 ms nudge 50 or 7.5 ms instead of 10 ms: only how soon after the 30 ms the nudge goes; no test on a loaded 2-core machine can time 10 ms against 50 ms',
     'ribbond.printer.sender.xǁSenderǁ_watch__mutmut_10':

@@ -8,6 +8,7 @@ Smoothieware's ``ok C:``, RepRapFirmware's silent drop)."""
 from __future__ import annotations
 
 import asyncio
+import time
 
 import pytest
 
@@ -570,3 +571,17 @@ async def test_a_line_error_during_the_proof_still_tells_the_window_governor() -
     sender.stop(StreamCancelled("test over"))
     with pytest.raises(StreamCancelled):
         await asyncio.wait_for(done, 1)
+
+
+async def test_the_watchdog_sleeps_between_looks_when_nudges_are_off() -> None:
+    """With nudges off the watchdog ticks every 50 ms; a tick of 0 would spin the event loop and
+    take a core of the printer's host for as long as a line is in flight."""
+    sender, wire = make(timeouts=Timeouts(nudge_s=0, default_s=30))
+    sender.start()
+    done = sender.stream(program(1))
+    cpu = time.process_time()
+    await asyncio.sleep(0.5)
+    assert time.process_time() - cpu < 0.05
+    feed(sender, "ok")
+    await asyncio.wait_for(done, 1)
+    sender.stop(StreamCancelled("test over"))
