@@ -93,6 +93,7 @@ def read_parts(camera: CameraServer, path: str, count: int) -> tuple[str, list[t
 
 
 @pytest.mark.parametrize("path", ["/stream", "/?action=stream"])
+@pytest.mark.timing
 def test_the_stream_is_multipart_x_mixed_replace_with_one_jpeg_a_part(
         bed: tuple[SimulatedPrinter, PtyHost, CameraServer], path: str) -> None:
     _, _, camera = bed

@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 import time
 
+import pytest
 import serial
 
 from sim import FaultConfig, SimConfig
@@ -186,6 +187,7 @@ def test_autoreport_temperatures() -> None:
         assert host.read_quiet(quiet=0.4) == []
 
 
+@pytest.mark.timing
 def test_m109_waits_with_temperature_and_busy_lines() -> None:
     # tau 15 s physical, 25 -> 199 °C: 15 * ln(175) = 77 s physical, 1.55 s wall at 0.02.
     with connected(SimConfig(time_scale=0.02, keepalive_s=0.3)) as (sim, host):

@@ -6,10 +6,13 @@ import gc
 import threading
 import time
 
+import pytest
+
 from sim import SimConfig
 from sim.testing import PtyHost, connected, numbered
 
 
+@pytest.mark.timing
 def test_sustains_one_megabaud() -> None:
     baud = 1_000_000
     program = [f"G1 X{100 + (i % 50) * 0.5:.3f} Y{100 + (i % 7) * 0.25:.3f} E{i * 0.01:.4f} F6000"

@@ -125,6 +125,7 @@ def assert_unchanged(daemon: Daemon, hook: Hook, before: dict[str, Any], heard: 
 
 
 @pytest.mark.parametrize("route", list(ROUTES))
+@pytest.mark.timing
 def test_a_broken_mesh_is_refused_at_upload_and_nothing_is_kept(daemon: Daemon, hook: Hook, route: str,
                                                                 broken: dict[str, tuple[Path, list[str]]]) -> None:
     assert daemon.client is not None
@@ -254,6 +255,7 @@ def test_an_unknown_form_field_is_refused(daemon: Daemon, good: Path, route: str
 # ---------------------------------------------------------------------- a calibration plan (item 14)
 
 
+@pytest.mark.timing
 def test_a_calibration_plan_is_answered_at_once_and_made_after(daemon: Daemon) -> None:
     """``POST /calibrations`` answers within 2 s (202, ``planning``): the plan is made in the
     planner's process afterwards, and its sheets' jobs appear when it is (``ready``)."""

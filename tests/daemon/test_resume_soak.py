@@ -65,6 +65,7 @@ class Operator:
                 self.back_programs.add(path.read_text(encoding="utf-8"))
 
 
+@pytest.mark.timing
 def test_killed_at_random_and_resumed_every_part_printed_once(tmp_path: Path, meshes: dict[str, Path]) -> None:
     seed = int(os.environ.get("RIBBOND_SOAK_SEED", random.randrange(1 << 30)))
     print(f"resume soak: seed {seed} (RIBBOND_SOAK_SEED={seed} repeats it)")

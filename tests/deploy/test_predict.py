@@ -217,9 +217,11 @@ def test_hemisphere_predicts_flatter_and_says_so(tmp_path):
     assert any("will NOT take the target's shape" in line for line in lines)
 
 
-def _small_saddle_design(tmp_path):
+@pytest.fixture(scope="module")
+def small_saddle(tmp_path_factory):
+    """One forward design (no deploy stage) for the tests below, which only read it."""
     V, F = surfaces.saddle(rings=12)
-    path = tmp_path / "saddle.obj"
+    path = tmp_path_factory.mktemp("small-saddle") / "saddle.obj"
     write_obj(path, V, F)
     res = design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=100.0)), predict=False)
     return res
@@ -231,8 +233,8 @@ def _registered_gap(X: np.ndarray, Y: np.ndarray) -> float:
     return float(np.linalg.norm(X @ R.T + t - Y, axis=1).mean())
 
 
-def test_the_simulation_never_reads_the_target(tmp_path):
-    res = _small_saddle_design(tmp_path)
+def test_the_simulation_never_reads_the_target(small_saddle):
+    res = small_saddle
     kw = dict(prestretch=res.design.parameters.prestretch, ribbon_width=res.design.parameters.ribbon_width,
               table=TABLE, releases=RELEASES[:1])
     p = predict_deployed(res.flat_uv, res.V, res.F, res.design.ribbons, **kw)
@@ -247,8 +249,8 @@ def test_the_simulation_never_reads_the_target(tmp_path):
     assert p.deviation_pct["mean"] != pytest.approx(q.deviation_pct["mean"], rel=0.05)   # measured against each
 
 
-def test_ten_twenty_and_forty_release_steps_agree(tmp_path):
-    res = _small_saddle_design(tmp_path)
+def test_ten_twenty_and_forty_release_steps_agree(small_saddle):
+    res = small_saddle
     kw = dict(prestretch=res.design.parameters.prestretch, ribbon_width=res.design.parameters.ribbon_width,
               table=TABLE, releases=RELEASES[:1])
     shapes = {n: predict_deployed(res.flat_uv, res.V, res.F, res.design.ribbons, steps=n, **kw) for n in (10, 20, 40)}

@@ -586,6 +586,7 @@ def test_truncations_and_garbage_raise_mesh_error_only(tmp_path: Path) -> None:
                 pass  # a (possibly lucky) successful read is fine too; anything else fails
 
 
+@pytest.mark.timing
 def test_big_obj_reads_fast(tmp_path: Path) -> None:
     import time
 

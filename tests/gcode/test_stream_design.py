@@ -22,6 +22,7 @@ MARK_REACH = 3.0
 
 
 @pytest.mark.timeout(60)
+@pytest.mark.timing
 async def test_streamed_front_program_deposits_the_front_ribbons(make_sim, saddle_design: SaddleDesign) -> None:
     sd = saddle_design
     design, prof = sd.design, sd.profile

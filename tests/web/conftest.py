@@ -4,7 +4,6 @@ a real ribbond process and the simulator (the daemon tests' helpers, imported, n
 from __future__ import annotations
 
 import os
-import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -35,20 +34,28 @@ def playwright() -> Iterator[Any]:
         yield p
 
 
+@pytest.fixture(scope="module")
+def chromium(playwright: Any) -> Iterator[Any]:
+    """One chromium per test module (its start is a second or more on a loaded machine); each page
+    gets a context of its own, which starts as empty as a fresh profile (storage, cookies, cache)."""
+    browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+    try:
+        yield browser
+    finally:
+        browser.close()
+
+
 @pytest.fixture
-def browser_page(playwright: Any, tmp_path: Path) -> Iterator[Any]:
-    """``open(viewport)`` gives a page in a fresh chromium with an empty profile directory."""
+def browser_page(chromium: Any) -> Iterator[Any]:
+    """``open(viewport)`` gives a page in a new browser context: no storage, cookies or cache of
+    an earlier page or test."""
     contexts: list[Any] = []
 
     def open_page(viewport: dict[str, int] = DESKTOP) -> Any:
-        profile = tmp_path / f"profile-{len(contexts)}"
-        profile.mkdir()
-        context = playwright.chromium.launch_persistent_context(
-            str(profile), executable_path=CHROMIUM, headless=True, args=ARGS, viewport=viewport,
-            device_scale_factor=1, accept_downloads=False)
+        context = chromium.new_context(viewport=viewport, device_scale_factor=1, accept_downloads=False)
         context.set_default_timeout(30_000)
         contexts.append(context)
-        page = context.pages[0] if context.pages else context.new_page()
+        page = context.new_page()
         page.on("pageerror", lambda e: errors.append(str(e)))
         return page
 
@@ -59,8 +66,6 @@ def browser_page(playwright: Any, tmp_path: Path) -> Iterator[Any]:
     finally:
         for context in contexts:
             context.close()
-        for profile in tmp_path.glob("profile-*"):
-            shutil.rmtree(profile, ignore_errors=True)
 
 
 def shot(page: Any, name: str, full_page: bool = True) -> Path:
