@@ -58,6 +58,14 @@ async def proof_out(sender: Sender, wire: Wire, commands: list[str], acked: int,
     return done
 
 
+async def ack_numbered_from(sender: Sender, done: asyncio.Future, line: int) -> None:
+    """Answer ``ok N<line> P15 B3``, ``ok N<line+1> …`` until the stream ends (ADVANCED_OK)."""
+    while not done.done():
+        feed(sender, f"ok N{line} P15 B3")
+        line += 1
+        await asyncio.sleep(0.005)
+
+
 def silent_resend(**timeouts) -> tuple[Sender, Wire]:
     return make(rx=127, timeouts=Timeouts(resend_settle_s=10, default_s=0.1, nudge_s=0, **timeouts))
 
@@ -192,11 +200,7 @@ async def test_a_resent_line_acknowledged_after_a_request_past_it_counts_fast() 
     feed(sender, "ok N2 P15 B3")
     await asyncio.sleep(0.05)
     assert sender.last_acknowledged_line == 2
-    next_line = 3
-    while not done.done():
-        feed(sender, f"ok N{next_line} P15 B3")
-        next_line += 1
-        await asyncio.sleep(0.005)
+    await ack_numbered_from(sender, done, 3)
     assert done.result().lines == 10
 
 
@@ -211,11 +215,7 @@ async def test_a_line_asked_for_twice_then_acknowledged_past_by_number_counts() 
     await asyncio.sleep(0.05)
     feed(sender, "ok N3 P15 B3")
     assert sender.last_acknowledged_line == 3
-    next_line = 4
-    while not done.done():
-        feed(sender, f"ok N{next_line} P15 B3")
-        next_line += 1
-        await asyncio.sleep(0.005)
+    await ack_numbered_from(sender, done, 4)
     assert done.result().lines == 6
 
 
