@@ -31,13 +31,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
+from scipy.spatial import cKDTree
 
 from ribbond.design.format import Ribbon
 from ribbond.design.thickness import CurvatureTable, table_curvature
 
 from .agreement import angle_defects, total_gaussian_curvature
-from scipy.spatial import cKDTree
-
 from .rest_forms import Coverage, contraction, face_coverage, layout_raster, rest_forms
 
 __all__ = ["Realization", "realization", "plastic_share", "metric_total_curvature", "realized_total_curvature"]

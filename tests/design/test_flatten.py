@@ -373,3 +373,12 @@ def test_the_residual_stop_ends_at_the_first_iterate_that_fits_the_bounds_to_its
     assert not before.converged and before.uv.tobytes() != early.uv.tobytes()
     assert early.iterations < full.iterations and full.energy < early.energy
     assert bad_pct(early) == (0.0, 0.0)
+
+
+def test_the_residual_stop_needs_every_face_within_the_bounds_not_only_a_small_energy():
+    # _fits is given the energy: a map whose faces all sit 10 % below the lower bound does not fit,
+    # whatever energy it is told; the converged map scaled by 1 does.
+    V, F = surfaces.saddle(size=80.0, rings=16)
+    _, _, solver, result = flatten(V, F, coarse_faces=1000, residual_tolerance=1e-3)
+    assert solver._fits(result.uv, 0.0)
+    assert not solver._fits(0.9 * result.uv / BOUNDS[0][0], 0.0)
