@@ -183,6 +183,27 @@ class _Line:
     receipt: codec.Ok | None = None  # its ok, when its answer waits for a proof that it ran
 
 
+@dataclass(frozen=True)
+class _Fresh:
+    """A command not yet numbered: one from ``send`` (with its future) or a follow-up query ahead
+    of the program, or program line ``program_index``. It becomes a ``_Line`` once numbered."""
+
+    command: str
+    future: asyncio.Future[Answer] | None = None
+    program_index: int | None = None
+
+
+@dataclass
+class _Hold:
+    """A resend request being held (see the module's docstring): the timer that ends it, the latest
+    line asked for, and the requests the stale lines sent after that line draw."""
+
+    timer: asyncio.TimerHandle
+    target: int
+    stale_expected: int
+    stale_seen: int = 0
+
+
 @dataclass
 class _ResentProof:
     """``M400`` + ``M114`` sent behind a re-sent line that drew no ``ok`` (plain-ok firmware):
@@ -203,6 +224,7 @@ class _Program:
     next_index: int = 0
     acknowledged: int = 0
     cancelled: bool = False
+    paused: bool = False
     barriers: frozenset[int] = frozenset()  # indices sent only once every line before is acknowledged
 
 
@@ -248,15 +270,11 @@ class Sender:
         self._inflight: deque[_Line] = deque()  # transmitted, not acknowledged, ascending numbers
         self._inflight_bytes = 0
         self._acked_through = -1  # highest line number known processed by the printer
-        self._singles: deque[_Line] = deque()  # commands from send(), ahead of the program
+        self._singles: deque[_Fresh] = deque()  # commands from send(), ahead of the program
         self._program: _Program | None = None
-        self._paused = False
         self._failure: LinkError | None = None
-        self._resend_target: int | None = None  # latest line asked for while holding
-        self._hold: asyncio.TimerHandle | None = None
+        self._hold: _Hold | None = None
         self._resend_ok_due = False
-        self._stale_expected = 0  # requests the lines sent after the target will draw
-        self._stale_seen = 0
         self._pending_resend: int | None = None  # lowest line asked for and not yet acknowledged
         self._refused: int | None = None  # the line the last line-check Error refused
         self._unproven: int | None = None  # a re-sent line the printer asked past, unacknowledged
@@ -268,7 +286,7 @@ class Sender:
         self._proofs: RunProofs[_Line] = RunProofs()  # where ok means "received" (proof.py)
         self._run_hold: _Line | None = None  # a program M400 whose run the program waits for
         self._last_heard = time.monotonic()
-        self._nudged_at = -1.0  # the _last_heard of the silence already nudged
+        self._nudged_at: float | None = None  # the _last_heard of the silence already nudged
         self._nudge_behind: int | None = None  # a nudge's byte waits behind this line in the buffer
         self._probes_outstanding = 0
         self._watchdog: asyncio.Task[None] | None = None
@@ -289,10 +307,10 @@ class Sender:
         """Fail everything outstanding with ``reason`` and stop sending."""
         if self._failure is None:
             self._failure = reason
-        waiting = self._proofs.clear()
-        for line in waiting + self._history_from(self._acked_through + 1) + list(self._singles):
-            if line.future is not None and not line.future.done():
-                line.future.set_exception(reason)
+        waiting = self._proofs.clear() + self._history_from(self._acked_through + 1)
+        for future in [line.future for line in waiting] + [fresh.future for fresh in self._singles]:
+            if future is not None and not future.done():
+                future.set_exception(reason)
         self._inflight.clear()
         self._inflight_bytes = 0
         self._singles.clear()
@@ -304,7 +322,7 @@ class Sender:
             self._watchdog.cancel()
             self._watchdog = None
         if self._hold is not None:
-            self._hold.cancel()
+            self._hold.timer.cancel()
             self._hold = None
 
     @property
@@ -341,7 +359,7 @@ class Sender:
         command = codec.strip_comment(command)
         codec.check_sendable(command)
         future: asyncio.Future[Answer] = asyncio.get_running_loop().create_future()
-        self._singles.append(_Line(-1, command, b"", future=future))
+        self._singles.append(_Fresh(command, future))
         self._pump()
         return future
 
@@ -361,7 +379,6 @@ class Sender:
         loop = asyncio.get_running_loop()
         done: asyncio.Future[StreamResult] = loop.create_future()
         self._program = _Program(commands, progress, done, time.monotonic(), barriers=frozenset(barriers))
-        self._paused = False
         self._report_progress()
         if not commands:
             self._finish_program()
@@ -370,10 +387,12 @@ class Sender:
 
     def pause(self) -> None:
         """Stop feeding program lines (lines in flight still complete; resends still go out)."""
-        self._paused = True
+        if self._program is not None:
+            self._program.paused = True
 
     def resume(self) -> None:
-        self._paused = False
+        if self._program is not None:
+            self._program.paused = False
         self._pump()
 
     def cancel(self) -> None:
@@ -424,10 +443,11 @@ class Sender:
         has) and says so with ``skip N`` and an ``ok``: during a resend hold it is one of the stale
         lines' answers, as Marlin's repeated requests are; its ``ok`` acknowledges nothing."""
         self._skip_oks += 1
-        if self._hold is not None and self._resend_target is not None:
-            self._stale_seen += 1
-            if self._stale_seen >= self._stale_expected:
-                self._hold.cancel()
+        hold = self._hold
+        if hold is not None:
+            hold.stale_seen += 1
+            if hold.stale_seen >= hold.stale_expected:
+                hold.timer.cancel()
                 self._end_hold()
 
     def _on_wait(self) -> None:
@@ -515,7 +535,7 @@ class Sender:
         numbered line, so there the resend stays pending until line N itself is acknowledged;
         without it, only while holding (its plain oks are the only acknowledgements)."""
         oldest = self._acked_through + 1
-        floor = self._resend_target if self._hold is not None else None
+        floor = self._hold.target if self._hold is not None else None
         if self.capabilities.advanced_ok and self._pending_resend is not None:
             floor = self._pending_resend if floor is None else min(floor, self._pending_resend)
         if floor is not None and oldest >= floor:
@@ -612,23 +632,23 @@ class Sender:
             self.resends += 1
             in_transit = self._inflight_bytes + sum(len(line.data) for line in self._history_from(number))
             hold = self.timeouts.resend_settle_s + (in_transit + codec.MAX_LINE_LENGTH) * self._byte_time
-            self._hold = asyncio.get_running_loop().call_later(hold, self._end_hold)
+            timer = asyncio.get_running_loop().call_later(hold, self._end_hold)
             log.info("printer asked for line %d again; resending in at most %.0f ms", number, hold * 1000)
-        elif number == self._resend_target:
+        elif number == self._hold.target:
             # A stale line refused: Marlin answers each line sent after the one asked for with
             # one request for it (unless its flush ate the line, then the timer ends the hold).
-            self._stale_seen += 1
-            if self._stale_seen >= self._stale_expected:
-                self._hold.cancel()
+            self._hold.stale_seen += 1
+            if self._hold.stale_seen >= self._hold.stale_expected:
+                self._hold.timer.cancel()
                 self._end_hold()
             return
+        else:
+            timer = self._hold.timer
         # A new target: every line transmitted after it is on its way and will draw a request
         # (the lines before it in flight are in the printer's queue and draw oks).
-        self._resend_target = number
-        self._stale_expected = max(0, self._cursor - 1 - number)
-        self._stale_seen = 0
-        if self._stale_expected == 0:
-            self._hold.cancel()
+        self._hold = _Hold(timer, number, stale_expected=max(0, self._cursor - 1 - number))
+        if self._hold.stale_expected == 0:
+            timer.cancel()
             self._end_hold()
 
     def _where(self, number: int) -> str:
@@ -691,15 +711,15 @@ class Sender:
         return [self._history[n] for n in range(number, self._next_number) if n in self._history]
 
     def _end_hold(self) -> None:
-        """Every byte sent before the request has reached the printer: resend, once."""
-        self._hold = None
-        target = self._resend_target
-        self._resend_target = None
-        if target is None or self._failure is not None:
+        """Every byte sent before the request has reached the printer: resend, once. (Called by the
+        hold's timer or once its episode is complete; ``stop`` cancels the timer and drops the hold,
+        so a failed sender never gets here.)"""
+        hold, self._hold = self._hold, None
+        if hold is None:
             return
         # Lines acknowledged meanwhile (a request that came without a flush) need not go again:
         # acknowledgements counted by line number never run ahead of what the printer processed.
-        target = max(target, min(self._acked_through + 1, self._next_number))
+        target = max(hold.target, min(self._acked_through + 1, self._next_number))
         self._cursor = target
         if self._plain_ok and target < self._next_number:
             self._send_alone(target)
@@ -731,12 +751,10 @@ class Sender:
             line = self._history.pop(n, None)
             if line is None:
                 continue
-            line.number, line.data, line.offset = -1, b"", None
-            line.events.clear()
             if line.program_index is not None and program is not None:
                 program.next_index = min(program.next_index, line.program_index)
             elif line.future is not None:
-                self._singles.appendleft(line)
+                self._singles.appendleft(_Fresh(line.command, line.future))  # numbered afresh
             # (a probe or a follow-up query: made again if still needed)
         self._next_number = self._cursor = number + 1
 
@@ -831,12 +849,12 @@ class Sender:
         nudge = 1 if self._nudge_behind is not None else 0
         return self._inflight_bytes + nudge + size <= self.window.window
 
-    def _next_fresh(self) -> tuple[_Line, bool] | None:
-        """The next command not yet numbered, and whether it is a single (not a program line)."""
+    def _next_fresh(self) -> _Fresh | None:
+        """The next command not yet numbered: a single (from ``send`` or a follow-up) first."""
         if self._singles:
-            return self._singles[0], True
+            return self._singles[0]
         program = self._program
-        if program is None or self._paused or program.cancelled:
+        if program is None or program.paused or program.cancelled:
             return None
         if program.next_index >= len(program.commands):
             return None
@@ -845,7 +863,7 @@ class Sender:
             return None
         if self._run_hold is not None:
             return None  # a program M400 acknowledged on receipt: its run is not proven yet
-        return _Line(-1, program.commands[index], b"", program_index=index), False
+        return _Fresh(program.commands[index], program_index=index)
 
     def _pump(self) -> None:
         if self._failure is not None or self._hold is not None:
@@ -859,17 +877,16 @@ class Sender:
                 fresh = self._next_fresh()
                 if fresh is None:
                     return
-                line, single = fresh
-                data = codec.encode(self._next_number, line.command)
+                data = codec.encode(self._next_number, fresh.command)
                 if not self._window_allows(len(data)):
                     return
+                single = fresh.program_index is None
                 if single:
                     self._singles.popleft()
                 else:
                     assert self._program is not None
                     self._program.next_index += 1
-                line.number = self._next_number
-                line.data = data
+                line = _Line(self._next_number, fresh.command, data, fresh.program_index, future=fresh.future)
                 self._history[line.number] = line
                 self._next_number += 1
                 self._follow_up(line, single)
@@ -891,11 +908,11 @@ class Sender:
         if self.capabilities.ok_means == "received":
             if single and word not in _ANSWERED_ON_RECEIPT or not single and word == "M400":
                 line.receipt = codec.Ok()  # placeholder until its own ok arrives
-                self._singles.appendleft(_Line(-1, "M114", b""))
+                self._singles.appendleft(_Fresh("M114"))
                 if not single:
                     self._run_hold = line
         elif self.capabilities.bad_lines == "discarded" and word == "M400":
-            self._singles.appendleft(_Line(-1, PROBE_COMMAND, b""))
+            self._singles.appendleft(_Fresh(PROBE_COMMAND))
 
     def _transmit(self, line: _Line) -> None:
         if not self._inflight:
