@@ -275,7 +275,9 @@ class Sender:
         self._failure: LinkError | None = None
         self._hold: _Hold | None = None
         self._resend_ok_due = False
-        self._pending_resend: int | None = None  # lowest line asked for and not yet acknowledged
+        # Lines asked for again and not yet acknowledged. Each request is for a line the printer does
+        # not hold (it holds every line before it): all stay here until their own acknowledgement.
+        self._asked_again: set[int] = set()
         self._refused: int | None = None  # the line the last line-check Error refused
         self._unproven: int | None = None  # a re-sent line the printer asked past, unacknowledged
         self._solo: int | None = None  # plain-ok firmware: a re-sent line sent alone until its ok
@@ -343,7 +345,8 @@ class Sender:
         self._cursor = 0
         self._acked_through = -1
         self._resend_ok_due = False
-        self._pending_resend = self._unproven = self._solo = self._resent_proof = None
+        self._asked_again.clear()
+        self._unproven = self._solo = self._resent_proof = None
         self._skip_oks = self._tail_oks = 0
         self._last_query = -1
         self._run_hold = None
@@ -566,8 +569,8 @@ class Sender:
             self._inflight_bytes -= len(self._inflight.popleft().data)
         if self._nudge_behind is not None and self._nudge_behind <= number:
             self._nudge_behind = None  # read (and ignored) right after that line
-        if self._pending_resend is not None and self._pending_resend <= number:
-            self._pending_resend = None
+        if self._asked_again:
+            self._asked_again = {asked for asked in self._asked_again if asked > number}
         if self._solo is not None and self._solo <= number:
             self._solo = None  # the re-sent line acknowledged: the window opens again
 
@@ -626,8 +629,7 @@ class Sender:
                 self._inflight_bytes -= len(line.data)
                 line.events.clear()
         self._inflight = deque(line for line in self._inflight if line.number < number)
-        if self._pending_resend is None or number < self._pending_resend:
-            self._pending_resend = number
+        self._asked_again.add(number)
         if self._hold is None:
             self.resends += 1
             in_transit = self._inflight_bytes + sum(len(line.data) for line in self._history_from(number))
@@ -650,6 +652,12 @@ class Sender:
         if self._hold.stale_expected == 0:
             timer.cancel()
             self._end_hold()
+
+    @property
+    def _pending_resend(self) -> int | None:
+        """The lowest line asked for again and not yet acknowledged (a later request does not
+        replace an earlier one: once the earlier line is acknowledged, the later one is pending)."""
+        return min(self._asked_again) if self._asked_again else None
 
     def _where(self, number: int) -> str:
         """`` (program line K: COMMAND)`` for line ``number`` of the history, "" when unknown."""
