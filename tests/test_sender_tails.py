@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
+
+from ribbond.printer.errors import ProtocolError
 from ribbond.printer.sender import Timeouts
 
 from .test_sender import feed, make, program
@@ -53,3 +56,27 @@ async def test_a_tail_after_the_earlier_requests_line_is_acknowledged_does_not_a
         line += 1
         await asyncio.sleep(0)
     assert done.result().lines == 12
+
+
+async def test_a_line_asked_for_stays_pending_after_an_earlier_ones_ok_and_is_then_asked_past() -> None:
+    """Three requests: 1, then 2 before 1's ok, then (after 1's ok) 4 before 2's ok. The printer
+    asked past the re-sent 2: only ``ok N2`` proves it ran, so ``ok N3`` without it stops the stream
+    naming line 2 (a firmware that swallowed it; Marlin prints ``ok N2`` first)."""
+    sender, wire = make(rx=4096, timeouts=Timeouts(resend_settle_s=10))
+    done = sender.stream(program(16))
+    feed(sender, "ok N0 P15 B3")
+    feed(sender, "Error:checksum mismatch, Last Line: 0", "Resend: 1", "ok")
+    for _ in range(3):
+        feed(sender, STALE.format(0), "Resend: 1", "ok")
+    feed(sender, "Error:checksum mismatch, Last Line: 1", "Resend: 2", "ok")
+    for _ in range(2):
+        feed(sender, STALE.format(1), "Resend: 2", "ok")
+    assert wire.numbers()[9:] == [2, 3, 4]
+    feed(sender, "ok N1 P15 B3")                  # line 1's own ok: a slot for line 5
+    assert wire.numbers()[12:] == [5]
+    feed(sender, "Error:checksum mismatch, Last Line: 3", "Resend: 4", "ok")
+    feed(sender, STALE.format(3), "Resend: 4", "ok")
+    assert wire.numbers()[13:] == [4, 5]
+    feed(sender, "ok N3 P15 B3")
+    with pytest.raises(ProtocolError, match=r"acknowledged line 3 but never line 2 \(program line 3: "):
+        await asyncio.wait_for(done, 1)
