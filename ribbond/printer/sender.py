@@ -815,7 +815,7 @@ class Sender:
             proof.report = event
             if self.capabilities.position_report == "after_ok":
                 self._conclude_proof(proof)
-            return False  # (still recorded as output)
+            return True  # the proof's own: not output of the command before the silent line
         if not isinstance(event, codec.Ok):
             return False
         if event.position is not None:
