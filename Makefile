@@ -90,7 +90,9 @@ bench: $(STAMP)
 # Mutation testing of the modules that keep the fabric and the printer safe (docs/mutation.md): mutmut
 # (the `mutate` extra) over [tool.mutmut] only_mutate in pyproject.toml, with the fast tests listed
 # there; one module at a time, niced, on MUTATE_WORKERS processes; then the share killed per module
-# and the survivors (bench/mutation.py fails on a survivor not named equivalent). Not part of `make test`.
+# and the survivors (bench/mutation.py fails on a survivor not named equivalent, or on a name whose
+# mutant was killed). mutmut keeps results in mutants/: `rm -rf mutants` first for figures to rely
+# on. Not part of `make test`.
 MUTATE_STAMP   := $(VENV)/.mutate-stamp
 MUTATE_WORKERS ?= 1
 MUTATE_MODULES ?= ribbond.daemon.jobs ribbond.gcode.profiles ribbond.daemon.components.frame \
