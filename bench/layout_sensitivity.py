@@ -79,8 +79,25 @@ def predictions(res, table, drop: int) -> list[dict]:
                               ribbon_width=p.ribbon_width, table=table)
         a = pr.agreement
         out.append({"without": k, "mean": pr.deviation_pct["mean"], "worst": a.spread_mean[1],
-                    "K": a.curvature_predicted / a.curvature_target, "reached": pr.reached})
+                    "K": a.curvature_predicted, "Kt": a.curvature_target, "reached": pr.reached})
     return out
+
+
+#: Below this |∫K| a target is nearly developable: ∫K is printed as it is, not as a share (as ``agreement``).
+NEARLY_DEVELOPABLE = 0.1
+
+
+def _K(value: float, target: float) -> str:
+    if abs(target) <= NEARLY_DEVELOPABLE:
+        return f"{value:+.3f}"
+    return f"{100 * value / target:.0f} %"
+
+
+def _K_range(values: list[float], target: float) -> str:
+    if abs(target) <= NEARLY_DEVELOPABLE:
+        return f"{min(values):+.3f} to {max(values):+.3f}"
+    shares = [100 * v / target for v in values]
+    return f"{min(shares):.0f}–{max(shares):.0f} %"
 
 
 def main() -> int:
@@ -95,17 +112,17 @@ def main() -> int:
         print(f"\n{name}: {len(res.design.ribbons)} ribbons")
         shares = metric_shares(res, table)
         for key, value in shares.items():
-            print(f"  ∫K {key:<50} {value:+.3f} ({100 * value / shares['target']:.0f} % of the target's)")
+            print(f"  ∫K {key:<50} {value:+.3f} ({_K(value, shares['target'])} of the target's)")
         rows = predictions(res, table, args.drop)
         for r in rows:
             what = "the layout" if r["without"] is None else f"less ribbon {r['without']}"
             print(f"  {what:<18} mean {r['mean']:.2f} %, worst release {r['worst']:.2f} %, "
-                  f"∫K {100 * r['K']:.0f} %, reached {r['reached']}")
+                  f"∫K {_K(r['K'], r['Kt'])}, reached {r['reached']}")
         less = rows[1:]
         if less:
             print(f"  less one ribbon: mean {min(r['mean'] for r in less):.2f}–{max(r['mean'] for r in less):.2f} %, "
                   f"worst release {min(r['worst'] for r in less):.2f}–{max(r['worst'] for r in less):.2f} %, "
-                  f"∫K {100 * min(r['K'] for r in less):.0f}–{100 * max(r['K'] for r in less):.0f} %")
+                  f"∫K {_K_range([r['K'] for r in less], less[0]['Kt'])}")
     return 0
 
 
