@@ -11,9 +11,7 @@ apart), then
   that is kept when the outline is cut),
 - trimmed where its centerline turns more than ``max_trim_angle`` from the direction field,
 - split where κ1 changes sign (front where κ1 > 0, back elsewhere),
-- dropped when shorter than ``min_ribbon_length``;
-
-then the spots the rows leave bare get short dashes along the field sized by Eq. 10 (``fill``).
+- dropped when shorter than ``min_ribbon_length``.
 
 Everything is done on arc-length intervals of the centerlines, for all ribbons at once.
 """
@@ -27,7 +25,6 @@ from typing import NamedTuple
 import numpy as np
 import shapely
 
-from .fill import fill_bare
 from .params import DesignParameters, spacing_for_sigma
 from .remesh import locate, remesh_flat
 from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, integrable_frequency,
@@ -181,7 +178,6 @@ class RibbonLayout:
         ribbon midpoint along its normal to the next centerline against the harmonic mean of μ2
         over that gap (``across_spacing``), and between neighbouring midpoints against μ1.
     centerlines : per grid, the centerline polylines (list of (k, 2) arrays).
-    filled : how many of the ribbons are dashes filling a bare spot (``fill``; the last ones, grid 0).
     """
 
     points: list[np.ndarray]
@@ -198,7 +194,6 @@ class RibbonLayout:
     spacing_error_across: np.ndarray
     spacing_error_along: np.ndarray
     centerlines: tuple[list[np.ndarray], list[np.ndarray]]
-    filled: int = 0
 
     @property
     def count(self) -> int:
@@ -756,19 +751,6 @@ def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: flo
     _measure_midpoints(cuts, c, mids.s[real], node_of, mids.pid[real], kept_real, mu1, first_line)
 
 
-def _fill(cuts: _Cuts, grid: StripeGrid, inset: shapely.Geometry, params: DesignParameters) -> int:
-    """Add the dashes that fill the layout's bare spots (``fill.fill_bare``) to ``cuts``; how many."""
-    fill = fill_bare(grid.uv, grid.F, grid.direction, grid.mu1, grid.mu2, grid.kappa1, cuts.points, inset,
-                     ribbon_length=params.ribbon_length, ribbon_width=params.ribbon_width,
-                     min_length=params.min_ribbon_length, min_gap=DASH_GAP * params.ribbon_width)
-    cuts.points.extend(fill.points)
-    cuts.kappas.append(fill.kappa1)
-    cuts.spacings.append(fill.spacing)
-    cuts.lengths.append(fill.length)
-    cuts.grids.append(np.zeros(len(fill.points), dtype=np.int64))
-    return len(fill.points)
-
-
 def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters) -> RibbonLayout:
     """Cut the ribbons from the staggered grid (§6.2).
 
@@ -788,7 +770,6 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
         starts = np.append(c.start, len(c.s))
         centerlines[g] = [c.xy[starts[p]:starts[p + 1]] for p in range(len(c.start))]
         _cut_grid(cuts, grid, c, g, level, inset, params, g * len(centerlines[0]))
-    filled = _fill(cuts, grid, inset, params)
     across = ([across_spacing(np.concatenate(cuts.mids_xy), np.concatenate(cuts.mids_tangent),
                               np.concatenate(cuts.mids_line), centerlines[0] + centerlines[1], grid.mu2_at)]
               if cuts.mids_xy else [])
@@ -802,4 +783,4 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
                         direction_weight=cat(cuts.deviation_weight), k1_deviation=cat(cuts.k1_deviation),
                         k1_weight=cat(cuts.k1_weight), spacing_error_across=cat(across),
                         spacing_error_along=cat(cuts.along),
-                        centerlines=(centerlines[0], centerlines[1]), filled=filled)
+                        centerlines=(centerlines[0], centerlines[1]))
