@@ -53,16 +53,19 @@ def coarser_level(F: np.ndarray, n_vertices: int) -> tuple[np.ndarray, sp.csr_ma
     if (new.min() < n_c or int(new.max()) >= n_vertices or np.any(G.min(axis=1) < 0)
             or np.any((a == b) | (b == c) | (c == a))):
         return None
-    ends = np.sort(np.column_stack([np.concatenate([a, b, c]), np.concatenate([b, c, a])]), axis=1)
+    lo = np.concatenate([np.minimum(a, b), np.minimum(b, c), np.minimum(c, a)])
+    hi = np.concatenate([np.maximum(a, b), np.maximum(b, c), np.maximum(c, a)])
+    edge = lo * n_c + hi                                        # the parent edge, one integer each
     # every new vertex has one parent edge (the same from each face that names it), every coarse
     # edge one new vertex, and every vertex is either a coarse corner or a new one
-    pairs = np.unique(np.column_stack([new, ends]), axis=0)
-    if (len(np.unique(pairs[:, 0])) != len(pairs) or len(np.unique(pairs[:, 1:], axis=0)) != len(pairs)
-            or len(pairs) != n_vertices - n_c or len(np.unique(G)) != n_c):
+    vertex, first, inverse = np.unique(new, return_index=True, return_inverse=True)
+    parent = edge[first]
+    if (not np.array_equal(parent[inverse], edge) or len(np.unique(parent)) != len(vertex)
+            or len(vertex) != n_vertices - n_c or len(np.unique(G)) != n_c):
         return None
-    rows = np.concatenate([np.arange(n_c), pairs[:, 0], pairs[:, 0]])
-    cols = np.concatenate([np.arange(n_c), pairs[:, 1], pairs[:, 2]])
-    vals = np.concatenate([np.ones(n_c), np.full(2 * len(pairs), 0.5)])
+    rows = np.concatenate([np.arange(n_c), vertex, vertex])
+    cols = np.concatenate([np.arange(n_c), parent // n_c, parent % n_c])
+    vals = np.concatenate([np.ones(n_c), np.full(2 * len(vertex), 0.5)])
     return G, sp.csr_matrix((vals, (rows, cols)), shape=(n_vertices, n_c))
 
 
