@@ -16,7 +16,9 @@ same iteration count and the same bits every time, and from the target's vertice
 The scanned_* surfaces are meshes as scans come: a coarse mesh (1,944-2,048 faces) of an analytic
 surface, given to the engine as it is, so that the intake refines it as it refines every target under
 ``refine_below_faces`` (midpoint subdivision with the new vertices on local quadric fits,
-``ribbond/design/refine.py``), here three rounds (64×, 124-131k faces; two with --quick).
+``ribbond/design/refine.py``), here three rounds (64×, 124-131k faces; two with --quick). Both kinds
+are 1-to-4 splits, so the flattening's coarse start takes their own coarser level
+(``ribbond/design/subdivision.py``) instead of a decimation; the others are decimated.
 The upsampled_* surfaces are the same coarse meshes upsampled by plain midpoint subdivision before
 the engine sees them (``upsampled``: the new vertices on the flat coarse faces, 124-131k faces, so the
 intake leaves them as they are): their curvature sits in the coarse edges' creases and cone points,

@@ -382,3 +382,40 @@ def test_the_residual_stop_needs_every_face_within_the_bounds_not_only_a_small_e
     _, _, solver, result = flatten(V, F, coarse_faces=1000, residual_tolerance=1e-3)
     assert solver._fits(result.uv, 0.0)
     assert not solver._fits(0.9 * result.uv / BOUNDS[0][0], 0.0)
+
+
+def test_a_subdivided_mesh_starts_from_its_own_coarse_level_without_decimation(monkeypatch):
+    from ribbond.design import flatten as flatten_module
+    from ribbond.design.refine import refine
+    from ribbond.design.subdivision import coarser_level
+
+    V0, F0 = surfaces.sphere_cap(radius=80.0, half_angle_deg=20, rings=8)
+    fine = refine(V0, F0, 2)                                  # as the intake refines a scan
+    V, F = fine.V, fine.F
+
+    def no_decimation(*args, **kwargs):
+        raise AssertionError("a subdivided mesh was decimated")
+    monkeypatch.setattr(flatten_module.igl, "decimate", no_decimation)
+    fr, lf, solver, res = flatten(V, F, coarse_faces=len(F0))
+    start = solver.coarse_start()
+    assert np.all(solver._signed_area(start) > 0)            # midpoints of an unfolded map fold nothing
+    # every new vertex of the last split sits at the middle of its edge's ends in the plane
+    _, S = coarser_level(F, len(V))
+    np.testing.assert_allclose(S @ start[: S.shape[1]], start, rtol=0, atol=1e-9)
+    assert res.converged and not res.folded.any()
+    assert bad_pct(res) == (0.0, 0.0)
+    assert res.energy / fr.area.sum() < 1e-6
+
+
+def test_the_decimated_coarse_mesh_does_not_move_with_a_1e_12_nudge():
+    # a regular grid: libigl's edge collapses tie, and unsnapped each of five nudges gave another
+    # coarse mesh (so another start and another iteration count)
+    V, F = surfaces.torus_patch(50.0, 20.0, u_deg=(0, 60), v_deg=(-30, 30), nu=60, nv=30)   # 3600 faces
+    settings = SolverSettings(coarse_faces=600)
+    U, G, birth, prolong = BoundedFlattener(V, F, np.zeros(len(F)), BOUNDS, settings).coarse_mesh()
+    assert prolong is None and len(G) <= 600
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        nudged_V = V * (1.0 + 1e-12 * rng.standard_normal(V.shape))
+        U2, G2, birth2, _ = BoundedFlattener(nudged_V, F, np.zeros(len(F)), BOUNDS, settings).coarse_mesh()
+        assert np.array_equal(G2, G) and np.array_equal(U2, U) and np.array_equal(birth2, birth)
