@@ -20,6 +20,8 @@ from .conftest import PREDICT, Daemon, submit, wait_for
 
 #: The shared daemon predicts in its compiles (the harness turns that off elsewhere).
 DAEMON_EXTRA = PREDICT
+#: Compiled afresh: a prediction asked for while the compile runs is refused (a cache hit ends at once).
+DAEMON_CACHE = False
 
 SHIPPED = "tpu95a-lycra-default"
 

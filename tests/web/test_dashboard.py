@@ -24,6 +24,8 @@ from tests.daemon.test_daemon_e2e import TOLERANCE, deposit_points, distance_to_
 from .conftest import PHONE, shot
 
 pytestmark = pytest.mark.timeout(240)
+#: Compiled afresh: the page shows the job compiling, stage by stage (a cache hit ends at once).
+DAEMON_CACHE = False
 
 PROFILE = load_profile("ultimaker2-tpu")
 SECOND = 1000                                            # Playwright's timeouts are in ms
