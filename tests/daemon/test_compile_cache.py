@@ -19,10 +19,15 @@ from typing import Any
 import httpx
 import pytest
 
+from ribbond.design.surfaces import saddle
 from ribbond.design.thickness import TABLE_DIR
-from tests.daemon.conftest import PARAMETERS, Daemon, submit, wait_for
+from ribbond.mesh.files import write_obj
+from tests.daemon.conftest import Daemon, submit, wait_for
 
 SERVED = "served from the compile cache"
+#: A small saddle designed as it is (not refined at intake): a compile of a few seconds, so that
+#: the misses below cost little; what is cached does not depend on the mesh's size.
+SMALL = {"size": {"bbox_diagonal": 70}, "solver": {"refine_below_faces": 0}}
 
 
 class EventLog:
@@ -55,6 +60,15 @@ class EventLog:
         self._thread.join(5)
 
 
+@pytest.fixture(scope="module")
+def small(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A two-sided saddle of 384 faces."""
+    path = tmp_path_factory.mktemp("small") / "saddle.obj"
+    V, F = saddle(80.0, 1 / 50, 1 / 50, rings=8)
+    write_obj(path, V, F)
+    return path
+
+
 @pytest.fixture
 def cached(tmp_path: Path) -> Iterator[tuple[Daemon, Path]]:
     """A daemon without a printer (a compile needs none), its compile cache in ``tmp_path/cache``."""
@@ -68,7 +82,7 @@ def cached(tmp_path: Path) -> Iterator[tuple[Daemon, Path]]:
         daemon.stop()
 
 
-def compiled(api: httpx.Client, mesh: Path, parameters: dict[str, Any] | None = None) -> tuple[str, Path, str]:
+def compiled(api: httpx.Client, mesh: Path, parameters: dict[str, Any] = SMALL) -> tuple[str, Path, str]:
     """A job compiled from ``mesh``: its id, its folder and its ``compile.log``."""
     job = submit(api, mesh, start=False, parameters=parameters)
     ready = wait_for(api, job, "ready", timeout=180)
@@ -88,18 +102,18 @@ def programs(api: httpx.Client, job: str) -> dict[str, bytes]:
 
 
 def test_a_resubmitted_mesh_is_served_and_a_changed_input_is_compiled(
-        cached: tuple[Daemon, Path], meshes: dict[str, Path], tmp_path: Path) -> None:
+        cached: tuple[Daemon, Path], small: Path, tmp_path: Path) -> None:
     daemon, cache = cached
     api = daemon.client
     assert api is not None
     events = EventLog(daemon.url)
     try:
-        first, first_dir, log = compiled(api, meshes["two_sided"])
+        first, first_dir, log = compiled(api, small)
         assert SERVED not in log
         entries = sorted(p.name for p in cache.iterdir())
         assert len(entries) == 1 and len(entries[0]) == 64            # one entry, by its SHA-256
 
-        again, again_dir, log = compiled(api, meshes["two_sided"])
+        again, again_dir, log = compiled(api, small)
         assert SERVED in log and entries[0] in log
         assert folder_bytes(again_dir) == folder_bytes(first_dir)      # the same design, byte for byte
         assert programs(api, again) == programs(api, first)
@@ -112,40 +126,39 @@ def test_a_resubmitted_mesh_is_served_and_a_changed_input_is_compiled(
         assert states == ["submitted", "compiling", "ready"]
 
         # a parameter changed: compiled, stored beside the first
-        _, _, log = compiled(api, meshes["two_sided"], {"size": {"bbox_diagonal": 72}})
+        _, _, log = compiled(api, small, {**SMALL, "size": {"bbox_diagonal": 72}})
         assert SERVED not in log and len(list(cache.iterdir())) == 2
         # the same mesh with one byte more (a comment line): another file, compiled
-        longer = tmp_path / meshes["two_sided"].name
-        longer.write_bytes(meshes["two_sided"].read_bytes() + b"# one more line\n")
+        longer = tmp_path / small.name
+        longer.write_bytes(small.read_bytes() + b"# one more line\n")
         _, _, log = compiled(api, longer)
         assert SERVED not in log and len(list(cache.iterdir())) == 3
     finally:
         events.stop()
 
 
-def test_a_damaged_entry_is_compiled_again_never_served(cached: tuple[Daemon, Path],
-                                                       meshes: dict[str, Path]) -> None:
+def test_a_damaged_entry_is_compiled_again_never_served(cached: tuple[Daemon, Path], small: Path) -> None:
     """A cut program in the entry (as a disk full or a power cut leaves it): the next submit is
     compiled, its programs are the compile's (two compiles write the same bytes), and the entry
     is stored again, whole; then a new curvature table in the daemon is a miss too."""
     daemon, cache = cached
     api = daemon.client
     assert api is not None
-    first, _, _ = compiled(api, meshes["one_sided"], PARAMETERS)
+    first, _, _ = compiled(api, small)
     (entry,) = cache.iterdir()
     cut = entry / "design" / "back.gcode"
     whole = cut.read_bytes()
     cut.write_bytes(whole[: len(whole) // 2])
-    again, _, log = compiled(api, meshes["one_sided"], PARAMETERS)
+    again, _, log = compiled(api, small)
     assert SERVED not in log
     assert programs(api, again) == programs(api, first)
     assert (entry / "design" / "back.gcode").read_bytes() == whole      # stored again, whole
 
-    _, _, log = compiled(api, meshes["one_sided"], PARAMETERS)
+    _, _, log = compiled(api, small)
     assert SERVED in log                                              # the restored entry serves
     shipped = (TABLE_DIR / "tpu95a-lycra-default.toml").read_text(encoding="utf-8")
     table = shipped.replace('name = "tpu95a-lycra-default"', 'name = "lycra-b"')
     assert table != shipped
     assert api.post("/tables", json={"toml": table}).status_code == 201
-    _, _, log = compiled(api, meshes["one_sided"], PARAMETERS)
+    _, _, log = compiled(api, small)
     assert SERVED not in log                                          # the daemon's tables changed
