@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -189,6 +190,15 @@ def submit(client: httpx.Client, mesh: Path, *, start: bool, parameters: dict[st
                         data={"parameters": json.dumps(parameters or PARAMETERS), "start": str(start).lower()})
     assert r.status_code == 201, r.text
     return str(r.json()["id"])
+
+
+def fresh_copy(mesh: Path, folder: Path) -> Path:
+    """``mesh`` in ``folder`` (the same name) with a comment line of its own appended: the same surface
+    in bytes no compile cache holds, so that its compile runs for real beside cached ones (for a
+    test that watches a compile: its stages, the page while it compiles)."""
+    copy = folder / mesh.name
+    copy.write_bytes(mesh.read_bytes() + f"# compiled afresh: {uuid.uuid4().hex}\n".encode())
+    return copy
 
 
 #: The stage of a queued job waiting for the operator to confirm a fresh frame (``ribbond.daemon.components.frame``).
