@@ -29,8 +29,9 @@ from typing import Any
 
 log = logging.getLogger(__name__)
 
-#: The engine's rooms (``docs/architecture.md``): what a compile runs, hashed into its identity.
-ENGINE_ROOMS = ("mesh", "design", "deploy", "gcode", "pipeline", "calibration", "panels")
+#: The engine's rooms (``docs/architecture.md``): what a compile runs, hashed into its identity
+#: (``printer`` too: the G-code stage's checker uses its codec).
+ENGINE_ROOMS = ("mesh", "design", "deploy", "gcode", "pipeline", "calibration", "panels", "printer")
 #: Modules of the package root the engine imports.
 ENGINE_ROOT_FILES = ("datafiles.py",)
 #: Libraries whose version can change a compile's bytes (solvers, geometry, the PNG writer).
