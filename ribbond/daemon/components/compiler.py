@@ -17,10 +17,10 @@ from typing import Any
 
 from ...gcode.profiles import PROFILE_DIR
 from ..config import DaemonConfig
-from .compile_cache import CompileCache, engine_identity
 from ..jobs import JobState
 from ..records import JobRecords, NotFound
 from ..store import JobRecord
+from .compile_cache import CompileCache, engine_identity
 
 log = logging.getLogger(__name__)
 
@@ -161,6 +161,8 @@ class Compiler:
         key = await asyncio.to_thread(self._key, job) if self.cache is not None else None
         served = await asyncio.to_thread(self.cache.serve, key, folder) if self.cache and key else None
         events: list[dict[str, Any]] = []
+        if served is not None and records.get(job_id).state is not JobState.COMPILING:
+            return                                            # cancelled while it was copied
         if served is not None:
             log_path.write_text(f"served from the compile cache {self.cache.directory} ({key}): the same "
                                 "mesh, parameters, tables, profile and engine were compiled before\n")
