@@ -16,6 +16,7 @@ after a power cut) is never served: it is removed and the job compiles.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import logging
@@ -120,6 +121,8 @@ class CompileCache:
     def __init__(self, directory: Path, engine: str) -> None:
         self.directory, self.engine = Path(directory), engine
         self.directory.mkdir(parents=True, exist_ok=True)
+        if not os.access(self.directory, os.W_OK | os.X_OK):     # a cache that could never store
+            raise PermissionError(errno.EACCES, "not writable", str(self.directory))
         self._prune_leftovers()
 
     def key(self, mesh: Path, parameters: dict[str, Any], tables_dir: Path | None, profile: Path | None) -> str:
