@@ -45,6 +45,23 @@ def pytest_report_header(config: pytest.Config) -> str | None:
     return f"hidden packages (imports fail): {', '.join(hidden)}" if hidden else None
 
 
+#: The compile cache the tests' daemons share (``tests/daemon/conftest.py``: ``Daemon``): one folder
+#: for the whole session and both xdist workers, so a mesh compiled by one module is served to the next.
+COMPILE_CACHE_ENV = "RIBBOND_TESTS_COMPILE_CACHE"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def shared_compile_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """The session's compile-cache folder, named in ``COMPILE_CACHE_ENV``: beside the workers' own
+    base folders (their common parent is this session's), or in the base folder without xdist.
+    Entries are renamed into place whole, so two workers compiling one key at once are both right."""
+    base = tmp_path_factory.getbasetemp()
+    folder = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "compile-cache"
+    folder.mkdir(exist_ok=True)
+    os.environ[COMPILE_CACHE_ENV] = str(folder)
+    yield str(folder)
+
+
 #: Commands the link sends on its own: the handshake and its probes. Test programs use none of them.
 HOST_COMMANDS = ("M110", "M115", "M155", "M105", "M114")
 

@@ -6,7 +6,7 @@ file means "all defaults"; a file that was asked for by name and is missing is a
 running on defaults then would silently ignore what the user meant to configure.
 
 Relative paths in the file (``state_dir``, ``api.token_file``, a ``printer_profile`` ending in
-``.toml``) are taken relative to the file's directory: the daemon runs with ``/`` as its working
+``.toml``, ``design.cache_dir``) are taken relative to the file's directory: the daemon runs with ``/`` as its working
 directory under systemd, where a path relative to the working directory means nothing useful.
 
 This module also decides how the API is protected (``resolve_token``, ``tokens_match``,
@@ -137,6 +137,18 @@ class DesignSettings(BaseModel):
                            "the prediction (up to [solver] optimize_budget_s, 45 s by default; with predict; kept "
                            "only where the optimized layout's own prediction is better); "
                            "false: the paper's forward design for every job")
+    # A mesh submitted again with the same parameters gets its design at once (components/compile_cache.py);
+    # the key holds the engine's own files, so an updated engine never serves an older design.
+    cache_dir: str | None = Field(None, description="compiled designs kept by their inputs (mesh, parameters, "
+                                  "tables, profile, engine) and served again at once; default "
+                                  "<state_dir>/compile-cache; \"\" turns the cache off")
+
+    @field_validator("cache_dir")
+    @classmethod
+    def _cache_dir_meant(cls, value: str | None) -> str | None:
+        if value is not None and value != "" and not value.strip():
+            raise ValueError('blank: give a folder, or "" to turn the compile cache off')
+        return value
 
 
 #: What ``[notify] events`` may name: each is one moment the operator is needed or told.
@@ -257,6 +269,13 @@ class DaemonConfig(BaseModel):
     log_level: Literal["debug", "info", "warning", "error"] = "info"
 
     @property
+    def compile_cache_dir(self) -> Path | None:
+        """``[design] cache_dir``: ``<state_dir>/compile-cache`` when not set, None when ``""`` (off)."""
+        if self.design.cache_dir is None:
+            return Path(self.state_dir) / "compile-cache"
+        return Path(self.design.cache_dir) if self.design.cache_dir else None
+
+    @property
     def token_path(self) -> Path:
         """The API token file: ``api.token_file``, else ``<state_dir>/api-token``."""
         return self.api.token_file if self.api.token_file is not None else self.state_dir / TOKEN_FILE_NAME
@@ -339,8 +358,11 @@ def load_config(path: str | Path | None = None, *, environ: Mapping[str, str] = 
     profile = config.printer_profile
     if profile.endswith(".toml"):
         profile = str(_relative_to(base, Path(profile)))
+    design = config.design
+    if design.cache_dir:
+        design = design.model_copy(update={"cache_dir": str(_relative_to(base, Path(design.cache_dir)))})
     return config.model_copy(update={"state_dir": _relative_to(base, config.state_dir),
-                                      "api": api, "printer_profile": profile})
+                                      "api": api, "printer_profile": profile, "design": design})
 
 
 #: Reflected values (a host, an origin) are cut to this many characters.

@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,7 @@ import pytest
 from ribbond.mesh.files import write_obj
 from ribbond.design.surfaces import saddle
 from sim.process import SimProcess
+from tests.conftest import COMPILE_CACHE_ENV
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -87,13 +89,19 @@ class Daemon:
     """``python -m ribbond --config FILE`` in its own process, with an httpx client on its API."""
 
     def __init__(self, state_dir: Path, port: str, *, api: str = "", extra: str = "",
-                 token: str | None = None) -> None:
-        """``api``: more lines of the ``[api]`` table; ``extra``: more tables (TOML text)."""
+                 token: str | None = None, cache: bool = True) -> None:
+        """``api``: more lines of the ``[api]`` table; ``extra``: more tables (TOML text); ``cache``:
+        compile through the session's shared compile cache (``COMPILE_CACHE_ENV``), False: every
+        compile made afresh (``[design] cache_dir = ""``), for the tests of the compile itself."""
         self.state_dir = state_dir
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.config = state_dir / "ribbond.toml"
         if "[design]" not in extra:            # the deploy stage costs 5-10 s a compile; see PREDICT
             extra = f"{extra}\n[design]\npredict = false\n"
+        shared = os.environ.get(COMPILE_CACHE_ENV, "")
+        cache_line = f"cache_dir = {json.dumps(shared if cache else '')}" if shared or not cache else ""
+        if "cache_dir" not in extra:
+            extra = extra.replace("[design]\n", f"[design]\n{cache_line}\n", 1)
         self.config.write_text(
             f'state_dir = "{state_dir}"\nlog_level = "info"\n'
             f'[serial]\nport = "{port}"\nbaud = {BAUD}\n'
@@ -182,6 +190,15 @@ def submit(client: httpx.Client, mesh: Path, *, start: bool, parameters: dict[st
                         data={"parameters": json.dumps(parameters or PARAMETERS), "start": str(start).lower()})
     assert r.status_code == 201, r.text
     return str(r.json()["id"])
+
+
+def fresh_copy(mesh: Path, folder: Path) -> Path:
+    """``mesh`` in ``folder`` (the same name) with a comment line of its own appended: the same surface
+    in bytes no compile cache holds, so that its compile runs for real beside cached ones (for a
+    test that watches a compile: its stages, the page while it compiles)."""
+    copy = folder / mesh.name
+    copy.write_bytes(mesh.read_bytes() + f"# compiled afresh: {uuid.uuid4().hex}\n".encode())
+    return copy
 
 
 #: The stage of a queued job waiting for the operator to confirm a fresh frame (``ribbond.daemon.components.frame``).
@@ -291,9 +308,11 @@ def own_printer(state_dir: Path, **options: Any) -> Iterator[tuple[Sim, Daemon]]
 def shared_daemon(shared_sim: Sim, tmp_path_factory: pytest.TempPathFactory,
                   request: pytest.FixtureRequest) -> Iterator[Daemon]:
     """The module's daemon; its compiles skip the deploy stage unless the module sets
-    ``DAEMON_EXTRA = PREDICT`` (the tests of the prediction itself)."""
+    ``DAEMON_EXTRA = PREDICT`` (the tests of the prediction itself), and go through the session's
+    compile cache unless it sets ``DAEMON_CACHE = False`` (the tests that watch a compile run)."""
     extra = getattr(request.module, "DAEMON_EXTRA", "")
-    with running(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port, extra=extra) as daemon:
+    cache = getattr(request.module, "DAEMON_CACHE", True)
+    with running(tmp_path_factory.mktemp("ribbond-shared"), shared_sim.port, extra=extra, cache=cache) as daemon:
         yield daemon
 
 

@@ -92,7 +92,7 @@ def test_full_round_trip(tmp_path: Path) -> None:
         limits=Limits(max_upload_mb=12.5, max_faces=1000, max_jobs=3),
         flip=FlipPolicy(heaters="off", lower_to=150.0, off_after_s=60.0),
         manual=ManualSettings(raw_console=True),
-        design=DesignSettings(predict=False, optimize=False),
+        design=DesignSettings(predict=False, optimize=False, cache_dir=str(tmp_path / "cache")),
         notify=NotifySettings(urls=["json://127.0.0.1:9/hook"], events=["done", "halted"], timeout_s=3.0),
         camera=CameraSettings(stream_url="http://127.0.0.1:8080/stream", snapshot_url="http://cam.local/snapshot"),
         log_level="debug",

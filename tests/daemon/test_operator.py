@@ -224,7 +224,7 @@ def test_a_job_started_while_the_printer_is_away_waits_for_it(tmp_path: Path, me
     """No printer: a started job stays ready, queued, saying it waits for the printer (it does not
     fail); deleting it removes its files; the state directory keeps nothing of it. A compile the
     daemon's stop interrupted is made again when the job is started."""
-    daemon = Daemon(tmp_path / "state", str(tmp_path / "no-printer"))
+    daemon = Daemon(tmp_path / "state", str(tmp_path / "no-printer"), cache=False)   # a compile to stop
     try:
         daemon.start()
         api = daemon.client

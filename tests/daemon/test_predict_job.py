@@ -16,7 +16,7 @@ from ribbond.design.format import DeployedReport
 from ribbond.design.thickness import TABLE_DIR
 from ribbond.design.verdict import verdict_lines
 
-from .conftest import PREDICT, Daemon, submit, wait_for
+from .conftest import PREDICT, Daemon, fresh_copy, submit, wait_for
 
 #: The shared daemon predicts in its compiles (the harness turns that off elsewhere).
 DAEMON_EXTRA = PREDICT
@@ -47,8 +47,10 @@ def half_table_toml() -> str:
             f'spacing = {t["spacing"]}\nfront = {rows("front")}\nback = {rows("back")}\n')
 
 
-def test_predict_a_ready_job_again(shared_daemon: Daemon, api: httpx.Client, meshes: dict[str, Path]) -> None:
-    job = submit(api, meshes["two_sided"], start=False)
+def test_predict_a_ready_job_again(shared_daemon: Daemon, api: httpx.Client, meshes: dict[str, Path],
+                                   tmp_path: Path) -> None:
+    # bytes no compile cache holds: the compile runs while the first prediction is asked for
+    job = submit(api, fresh_copy(meshes["two_sided"], tmp_path), start=False)
     assert api.post(f"/jobs/{job}/predict").status_code == 409          # still compiling: the compile predicts
     before = wait_for(api, job, "ready", timeout=120)
     assert before["prediction"] is None

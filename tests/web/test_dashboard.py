@@ -18,7 +18,7 @@ import pytest
 
 from ribbond.gcode.alignment import expected_marks
 from ribbond.gcode.profiles import load_profile
-from tests.daemon.conftest import CENTER, Daemon, Sim, wait_for
+from tests.daemon.conftest import CENTER, Daemon, Sim, fresh_copy, wait_for
 from tests.daemon.test_daemon_e2e import TOLERANCE, deposit_points, distance_to_polylines, program_deposits
 
 from .conftest import PHONE, shot
@@ -104,7 +104,7 @@ def in_view(page: Any, selector: str) -> bool:
 
 
 def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: Daemon, shared_sim: Sim,
-                                             api: httpx.Client, meshes: dict[str, Path]) -> None:
+                                             api: httpx.Client, meshes: dict[str, Path], tmp_path: Path) -> None:
     """Submit a mesh with the file picker, watch the compile and the preview, print, see the progress
     move, turn the (simulated) frame over with a known misalignment, align every mark with the jog
     pad, see the back printed and the job done. The simulator's record: every back deposit within
@@ -115,7 +115,8 @@ def test_a_whole_two_sided_job_from_the_page(browser_page: Any, shared_daemon: D
     page.wait_for_selector("#conn.ready")
     shot(page, "01-home")
 
-    page.set_input_files("#file", str(meshes["two_sided"]))
+    # bytes no cache holds: the page is watched while the compile runs, stage by stage
+    page.set_input_files("#file", str(fresh_copy(meshes["two_sided"], tmp_path)))
     page.fill("#size", "70")
     page.click("#submit-btn")
     page.wait_for_url(re.compile(r"#/job/"))

@@ -1,7 +1,8 @@
 """The compile queue: each design compiled by a ``python -m ribbond.pipeline.worker`` subprocess, one at a
 time, so the event loop that feeds the printer never computes a design. The worker's JSON lines
 (stages, iterations, done or error) become the job's stage and events; its stderr is kept as the
-job's ``compile.log``."""
+job's ``compile.log``. A compile whose inputs were compiled before is served from the compile cache
+(``compile_cache.py``, ``[design] cache_dir``): the same folder, events and report, at once."""
 
 from __future__ import annotations
 
@@ -14,10 +15,12 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
+from ...gcode.profiles import PROFILE_DIR
 from ..config import DaemonConfig
 from ..jobs import JobState
 from ..records import JobRecords, NotFound
 from ..store import JobRecord
+from .compile_cache import CompileCache, engine_identity
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +73,28 @@ def worker_environment() -> dict[str, str]:
     return {**os.environ, **limits}
 
 
+def open_cache(directory: Path | None) -> CompileCache | None:
+    """The compile cache in ``directory`` (None: off), the engine's identity hashed once, now.
+
+    Raises
+    ------
+    ValueError
+        naming ``[design] cache_dir`` when the folder cannot be made or used."""
+    if directory is None:
+        return None
+    try:
+        return CompileCache(directory, engine_identity())
+    except OSError as exc:
+        raise ValueError(f"[design] cache_dir {str(directory)!r}: cannot use it: {exc.strerror or exc} "
+                         '("" turns the compile cache off)') from None
+
+
+def profile_file(profile: str) -> Path | None:
+    """The printer profile's file: a path ending in ``.toml``, else a shipped profile's."""
+    path = Path(profile) if profile.endswith(".toml") else PROFILE_DIR / f"{profile}.toml"
+    return path if path.is_file() else None
+
+
 class Compiler:
     """The compile queue. A compiled job that is to print when ready goes to ``queue_print``."""
 
@@ -82,6 +107,7 @@ class Compiler:
         #: A project's compile (``projects.Projects.compile``), queued here by its id (``prj-…``) so
         #: that one compile runs at a time.
         self.project_compile: Callable[[str], Awaitable[None]] | None = None
+        self.cache = open_cache(config.compile_cache_dir)
 
     def queue(self, job_id: str) -> None:
         """Compile the (submitted) job, or project, after those queued before it."""
@@ -132,21 +158,55 @@ class Compiler:
             return
         records.transition(job_id, JobState.COMPILING, stage="load", progress=0.0)
         log_path = folder / "compile.log"
-        code, last = await self._run_worker(job, folder, log_path)
+        key = await asyncio.to_thread(self._key, job) if self.cache is not None else None
+        served = await asyncio.to_thread(self.cache.serve, key, folder) if self.cache and key else None
+        events: list[dict[str, Any]] = []
+        if served is not None and records.get(job_id).state is not JobState.COMPILING:
+            return                                            # cancelled while it was copied
+        if served is not None:
+            log_path.write_text(f"served from the compile cache {self.cache.directory} ({key}): the same "
+                                "mesh, parameters, tables, profile and engine were compiled before\n")
+            for event in served:
+                self._on_event(job, event)
+            code, last = 0, served[-1]
+        else:
+            code, last = await self._run_worker(job, folder, log_path, events)
         if records.get(job_id).state is not JobState.COMPILING:
             return                                            # cancelled meanwhile
+        if self.cache and key and served is None and code == 0 and last.get("event") == "done":
+            await asyncio.to_thread(self.cache.store, key, folder, events)
         self._finish(job_id, code, last, log_path)
 
-    async def _run_worker(self, job: JobRecord, folder: Path, log_path: Path) -> tuple[int, dict[str, Any]]:
-        """Run the job's worker to its end, its events published as they come; its exit status and
-        its last event."""
+    def _key(self, job: JobRecord) -> str | None:
+        """The job's compile-cache key: its mesh, what ``_run_worker`` gives the worker, the
+        daemon's tables and profile (None if the mesh cannot be read: the compile says why)."""
+        assert self.cache is not None
+        design = self.config.design
+        inputs = {"parameters": {**job.parameters, "printer_profile": self.config.printer_profile},
+                  "max_faces": self.config.limits.max_faces, "predict": design.predict,
+                  "optimize": design.optimize, "threads": worker_environment()["OMP_NUM_THREADS"]}
+        try:
+            return self.cache.key(Path(job.mesh_path), inputs, self.tables_dir,
+                                  profile_file(self.config.printer_profile))
+        except OSError:
+            return None
+
+    def _on_event(self, job: JobRecord, event: dict[str, Any]) -> None:
+        """One of the compile's events: a stage's start moves the job's stage, an iteration is progress."""
+        if event.get("event") == "stage":
+            self.records.publish(self.records.store.update(job.id, stage=event["stage"], progress=None))
+        elif event.get("event") == "iteration":
+            self.records.publish(self.records.get(job.id), progress_event=event)
+
+    async def _run_worker(self, job: JobRecord, folder: Path, log_path: Path,
+                          events: list[dict[str, Any]]) -> tuple[int, dict[str, Any]]:
+        """Run the job's worker to its end, its events published as they come and kept in
+        ``events`` (for the cache); its exit status and its last event."""
         params = {**job.parameters, "printer_profile": self.config.printer_profile}
 
         def on_event(event: dict[str, Any]) -> None:
-            if event.get("event") == "stage":
-                self.records.publish(self.records.store.update(job.id, stage=event["stage"], progress=None))
-            elif event.get("event") == "iteration":
-                self.records.publish(self.records.get(job.id), progress_event=event)
+            events.append(event)
+            self._on_event(job, event)
 
         return await run_worker(worker_command(self.python, job.mesh_path, folder / "design", params,
                                                folder / "plans", self.tables_dir, self.config.limits.max_faces,
