@@ -29,16 +29,8 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 
 def _design(name: str):
-    import tempfile
-    from realization import _meshes
-    from ribbond.design.params import DesignParameters, SizeSpec
-    from ribbond.mesh.files import write_obj
-    from ribbond.pipeline.compile import design_mesh
-    V, F, size, _ = _meshes()[name]
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / (name.replace("/", "_") + ".obj")
-        write_obj(path, V, F)
-        return design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=size)), predict=False, finish=False)
+    from precompensate import _design as forward_design
+    return forward_design(name, finish=False)
 
 
 def metric_shares(res, table) -> dict[str, float]:

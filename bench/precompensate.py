@@ -34,7 +34,8 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 
-def _design(name: str):
+def _design(name: str, finish: bool = True):
+    """The forward design of a bench surface (``realization._meshes``), without its prediction."""
     from realization import _meshes
     from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SizeSpec
@@ -43,7 +44,8 @@ def _design(name: str):
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"{name.replace('/', '_')}.obj"
         write_obj(path, V, F)
-        return design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=size)), predict=False)
+        return design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=size)), predict=False,
+                           finish=finish)
 
 
 class _Relayout:
