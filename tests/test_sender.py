@@ -46,6 +46,14 @@ def feed(sender: Sender, *lines: str) -> None:
         sender.handle(codec.parse_line(line))
 
 
+async def ack_numbered_from(sender: Sender, done: asyncio.Future, line: int, pause: float = 0.005) -> None:
+    """Answer ``ok N<line> P15 B3``, ``ok N<line+1> …`` until the stream ends (ADVANCED_OK)."""
+    while not done.done():
+        feed(sender, f"ok N{line} P15 B3")
+        line += 1
+        await asyncio.sleep(pause)
+
+
 def program(n: int) -> list[str]:
     return [f"G1 X{i % 100}.5 Y{i % 37}.25 F3000" for i in range(n)]
 
@@ -284,11 +292,7 @@ async def test_unnumbered_ok_during_a_resend_acknowledges_nothing_at_or_above_th
     assert wire.numbers()[resent_from] == 1
     feed(sender, 'echo:Unknown command: "5 F3000*85"', "ok P15 B3")  # a late tail, after the resend
     assert sender.last_acknowledged_line == 0, "the resend is pending until line 1 is acknowledged"
-    next_line = 1
-    while not done.done():
-        feed(sender, f"ok N{next_line} P15 B3")
-        next_line += 1
-        await asyncio.sleep(0)
+    await ack_numbered_from(sender, done, 1, pause=0)
     assert done.result().lines == 8
 
 

@@ -17,7 +17,7 @@ from ribbond.printer.capabilities import Capabilities
 from ribbond.printer.errors import PrinterSilent, ProtocolError, StreamCancelled
 from ribbond.printer.sender import Sender, Timeouts
 
-from .test_sender import Wire, feed, make, moves, plain_resend, program, resend_episode
+from .test_sender import Wire, ack_numbered_from, feed, make, moves, plain_resend, program, resend_episode
 
 TEMPERATURES = "ok T:20.0 /0.0 B:20.0 /0.0 @:0 B@:0"
 
@@ -56,14 +56,6 @@ async def proof_out(sender: Sender, wire: Wire, commands: list[str], acked: int,
     plain_resend(sender, wire, asked)
     await until(wire, "M114")
     return done
-
-
-async def ack_numbered_from(sender: Sender, done: asyncio.Future, line: int) -> None:
-    """Answer ``ok N<line> P15 B3``, ``ok N<line+1> …`` until the stream ends (ADVANCED_OK)."""
-    while not done.done():
-        feed(sender, f"ok N{line} P15 B3")
-        line += 1
-        await asyncio.sleep(0.005)
 
 
 def silent_resend(**timeouts) -> tuple[Sender, Wire]:

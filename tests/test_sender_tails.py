@@ -18,7 +18,7 @@ import pytest
 from ribbond.printer.errors import ProtocolError
 from ribbond.printer.sender import Timeouts
 
-from .test_sender import feed, make, program
+from .test_sender import ack_numbered_from, feed, make, program
 
 STALE = "Error:Line Number is not Last Line Number+1, Last Line: {}"
 
@@ -50,11 +50,7 @@ async def test_a_tail_after_the_earlier_requests_line_is_acknowledged_does_not_a
         feed(sender, STALE.format(1), "Resend: 2", "ok")
     assert not done.done(), "the request for line 2 ended the stream"
     assert wire.numbers()[13:] == [2, 3, 4, 5]
-    line = 2
-    while not done.done():
-        feed(sender, f"ok N{line} P15 B3")
-        line += 1
-        await asyncio.sleep(0)
+    await ack_numbered_from(sender, done, 2, pause=0)
     assert done.result().lines == 12
 
 
