@@ -20,6 +20,13 @@ def shipped_names(directory: Path) -> list[str]:
     return sorted(p.stem for p in directory.glob("*.toml"))
 
 
+def toml_path(name_or_path: str | Path, directory: Path) -> Path:
+    """The file a name or path means: a path ending in ``.toml`` as it is, a name as
+    ``<directory>/<name>.toml`` (whether it exists is the caller's question)."""
+    path = Path(name_or_path)
+    return path if path.suffix == ".toml" else directory / f"{name_or_path}.toml"
+
+
 def load_toml_model(name_or_path: str | Path, directory: Path, model: type[M], kind: str) -> M:
     """The file ``<directory>/<name>.toml`` for a name, or the ``.toml`` file at a path, as ``model``.
 
@@ -30,9 +37,8 @@ def load_toml_model(name_or_path: str | Path, directory: Path, model: type[M], k
         unknown name, listing the shipped ones. ``kind`` names the file in messages
         ("printer profile", "curvature table").
     """
-    path = Path(name_or_path)
-    if path.suffix != ".toml":
-        path = directory / f"{name_or_path}.toml"
+    path = toml_path(name_or_path, directory)
+    if Path(name_or_path).suffix != ".toml":
         if not path.is_file():
             raise ValueError(f"unknown {kind} {str(name_or_path)!r}; shipped: "
                              f"{', '.join(shipped_names(directory))}, or give the path of a .toml file")

@@ -15,6 +15,7 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
+from ...datafiles import toml_path
 from ...gcode.profiles import PROFILE_DIR
 from ..config import DaemonConfig
 from ..jobs import JobState
@@ -91,7 +92,7 @@ def open_cache(directory: Path | None) -> CompileCache | None:
 
 def profile_file(profile: str) -> Path | None:
     """The printer profile's file: a path ending in ``.toml``, else a shipped profile's."""
-    path = Path(profile) if profile.endswith(".toml") else PROFILE_DIR / f"{profile}.toml"
+    path = toml_path(profile, PROFILE_DIR)
     return path if path.is_file() else None
 
 
@@ -181,15 +182,20 @@ class Compiler:
         """The job's compile-cache key: its mesh, what ``_run_worker`` gives the worker, the
         daemon's tables and profile (None if the mesh cannot be read: the compile says why)."""
         assert self.cache is not None
-        design = self.config.design
-        inputs = {"parameters": {**job.parameters, "printer_profile": self.config.printer_profile},
-                  "max_faces": self.config.limits.max_faces, "predict": design.predict,
-                  "optimize": design.optimize, "threads": worker_environment()["OMP_NUM_THREADS"]}
+        inputs = {**self._worker_inputs(job), "threads": worker_environment()["OMP_NUM_THREADS"]}
         try:
             return self.cache.key(Path(job.mesh_path), inputs, self.tables_dir,
                                   profile_file(self.config.printer_profile))
         except OSError:
             return None
+
+    def _worker_inputs(self, job: JobRecord) -> dict[str, Any]:
+        """What the job's worker is given besides its mesh, tables and folders (``worker_command``'s
+        keywords): the one place ``_run_worker`` and the cache's key read it from."""
+        design = self.config.design
+        return {"parameters": {**job.parameters, "printer_profile": self.config.printer_profile},
+                "max_faces": self.config.limits.max_faces, "predict": design.predict,
+                "optimize": design.optimize}
 
     def _on_event(self, job: JobRecord, event: dict[str, Any]) -> None:
         """One of the compile's events: a stage's start moves the job's stage, an iteration is progress."""
@@ -202,16 +208,14 @@ class Compiler:
                           events: list[dict[str, Any]]) -> tuple[int, dict[str, Any]]:
         """Run the job's worker to its end, its events published as they come and kept in
         ``events`` (for the cache); its exit status and its last event."""
-        params = {**job.parameters, "printer_profile": self.config.printer_profile}
-
         def on_event(event: dict[str, Any]) -> None:
             events.append(event)
             self._on_event(job, event)
 
-        return await run_worker(worker_command(self.python, job.mesh_path, folder / "design", params,
-                                               folder / "plans", self.tables_dir, self.config.limits.max_faces,
-                                               self.config.design.predict, self.config.design.optimize),
-                                log_path, on_event, self._compiling, job.id)
+        inputs = self._worker_inputs(job)
+        command = worker_command(self.python, job.mesh_path, folder / "design", inputs.pop("parameters"),
+                                 folder / "plans", self.tables_dir, **inputs)
+        return await run_worker(command, log_path, on_event, self._compiling, job.id)
 
     def _finish(self, job_id: str, code: int, last: dict[str, Any], log_path: Path) -> None:
         """The job after its worker ended: ``ready`` (queued to print if asked), failed or cancelled."""
