@@ -65,3 +65,19 @@ def test_meshes_that_are_not_a_split_are_refused():
     renamed[:4][renamed[:4] == x0] = x1
     assert coarser_level(renamed, len(fine_V)) is None
     assert coarser_level(fine_F[:, :2], len(fine_V)) is None
+
+
+def test_a_new_vertex_named_for_two_different_edges_is_refused():
+    """Group 1's new vertex on edge (1, 3) replaced by group 0's on edge (0, 1), the orphan dropped:
+    the counts still fit a split (4 new vertices, 4 parent edges), only the parents disagree."""
+    V = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    F = np.array([[0, 1, 2], [2, 1, 3]])
+    fine_V, fine_F = igl.upsample(V, F, number_of_subdivs=1)
+    assert coarser_level(fine_F, len(fine_V)) is not None
+    m01 = fine_F[0, 1]                                   # group 0: (a, x, z), x on edge ab = (0, 1)
+    m13 = fine_F[6, 1]                                   # group 1: (x, y, z), y on edge bc = (1, 3)
+    assert np.allclose(fine_V[m01], [0.5, 0.0, 0.0]) and np.allclose(fine_V[m13], [1.0, 0.5, 0.0])
+    renamed = fine_F.copy()
+    renamed[4:][renamed[4:] == m13] = m01
+    renamed[renamed > m13] -= 1                          # the orphan m13 dropped, the rest re-indexed
+    assert coarser_level(renamed, len(fine_V) - 1) is None
