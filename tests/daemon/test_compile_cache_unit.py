@@ -6,6 +6,7 @@ The daemon's use of it (a resubmitted mesh served, the same events) is ``test_co
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 import threading
@@ -240,3 +241,56 @@ def test_a_cache_folder_the_daemon_cannot_make_stops_it_naming_the_setting(tmp_p
                           text=True, timeout=60)
     assert proc.returncode == 2, proc.stderr
     assert "[design] cache_dir" in proc.stderr and str(blocker / "cache") in proc.stderr
+
+
+class _CancellingCache:
+    """A cache whose hit takes long enough for the operator to cancel the job while it is copied."""
+
+    directory = Path("cache")
+
+    def __init__(self, records: object, events: list[dict[str, object]]) -> None:
+        self.records, self.events, self.stored = records, events, False
+        self.loop = asyncio.get_running_loop()
+
+    def key(self, *args: object) -> str:
+        return "k" * 64
+
+    def serve(self, key: str, folder: Path) -> list[dict[str, object]]:
+        """(In the compiler's worker thread) the operator's cancel lands on the event loop meanwhile."""
+        from ribbond.daemon.jobs import JobState
+        cancelled = threading.Event()
+
+        def cancel() -> None:
+            self.records.transition(folder.name, JobState.CANCELLED)   # type: ignore[attr-defined]
+            cancelled.set()
+        self.loop.call_soon_threadsafe(cancel)
+        assert cancelled.wait(10)
+        return self.events
+
+    def store(self, *args: object) -> None:
+        self.stored = True
+
+
+async def test_a_job_cancelled_while_its_cached_design_is_copied_gets_no_stage_after_its_cancel(
+        tmp_path: Path) -> None:
+    from ribbond.daemon.components.compiler import Compiler
+    from ribbond.daemon.events import EventBus
+    from ribbond.daemon.jobs import JobState
+    from ribbond.daemon.records import JobRecords
+    from ribbond.daemon.store import JobStore
+    store, bus = JobStore(tmp_path / "jobs.db"), EventBus()
+    published = bus.subscribe()
+    records = JobRecords(store, bus, tmp_path / "jobs", 10, lambda job: {"state": job.state.value, "stage": job.stage})
+    job = store.create(mesh_name="m.obj", mesh_path=str(tmp_path / "m.obj"), parameters={}, start_when_ready=False)
+    (tmp_path / "m.obj").write_text("v 0 0 0\n", encoding="utf-8")
+    records.dir(job.id).mkdir(parents=True)
+    compiler = Compiler(DaemonConfig(state_dir=tmp_path, design={"cache_dir": ""}), records, tmp_path, lambda _: None,
+                        "python")
+    later_stage = {"event": "stage", "stage": "flatten", "description": "flattening"}   # not the first stage
+    compiler.cache = _CancellingCache(records, [later_stage, *events_of(records.dir(job.id))])  # type: ignore[assignment]
+    await compiler._compile(job.id)
+    seen = []
+    while not published.empty():
+        seen.append(published.get_nowait()["job"])
+    assert seen == [{"state": "compiling", "stage": "load"}, {"state": "cancelled", "stage": "load"}], seen
+    assert store.get(job.id).state is JobState.CANCELLED and not compiler.cache.stored
