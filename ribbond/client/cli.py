@@ -26,6 +26,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from ribbond.design.format import LineFieldChoice
 from ribbond.design.errors import DesignError, MeshError
 from ribbond.design.verdict import project_verdict_lines
 from .commands import add_commands, add_global_options
@@ -86,6 +87,19 @@ class TerminalProgress:
             print(f"{stage:<9} {seconds:7.2f} s  {summary}", file=self.stream, flush=True)
 
 
+def _line_field_line(c: LineFieldChoice) -> str:
+    """The CLI's line on ``report.optimization.line_field``: which field the prediction chose."""
+    paper = c.paper
+    head = (f"line field  one family of curvature lines through the ambiguous saddle regions ({c.switched_pct:.0f} % "
+            f"of their area off the largest |κ|) against the paper's largest |κ|: ")
+    if c.one_family is None:
+        return head + f"the paper's kept: {c.reason}"
+    one = c.one_family
+    return head + (f"predicted mean {paper.deviation_pct.mean:.2f} → {one.deviation_pct.mean:.2f} %, ∫K "
+                   f"{paper.total_gaussian_curvature.predicted:+.2f} → {one.total_gaussian_curvature.predicted:+.2f}; "
+                   + ("one family kept" if c.kept == "one_family" else "the paper's kept") + f" ({c.reason})")
+
+
 def summary(result: DesignResult, out_dir: Path) -> str:
     """A one-screen summary of the design's report."""
     d = result.design
@@ -143,6 +157,8 @@ def summary(result: DesignResult, out_dir: Path) -> str:
     if r.optimization is not None:
         o = r.optimization
         fo, op = o.forward, o.optimized
+        if o.line_field is not None:
+            lines.append(_line_field_line(o.line_field))
         lines.append(f"optimized   {', '.join(o.variables)}: predicted mean {fo.deviation_pct.mean:.2f} → "
                      f"{op.deviation_pct.mean:.2f} %, ∫K {fo.total_gaussian_curvature.predicted:+.2f} → "
                      f"{op.total_gaussian_curvature.predicted:+.2f} (target {op.total_gaussian_curvature.target:+.2f}); "

@@ -268,12 +268,16 @@ class Optimization:
     time_s: float
     faces: int
 
+    @staticmethod
+    def shape(p: Prediction) -> dict:
+        """A prediction as ``report.optimization`` gives it: the deviation and ∫K against the target's."""
+        a = p.agreement
+        return {"deviation_pct": dict(p.deviation_pct),
+                "total_gaussian_curvature": {"predicted": a.curvature_predicted, "target": a.curvature_target}}
+
     def report(self, forward: Prediction, optimized: Prediction) -> dict:
         """``report.optimization`` of design.json: the forward and the optimized layouts' predictions."""
-        def shape(p: Prediction) -> dict:
-            a = p.agreement
-            return {"deviation_pct": dict(p.deviation_pct),
-                    "total_gaussian_curvature": {"predicted": a.curvature_predicted, "target": a.curvature_target}}
+        shape = self.shape
         return {"forward": shape(forward), "optimized": shape(optimized), "variables": list(VARIABLES),
                 "iterations": self.iterations, "time_s": self.time_s}
 

@@ -262,6 +262,20 @@ class PredictedShape(BaseModel):
     total_gaussian_curvature: GaussianCurvature
 
 
+class LineFieldChoice(BaseModel):
+    """``report.optimization.line_field`` (optional; issue 34): on a target with ambiguous saddle regions
+    (|κ1| ≈ |κ2|, K < 0) the paper's field (largest |κ|) and one family of curvature lines through each
+    region were each laid out and predicted from the flat sheet; the better prediction is the design's."""
+
+    model_config = _CONFIG
+    switched_pct: float = Field(ge=0, le=100, description="share of the saddle regions' area where the one "
+                                "family leaves the paper's k1, %")
+    paper: PredictedShape
+    one_family: PredictedShape | None = Field(description="null: its layout could not be made (reason says why)")
+    kept: Literal["paper", "one_family"]
+    reason: str = Field(description="why, in words")
+
+
 class OptimizationReport(BaseModel):
     """``report.optimization`` (present when the layout was optimized against the prediction): the
     forward layout's predicted shape and the optimized one's (``report.deployed`` then describes the
@@ -277,6 +291,8 @@ class OptimizationReport(BaseModel):
                        "folders: it always was); false: its prediction was not better than the forward "
                        "layout's, whose ribbons and prediction the design keeps")
     reason: str | None = Field(None, description="why it was kept or not, in words")
+    line_field: LineFieldChoice | None = Field(None, description="the line field chosen by the prediction "
+                                               "(absent when the target has no ambiguous saddle region)")
 
 
 class RefinedReport(BaseModel):

@@ -78,6 +78,8 @@ class LineField:
     singular_vertices : (s,) interior vertices where the field has a nonzero index.
     singular_index : (s,) their indices, multiples of ±1/2.
     method : "aligned" or "kcps13".
+    one_family : True when the field follows one family of curvature lines through the ambiguous
+        saddle regions (``saddle_family``) instead of the largest |κ|.
     """
 
     angle: np.ndarray
@@ -88,6 +90,7 @@ class LineField:
     singular_vertices: np.ndarray
     singular_index: np.ndarray
     method: str
+    one_family: bool = False
 
     @property
     def local(self) -> np.ndarray:
@@ -293,7 +296,8 @@ def singularities(V: np.ndarray, F: np.ndarray, frames: FaceFrames, z: np.ndarra
 
 def curvature_line_field(V: np.ndarray, F: np.ndarray, frames: FaceFrames, curvature: Curvature,
                          smoothing_lambda: float = 0.0, umbilic_tolerance: float = ANISOTROPY_THRESHOLD,
-                         method: FieldMethod = "aligned") -> LineField:
+                         method: FieldMethod = "aligned",
+                         targets: tuple[np.ndarray, np.ndarray] | None = None) -> LineField:
     """The line field along k1 (§4.3), by ``method`` (module docstring).
 
     Parameters
@@ -302,9 +306,13 @@ def curvature_line_field(V: np.ndarray, F: np.ndarray, frames: FaceFrames, curva
     smoothing_lambda : λ: for "aligned" in (−1, 0], the relative change of the smoothing length;
         for "kcps13" ≤ 0, KCPS13's λ on the surface scaled to unit area.
     umbilic_tolerance : faces whose anisotropy does not exceed this are marked umbilic.
+    targets : (angle (m,), weight (m,)) in place of k1's angle and the anisotropy as the aligned field's
+        data term (``saddle_family``); the field's ``anisotropy`` and ``umbilic`` stay the curvature's.
     """
     if method not in ("aligned", "kcps13"):
         raise ValueError(f"line field method {method!r}: must be 'aligned' or 'kcps13'")
+    if targets is not None and method != "aligned":
+        raise ValueError(f"targets are the aligned field's data term, not {method!r}'s")
     if method == "kcps13" and smoothing_lambda > 0:
         raise ValueError(f"smoothing_lambda = {smoothing_lambda}: must be ≤ 0 (0 is the default; "
                          "negative values smooth less)")
@@ -313,13 +321,13 @@ def curvature_line_field(V: np.ndarray, F: np.ndarray, frames: FaceFrames, curva
     A = connection_laplacian(V, F, frames, transport)
     anisotropy = curvature_anisotropy(curvature, _bbox_diagonal(V))
     # below 1 % anisotropy anywhere the directions are estimation noise (a plane, a sphere)
-    aligned = bool(anisotropy.max() > _UMBILIC_ONLY)
+    aligned = bool((anisotropy if targets is None else targets[1]).max() > _UMBILIC_ONLY)
     if not aligned:
         z = _smoothest(A, area)
     elif method == "aligned":
         rho = 1.0 / smoothing_length(smoothing_lambda) ** 2
-        q_hat = np.exp(2j * curvature.angle)
-        z = _solve_aligned(A, np.clip(anisotropy, 0.0, 1.0), q_hat, area, rho, V, F, frames)
+        angle, weight = targets if targets is not None else (curvature.angle, anisotropy)
+        z = _solve_aligned(A, np.clip(weight, 0.0, 1.0), np.exp(2j * angle), area, rho, V, F, frames)
     else:
         B = sp.diags((area * (_SHIFT - smoothing_lambda)).astype(complex))
         q = curvature.alignment
@@ -330,7 +338,7 @@ def curvature_line_field(V: np.ndarray, F: np.ndarray, frames: FaceFrames, curva
     sing, index = singularities(V, F, frames, z, transport)
     return LineField(angle=angle, direction=frames.to_world(local), anisotropy=anisotropy,
                      umbilic=anisotropy <= umbilic_tolerance, aligned=aligned, singular_vertices=sing,
-                     singular_index=index, method=method)
+                     singular_index=index, method=method, one_family=targets is not None)
 
 
 def _smoothest(A: sp.csc_matrix, area: np.ndarray) -> np.ndarray:

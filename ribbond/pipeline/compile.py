@@ -12,6 +12,7 @@ together, on one ``_Run`` that carries what each stage made to the next.
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -31,7 +32,8 @@ from ..design.curvature import Curvature, face_curvature
 from ..design.errors import DesignError
 from ..design.flatten import BoundedFlattener, FlatteningResult
 from ..design.folder import write_design_folder
-from ..design.format import (DeployedReport, Deviation, Design, Faces, OptimizationReport, Parameters, PrintReport,
+from ..design.format import (DeployedReport, Deviation, Design, Faces, LineFieldChoice, OptimizationReport, Parameters,
+                             PredictedShape, PrintReport,
                              Quantiles, RealizationReport, RefinedReport, Report, Ribbon, RibbonsReport, ScaleReport, SidePrintReport,
                              Source, StitchMark, ThicknessFit)
 from ..design.frames import FaceFrames, face_frames
@@ -43,6 +45,7 @@ from ..design.placement import fit_scale, place_in_frame, registration_marks
 from ..design.preview import render_preview
 from ..design.refine import Refined, refine_target
 from ..design.report import flattening_report, umbilic_split
+from ..design.saddle_family import SaddleFamily, saddle_family
 from ..design.ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
 from ..design.thickness import CurvatureTable, ThicknessResult, fitting_scale, load_curvature_table, ribbon_thickness
 
@@ -175,6 +178,8 @@ class _Run:
     programs: Programs | None = None
     # the optimization, the forward and the optimized layouts' predictions, whether it was kept and why
     optimization: tuple[Optimization, Prediction, Prediction, bool, str] | None = None
+    family: SaddleFamily | None = None
+    field_choice: dict[str, Any] | None = None
     prediction: Prediction | None = None
     deployed_png: bytes | None = None
     preview_svg: bytes = b""
@@ -324,6 +329,9 @@ def _curvature(run: _Run) -> str:
                                                   run.params.smoothing_lambda, run.solver.umbilic_tolerance,
                                                   method=run.solver.line_field)
     run.field_dev = field_dev = field_k1_deviation(lines, run.curvature)
+    if run.solver.line_field == "aligned":
+        run.family = saddle_family(run.F, run.frames.area, run.curvature, lines.anisotropy,
+                                   run.solver.umbilic_tolerance, 0.1 / _bbox_diagonal(run.V))
     return (f"k1 undefined on {100 * lines.umbilic.mean():.1f} % of the surface (umbilic, flat, or |κ1| ≈ |κ2| "
             "with opposite signs: the ribbon direction ambiguous), "
             + (f"field {field_dev['median']:.2f}° median off k1, " if field_dev else "")
@@ -551,7 +559,18 @@ def _deployed_report(run: _Run) -> None:
     run.report["deployed"] = DeployedReport(**run.prediction.report())
     if run.optimization is not None:
         opt, forward, optimized, kept, why = run.optimization
-        run.report["optimization"] = OptimizationReport(**opt.report(forward, optimized), kept=kept, reason=why)
+        run.report["optimization"] = OptimizationReport(**opt.report(forward, optimized), kept=kept, reason=why,
+                                                        line_field=_field_choice_report(run.field_choice))
+
+
+def _field_choice_report(choice: dict[str, Any] | None) -> LineFieldChoice | None:
+    """``report.optimization.line_field`` of the stage's field choice (None: no choice was made)."""
+    if choice is None:
+        return None
+    one = choice["one_family"]
+    return LineFieldChoice(switched_pct=choice["switched_pct"], paper=PredictedShape(**Optimization.shape(choice["paper"])),
+                           one_family=None if one is None else PredictedShape(**Optimization.shape(one)),
+                           kept=choice["kept"], reason=choice["reason"])
 
 
 def _optimize(run: _Run) -> str:
@@ -559,8 +578,10 @@ def _optimize(run: _Run) -> str:
     it and the optimized layout predicted from the flat sheet as printed; the optimized layout is kept
     only where that prediction is better (``optimization_kept``), and the design (ribbons,
     realization) is made again with it. Either prediction is the one the stage deploy reports."""
+    forward = _predict(run.uv, run.V, run.F, run.ribbons, run.params, run.table, run.progress, stage="optimize")
+    if run.family is not None:
+        forward = _choose_field(run, run.family, forward)
     p, t0 = run.params, time.perf_counter()
-    forward = _predict(run.uv, run.V, run.F, run.ribbons, p, run.table, run.progress, stage="optimize")
     calls = [0]
 
     def relay(fraction: float, message: str) -> None:
@@ -581,9 +602,44 @@ def _optimize(run: _Run) -> str:
     if kept:
         run.ribbons = opt.ribbons
         _design_document(run)
-    return (f"{len(opt.ribbons)} thicknesses, {opt.iterations} iterations ({opt.stopped}); predicted mean "
+    choice = run.field_choice
+    field = ("" if choice is None else
+             f"line field: {'one family through the saddle regions' if choice['kept'] == 'one_family' else 'the paper’s'}"
+             f" ({choice['reason']}); ")
+    return (field + f"{len(opt.ribbons)} thicknesses, {opt.iterations} iterations ({opt.stopped}); predicted mean "
             f"{forward.deviation_pct['mean']:.2f} → {optimized.deviation_pct['mean']:.2f} %: "
             f"{'kept' if kept else 'the forward layout kept'} ({why})")
+
+
+def _choose_field(run: _Run, family: SaddleFamily, paper: Prediction) -> Prediction:
+    """The layout of one family of curvature lines through the ambiguous saddle regions
+    (``saddle_family``) made and predicted beside the paper's; the run continues with the one whose
+    prediction is better (``optimization_kept``'s rule). Returns the kept layout's prediction."""
+    run.progress.iteration("optimize", 0, 0.0, 0.0)
+    alt = copy.copy(run)
+    alt.timings, alt.progress = {}, NoProgress()
+    try:
+        alt.line_field = curvature_line_field(alt.V, alt.F, alt.frames, alt.curvature, alt.params.smoothing_lambda,
+                                              alt.solver.umbilic_tolerance, targets=(family.angle, family.weight))
+        alt.field_dev = field_k1_deviation(alt.line_field, alt.curvature)
+        _flatten(alt)
+        _in_print_coordinates(alt)
+        _stripes(alt)
+        _cut_ribbons(alt)
+        _design_document(alt)
+        one = _predict(alt.uv, alt.V, alt.F, alt.ribbons, alt.params, alt.table, run.progress, stage="optimize")
+    except DesignError as exc:
+        run.field_choice = {"switched_pct": family.switched_pct, "kept": "paper", "paper": paper, "one_family": None,
+                            "reason": f"the one-family layout could not be made: {exc}"}
+        return paper
+    kept, why = optimization_kept(paper, one)
+    run.field_choice = {"switched_pct": family.switched_pct, "kept": "one_family" if kept else "paper",
+                        "paper": paper, "one_family": one, "reason": why}
+    if not kept:
+        return paper
+    keep = {"timings", "progress", "t_start", "field_choice"}
+    run.__dict__.update({k: v for k, v in alt.__dict__.items() if k not in keep})
+    return one
 
 
 def optimization_kept(forward: Prediction, optimized: Prediction) -> tuple[bool, str]:
