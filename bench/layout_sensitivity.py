@@ -1,7 +1,8 @@
 """How far one layout's prediction can be trusted to judge a layout change (issue 34, the demo's saddle).
 
 For each surface (the names of ``bench/realization.py``; default ``make demo``'s saddle at 90 mm) a design
-is made as ``ribbonctl design --no-optimize`` makes it, then:
+is made as ``ribbonctl design --no-optimize`` makes it (``--kept``: the layout ``ribbonctl design`` keeps,
+the stage optimize's line field and thicknesses), then:
 
 - **where the realized metric loses ∫K**: ∫K of metrics that take one factor from the layout as printed
   and the rest from the flattening (``ribbond.deploy.realization``: the coverage the prediction uses,
@@ -12,7 +13,7 @@ is made as ``ribbonctl design --no-optimize`` makes it, then:
   taken out (``--drop`` of them, chosen by a seeded generator: the same ones every run). A layout change
   whose effect on the mean, the worst release or ∫K lies within this spread is not a measured effect.
 
-    python bench/layout_sensitivity.py [--surfaces examples/saddle ...] [--drop 6]
+    python bench/layout_sensitivity.py [--surfaces examples/saddle ...] [--drop 6] [--kept]
 """
 
 from __future__ import annotations
@@ -28,9 +29,22 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 
-def _design(name: str):
+def _design(name: str, kept: bool = False):
+    """The forward design (``--no-optimize``), or with ``kept`` the layout the default design keeps (the
+    stage optimize's line field and thicknesses, chosen by the prediction)."""
     from precompensate import _design as forward_design
-    return forward_design(name, finish=False)
+    if not kept:
+        return forward_design(name, finish=False)
+    import tempfile
+    from realization import _meshes
+    from ribbond.design.params import DesignParameters, SizeSpec
+    from ribbond.mesh.files import write_obj
+    from ribbond.pipeline.compile import design_mesh
+    V, F, size, _ = _meshes()[name]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"{name.replace('/', '_')}.obj"
+        write_obj(path, V, F)
+        return design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=size)), optimize=True, finish=False)
 
 
 def metric_shares(res, table) -> dict[str, float]:
@@ -96,10 +110,11 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--surfaces", nargs="*", default=["examples/saddle"])
     ap.add_argument("--drop", type=int, default=6, help="layouts less one ribbon to predict")
+    ap.add_argument("--kept", action="store_true", help="the layout the default design keeps (optimize on)")
     args = ap.parse_args()
     from ribbond.design.thickness import load_curvature_table
     for name in args.surfaces:
-        res = _design(name)
+        res = _design(name, args.kept)
         table = load_curvature_table(res.design.parameters.curvature_table)
         print(f"\n{name}: {len(res.design.ribbons)} ribbons")
         shares = metric_shares(res, table)

@@ -136,7 +136,9 @@ def summary(result: DesignResult, out_dir: Path) -> str:
         tau = np.array([rb.thickness for rb in d.ribbons]) if d.ribbons else np.zeros(1)
         lines += [
             f"ribbons     {rr.front} front, {rr.back} back; {rr.dropped_short} dropped (< "
-            f"{p.min_ribbon_length:g} mm), {rr.trimmed_angle} trimmed (> {p.max_trim_angle:g}° off the field)",
+            f"{p.min_ribbon_length:g} mm), {rr.trimmed_angle} trimmed (> {p.max_trim_angle:g}° off the field)"
+            + (f"; {rr.rim} along the outline where the rim was bare (replacing {rr.rim_replaced} short pieces)"
+               if rr.rim else ""),
             f"thickness   {tau.min():.2f}–{tau.max():.2f} mm from table {p.curvature_table!r}"
             + (f"; {rr.thickness_clamped} clamped to its range" if rr.thickness_clamped else ""),
             f"layout      direction deviation median {rr.direction_deviation_deg.median:.2f}°, "

@@ -357,6 +357,9 @@ class RibbonsReport(BaseModel):
         None, ge=0, description="of thickness_clamped: |κ1| above what its thickest plastic curls (too curved)")
     thickness_fit: ThicknessFit | None = Field(
         None, description="the size at which the fewest thicknesses would clamp (thickness.fitting_scale)")
+    rim: int | None = Field(None, ge=0, description="of the ribbons, the rows laid along the outline where the "
+                            "rows run along a bare rim and the plastic fell short (design.rim; issue 34)")
+    rim_replaced: int | None = Field(None, ge=0, description="the pattern's short chords those rows replaced")
 
 
 class SidePrintReport(BaseModel):

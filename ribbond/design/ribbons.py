@@ -13,13 +13,17 @@ apart), then
 - split where κ1 changes sign (front where κ1 > 0, back elsewhere),
 - dropped when shorter than ``min_ribbon_length``.
 
+Where the rows run along the outline (within 30°) and leave the rim bare, a row of Eq. 10's dashes
+follows the inset outline and replaces the short chords there (``rim``: the metric along the
+outline decides the sheet's total curvature).
+
 Everything is done on arc-length intervals of the centerlines, for all ribbons at once.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -27,6 +31,7 @@ import shapely
 
 from .params import DesignParameters, spacing_for_sigma
 from .remesh import locate, remesh_flat
+from .rim import RimRibbons, rim_ribbons
 from .stripes import (Polylines, StripePattern, StripeSolver, chain_segments, face_areas, integrable_frequency,
                       vertex_average, vertex_line_field)
 
@@ -178,6 +183,8 @@ class RibbonLayout:
         ribbon midpoint along its normal to the next centerline against the harmonic mean of μ2
         over that gap (``across_spacing``), and between neighbouring midpoints against μ1.
     centerlines : per grid, the centerline polylines (list of (k, 2) arrays).
+    rim, rim_replaced : the last ``rim`` ribbons are the rows along the outline (``rim``), which replaced
+        ``rim_replaced`` of the pattern's.
     """
 
     points: list[np.ndarray]
@@ -194,6 +201,8 @@ class RibbonLayout:
     spacing_error_across: np.ndarray
     spacing_error_along: np.ndarray
     centerlines: tuple[list[np.ndarray], list[np.ndarray]]
+    rim: int = 0
+    rim_replaced: int = 0
 
     @property
     def count(self) -> int:
@@ -749,6 +758,41 @@ def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: flo
     node_of = np.clip(np.searchsorted(c.s, mids.s[real], side="right") - 1, 0, len(c.s) - 1)
     kept_real = np.cumsum(real)[made[real[made]]] - 1                 # indices among the real midpoints
     _measure_midpoints(cuts, c, mids.s[real], node_of, mids.pid[real], kept_real, mu1, first_line)
+
+
+def with_rim(layout: RibbonLayout, grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters,
+             short_at: Callable[[np.ndarray], np.ndarray]) -> RibbonLayout:
+    """The layout with rows along the outline where the printed plastic falls short along the rows
+    (``short_at``, from the realized coverage) and the rows run along a bare rim (``rim``); the
+    pattern's chords they replace are dropped. Unchanged when there is no such stretch."""
+    inset = outline.buffer(-(0.5 * params.ribbon_width + SIMPLIFY_TOLERANCE))
+    rim = _rim(grid, inset, layout.points, params, short_at)
+    if not rim.points:
+        return layout
+    kept = np.flatnonzero(~rim.replaced)
+    return replace(layout, points=[layout.points[i] for i in kept] + rim.points,
+                   grid=np.concatenate([layout.grid[kept], np.zeros(len(rim.points), np.int64)]),
+                   kappa1=np.concatenate([layout.kappa1[kept], rim.kappa1]),
+                   spacing=np.concatenate([layout.spacing[kept], rim.spacing]),
+                   length=np.concatenate([layout.length[kept], rim.length]),
+                   rim=len(rim.points), rim_replaced=int(rim.replaced.sum()))
+
+
+def _rim(grid: StripeGrid, inset: shapely.Geometry, points: list[np.ndarray], params: DesignParameters,
+         short_at: Callable[[np.ndarray], np.ndarray]) -> RimRibbons:
+    """``rim.rim_ribbons`` with the grid's fields: the direction of the face a point lies in, μ1, μ2
+    and κ1 interpolated from its vertices."""
+    def at(values: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        def sample(P: np.ndarray) -> np.ndarray:
+            face, bary = locate(P, grid.uv, grid.F)
+            return np.einsum("kc,kc...->k...", bary, values[grid.F[face]])
+        return sample
+
+    def direction_at(P: np.ndarray) -> np.ndarray:
+        return grid.direction[locate(P, grid.uv, grid.F)[0]]
+
+    return rim_ribbons(inset, points, direction_at, at(np.column_stack([grid.mu1, grid.mu2])), at(grid.kappa1),
+                       params.ribbon_length, params.ribbon_width, params.min_ribbon_length, short_at)
 
 
 def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters) -> RibbonLayout:

@@ -21,10 +21,12 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 import shapely
+from scipy.spatial import cKDTree
 
 from ..deploy.optimize import Optimization, optimize_layout
 from ..deploy.predict import RELEASES, Prediction, predict_deployed
 from ..deploy.realization import realization
+from ..deploy.rest_forms import contraction, face_coverage, layout_raster
 from ..gcode.profiles import FrameSpec, PrinterProfile, load_profile
 from ..gcode.program import GcodeError, Programs, make_programs
 from ..design import linalg
@@ -46,7 +48,8 @@ from ..design.preview import render_preview
 from ..design.refine import Refined, refine_target
 from ..design.report import flattening_report, umbilic_split
 from ..design.saddle_family import SaddleFamily, saddle_family
-from ..design.ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid
+from ..design.ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid, with_rim
+from ..design.rim import RIM_SHORT
 from ..design.thickness import CurvatureTable, ThicknessResult, fitting_scale, load_curvature_table, ribbon_thickness
 
 #: How far outside the layout's bounding box the registration marks sit, mm.
@@ -473,6 +476,9 @@ def _cut_ribbons(run: _Run) -> str:
     run.layout = layout = layout_ribbons(run.stripes, outline, run.params)
     _check_some_ribbons(layout, run.params, run.size)
     run.ribbons, run.thickness = _ribbons(layout, run.table)
+    run.layout = layout = with_rim(layout, run.stripes, outline, run.params, _along_short(run, outline))
+    if layout.rim:
+        run.ribbons, run.thickness = _ribbons(layout, run.table)
     try:
         run.marks = registration_marks(run.uv, run.frame, MARK_OFFSET)
     except ValueError as exc:
@@ -480,7 +486,29 @@ def _cut_ribbons(run: _Run) -> str:
     run.front = front = int(layout.front.sum())
     return (f"{layout.count} ribbons: {front} front, {layout.count - front} back; "
             f"{layout.dropped_short} dropped as too short, {layout.trimmed_angle} trimmed, "
-            f"{run.thickness.clamped_count} thicknesses clamped to the table")
+            f"{run.thickness.clamped_count} thicknesses clamped to the table"
+            + (f"; {layout.rim} along the outline (replacing {layout.rim_replaced} short pieces)" if layout.rim else ""))
+
+
+#: The rim's shortfall is measured on the faces this close to the outline, mm (they hold the rim's points).
+RIM_BAND = 3.0
+
+
+def _along_short(run: _Run, outline: shapely.Polygon) -> Callable[[np.ndarray], np.ndarray]:
+    """Where the ribbons as printed fall short along the rows (``rim.RIM_SHORT``): the realized
+    contraction along them (the coverage the prediction uses, ``rest_forms.face_coverage``) against
+    Eq. 10's 1/σ1, on the faces along the outline; a point reads its nearest measured face."""
+    centroid = run.uv[run.F].mean(axis=1)
+    faces = np.flatnonzero(shapely.distance(outline.boundary, shapely.points(centroid)) < RIM_BAND)
+    if len(faces) == 0 or not run.ribbons:
+        return lambda P: np.zeros(len(P), dtype=bool)
+    p = run.params
+    raster = layout_raster(run.uv, run.F, run.ribbons, p.ribbon_width)          # the whole flat domain
+    cov = face_coverage(run.uv, run.F[faces], run.ribbons, p.ribbon_width, run.table, raster=raster)
+    along = 100.0 * (contraction(cov.f_along, p.prestretch) * run.flat.sigma[faces, 0] - 1.0)
+    short = along < -RIM_SHORT                                      # bare faces too: f = 0
+    tree = cKDTree(centroid[faces])
+    return lambda P: short[tree.query(P, workers=-1)[1]]
 
 
 def _design_document(run: _Run) -> None:
@@ -502,6 +530,7 @@ def _design_document(run: _Run) -> None:
         trimmed_angle=layout.trimmed_angle, thickness_clamped=run.thickness.clamped_count,
         thickness_clamped_flat=int(run.thickness.too_flat.sum()), thickness_clamped_curved=int(run.thickness.too_curved.sum()),
         thickness_fit=ThicknessFit(**dict(zip(("scale", "clamped"), fitting_scale(run.thickness)))),
+        rim=layout.rim, rim_replaced=layout.rim_replaced,
         **{key: Quantiles(**value) for key, value in q.items()})
     report["realization"] = _realization(run)
     rule = "size" if run.params.size is not None else run.unsized

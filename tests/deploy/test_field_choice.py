@@ -92,3 +92,31 @@ def test_a_one_family_layout_that_cannot_be_made_is_reported_and_the_paper_kept(
     assert run.ribbons is ribbons
     report = C._field_choice_report(run.field_choice)
     assert report.kept == "paper" and report.one_family is None and "folded 3 faces" in report.reason
+
+
+def test_the_rim_is_measured_short_where_the_plastic_is_taken_off_the_outline(saddle_run):
+    """``_along_short``: the realized contraction along the rows by the outline, against Eq. 10's."""
+    import shapely
+    run = saddle_run()
+    outline = shapely.Polygon(run.uv[run.target.boundary])
+    ring = shapely.get_coordinates(shapely.line_interpolate_point(
+        outline.exterior, np.linspace(0.0, outline.exterior.length, 400, endpoint=False)))
+    as_made = C._along_short(run, outline)(ring)
+    bare = copy.copy(run)
+    bare.ribbons = [r for r in run.ribbons
+                    if shapely.distance(outline.exterior, shapely.LineString(r.points)) > 10.0]
+    assert 0 < len(bare.ribbons) < len(run.ribbons)
+    stripped = C._along_short(bare, outline)(ring)
+    assert stripped.mean() > 0.8                       # a bare 10 mm band: every row short by the outline
+    assert stripped.mean() > as_made.mean() + 0.3
+
+
+def test_a_cylinder_whose_rows_reach_its_edges_gets_no_rim(tmp_path):
+    """A cylinder's rows run along two straight edges with the pattern's own spacing: no shortfall, no rim
+    (a rim there adds plastic the flattening did not ask for and curves the sheet: ∫K ≠ 0)."""
+    from ribbond.pipeline.compile import design_mesh
+    V, F = surfaces.cylinder_patch(n_around=40, n_along=20)
+    path = tmp_path / "cylinder.obj"
+    write_obj(path, V, F)
+    res = design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=100.0)), predict=False, finish=False)
+    assert res.layout.rim == 0 and res.design.report.ribbons.rim == 0
