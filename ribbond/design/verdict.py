@@ -289,6 +289,12 @@ def _shape_line(report: dict[str, Any]) -> list[str]:
     if not steps:
         return []
     text = "where the shape is lost: " + "; ".join(f"{step} {what}" for step, what, _ in steps)
+    if (report.get("deployed") or {}).get("reached"):
+        # the prediction takes the shape: nothing to look at, but say what the layout still misses
+        miss = _layout_misses(report)
+        return [text + ". The prediction reaches the shape" + (
+            f"; the layout still misses its own metric by {miss:.1f} % (the released sheet's bending and "
+            "stretching make up the rest)" if miss is not None else "")]
     for step, _, loss in steps:
         if step == "the layout" and _layout_misses(report) is not None:
             return [text + f". The step to look at: the layout (its metric off by {loss:.1f} %: {_WHY[step]})"]

@@ -256,6 +256,18 @@ def test_the_step_that_loses_the_most_is_named() -> None:
     assert "The step to look at: the layout (its metric off by 15.0 %" in line
 
 
+def test_a_reached_prediction_names_no_step_to_look_at() -> None:
+    target = cap_total_curvature(60.0)
+    report = chain_report(0.94 * target, (-14.0, -5.4, 3.7), 0.92 * target, target)
+    report["deployed"]["reached"] = True
+    line = shape_line(report)
+    assert "step to look at" not in line
+    assert line.endswith("The prediction reaches the shape; the layout still misses its own metric by 5.4 % "
+                         "(the released sheet's bending and stretching make up the rest)")
+    report["deployed"]["reached"] = False                     # the same chain, not reached: the layout is named
+    assert "The step to look at: the layout (its metric off by 5.4 %" in shape_line(report)
+
+
 def test_a_chain_that_keeps_the_shape_names_no_step() -> None:
     target = cap_total_curvature(30.0)
     line = shape_line(chain_report(0.97 * target, (-4.0, 1.0, 5.0), 0.95 * target, target))
