@@ -26,13 +26,13 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from ribbond.design.format import LineFieldChoice
 from ribbond.design.errors import DesignError, MeshError
 from ribbond.design.verdict import project_verdict_lines
 from .commands import add_commands, add_global_options
 from .http import ClientError
 
 if TYPE_CHECKING:
+    from ribbond.design.format import LineFieldChoice
     from ribbond.pipeline.compile import DesignResult
 
 
