@@ -67,9 +67,11 @@ def test_no_rim_where_the_plastic_is_not_short_or_a_row_is_near():
 
 
 def test_a_rim_dash_keeps_one_side():
-    rim = _make(_rows([21.0, 27.0, 33.0, 39.0]), kappa=lambda P: np.where(P[:, 0] < 30.0, 0.02, -0.02))
+    # κ1 changes sign at x = 18, inside the first cell's dash (about 8–22) were the edge one run
+    rim = _make(_rows([21.0, 27.0, 33.0, 39.0]), kappa=lambda P: np.where(P[:, 0] < 18.0, 0.02, -0.02))
+    assert len(rim.points) >= 4
     for P, k in zip(rim.points, rim.kappa1):
-        inside = P[:, 0] < 30.0
+        inside = P[:, 0] < 18.0
         assert inside.all() or (~inside).all()
         assert np.sign(k) == (1 if inside.all() else -1)
 
@@ -87,3 +89,17 @@ def test_short_chords_by_the_rim_are_replaced_and_whole_ribbons_never():
 def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="must be > 0"):
         rim_ribbons(INSET, [], lambda P: P, lambda P: P, lambda P: P[:, 0], 0.0, W, MIN)
+
+
+def test_a_rim_dash_gives_way_to_a_whole_ribbon_near_it():
+    # with μ2 = 4 mm a rim point is free 2.4 mm from a ribbon, but a dash keeps 2 ribbon widths (3 mm)
+    mu = (30.0, 4.0)
+    whole = np.column_stack([np.linspace(20.0, 40.0, 41), np.full(41, 0.75 + 2.7)])   # 2.7 mm above the rim
+    rim = rim_ribbons(INSET, [whole] + _rows([21.0, 27.0, 33.0, 39.0]), lambda P: np.tile([1.0, 0.0], (len(P), 1)),
+                      lambda P: np.tile(mu, (len(P), 1)), lambda P: np.full(len(P), 0.02), L_R, W, MIN,
+                      short_at=lambda P: np.ones(len(P), dtype=bool))
+    bottom = [P for P in rim.points if np.isclose(P[0, 1], 0.75)]
+    assert bottom
+    for P in bottom:
+        assert np.min(np.linalg.norm(P[:, None] - whole[None], axis=2)) >= RIM_CLEAR * W - 1e-9
+    assert not rim.replaced[0]
