@@ -760,12 +760,18 @@ def _cut_grid(cuts: _Cuts, grid: StripeGrid, c: _Centerlines, g: int, level: flo
     _measure_midpoints(cuts, c, mids.s[real], node_of, mids.pid[real], kept_real, mu1, first_line)
 
 
+def _inset(outline: shapely.Polygon, params: DesignParameters) -> shapely.Geometry:
+    """Where ribbon centerlines may run: the outline shrunk by half a ribbon width (and the tolerance the
+    polylines are simplified within later), so the plastic stays on the fabric kept at the cut."""
+    return outline.buffer(-(0.5 * params.ribbon_width + SIMPLIFY_TOLERANCE))
+
+
 def with_rim(layout: RibbonLayout, grid: StripeGrid, outline: shapely.Polygon, params: DesignParameters,
              short_at: Callable[[np.ndarray], np.ndarray]) -> RibbonLayout:
     """The layout with rows along the outline where the printed plastic falls short along the rows
     (``short_at``, from the realized coverage) and the rows run along a bare rim (``rim``); the
     pattern's chords they replace are dropped. Unchanged when there is no such stretch."""
-    inset = outline.buffer(-(0.5 * params.ribbon_width + SIMPLIFY_TOLERANCE))
+    inset = _inset(outline, params)
     rim = _rim(grid, inset, layout.points, params, short_at)
     if not rim.points:
         return layout
@@ -804,7 +810,7 @@ def layout_ribbons(grid: StripeGrid, outline: shapely.Polygon, params: DesignPar
     outline : the flat surface's outline, mm.
     params : ribbon length and width, minimum length, trim angle.
     """
-    inset = outline.buffer(-(0.5 * params.ribbon_width + SIMPLIFY_TOLERANCE))   # simplified within the tolerance later
+    inset = _inset(outline, params)
     shapely.prepare(inset)
     gap = 10.0 * params.ribbon_length + 1.0
     cuts = _Cuts()

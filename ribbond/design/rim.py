@@ -93,9 +93,12 @@ def rim_ribbons(inset: shapely.Geometry, ribbons: list[np.ndarray], direction_at
     if not dashes:
         return RimRibbons(points=[], kappa1=np.zeros(0), spacing=np.zeros((0, 2)), length=np.zeros(0),
                           replaced=np.zeros(len(ribbons), dtype=bool))
-    rim = cKDTree(np.concatenate([d[0] for d in dashes]))
-    replaced = np.array([rim.query(np.asarray(r, dtype=float))[0].min() < RIM_CLEAR * ribbon_width
-                         for r in ribbons], dtype=bool)
+    replaced = np.zeros(len(ribbons), dtype=bool)
+    if ribbons:                             # every pattern ribbon's points against the dashes, at once
+        points = np.concatenate([np.asarray(r, dtype=float) for r in ribbons])
+        owner = np.repeat(np.arange(len(ribbons)), [len(r) for r in ribbons])
+        near = cKDTree(np.concatenate([d[0] for d in dashes])).query(points, workers=-1)[0] < RIM_CLEAR * ribbon_width
+        replaced[np.unique(owner[near])] = True
     return RimRibbons(points=[d[0] for d in dashes], kappa1=np.array([d[1] for d in dashes]),
                       spacing=np.array([d[2] for d in dashes]), length=np.array([_length(d[0]) for d in dashes]),
                       replaced=replaced)
