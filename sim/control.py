@@ -3,7 +3,8 @@
 One JSON object per line in, one JSON object per line out.  Requests:
   {"cmd": "flip", "dx": 0.5, "dy": -0.2, "rotation_deg": 1.0}
   {"cmd": "reset"} {"cmd": "disconnect"} {"cmd": "runaway"}
-  {"cmd": "stats"} {"cmd": "reset_stats"} {"cmd": "segments"} {"cmd": "commands"} {"cmd": "port"} {"cmd": "corrupt_rate", "rate": 0.05}
+  {"cmd": "stats"} {"cmd": "reset_stats"} {"cmd": "segments"} {"cmd": "commands"} {"cmd": "queued"}
+  {"cmd": "port"} {"cmd": "corrupt_rate", "rate": 0.05}
   {"cmd": "render", "path": "/tmp/out.png"}
 Answers are {"ok": true, ...} or {"ok": false, "error": "..."}.
 """
@@ -49,6 +50,8 @@ async def _answer(printer: SimulatedPrinter, req: dict[str, Any]) -> dict[str, A
     if cmd == "reset_stats":
         printer.reset_stats()
         return {"ok": True}
+    if cmd == "queued":
+        return {"ok": True, "queued": printer.queued()}
     if cmd == "segments":
         return {"ok": True, "segments": [dataclasses.asdict(s) for s in printer.segments()]}
     if cmd == "commands":

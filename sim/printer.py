@@ -26,6 +26,7 @@ from .config import SimConfig
 from .faults import FaultInjector
 from .firmware import Firmware
 from .frame import Frame, FramePose
+from .gcode import strip_line_number
 from .record import CommandRecord, Recorder, Segment
 from .serialport import PtyPort
 from .stats import Stats
@@ -200,6 +201,11 @@ class _Core:
         self.step()
         return dataclasses.replace(self.stats)
 
+    def queued(self) -> list[str]:
+        """The command queue, oldest first (the one running heads it), without N<line> and *checksum."""
+        self.step()
+        return [strip_line_number(c.text) for c in self.fw.queue]
+
     def is_idle(self) -> bool:
         self.step()
         # Bytes the host has not read yet do not count: an idle host may not read.
@@ -356,6 +362,10 @@ class SimulatedPrinter:
 
     def reset_stats(self) -> None:
         self._call(lambda: self._c().reset_stats())
+
+    def queued(self) -> list[str]:
+        """The firmware's command queue: the command running (if any) first, then those received behind it."""
+        return self._call(lambda: self._c().queued())
 
     def set_corrupt_rate(self, rate: float) -> None:
         """Change the share of incoming lines corrupted from now on (benchmarks start the noise

@@ -214,6 +214,19 @@ def test_m109_released_by_m108() -> None:
         assert [s for s in lines if s.startswith("ok")] == ["ok P15 B2", "ok P15 B3"]
 
 
+def test_the_queue_holds_the_running_command_and_those_behind_it() -> None:
+    """Marlin keeps a command in its ring buffer until it is done: M0 heads it while it waits."""
+    with connected() as (sim, host):
+        host.send("M0", 1)
+        host.send("G91", 2)
+        host.send("G90")
+        time.sleep(0.1)
+        assert sim.queued() == ["M0", "G91", "G90"]
+        host.send("M108")
+        host.read_quiet()
+        assert sim.queued() == []
+
+
 def test_temperature_limits_refused() -> None:
     with connected() as (sim, host):
         lines = host.command("M104 S300")

@@ -74,6 +74,10 @@ class Sim:
     def commands(self) -> list[dict[str, Any]]:
         return list(self.request({"cmd": "commands"})["commands"])
 
+    def queued(self) -> list[str]:
+        """The firmware's command queue: the one running first, then those received behind it."""
+        return list(self.request({"cmd": "queued"})["queued"])
+
     def program_commands(self) -> list[str]:
         """Executed commands, without the link's own handshake and probes."""
         return [c["command"] for c in self.commands() if c["command"].split()[0].upper() not in HOST_COMMANDS]

@@ -203,6 +203,8 @@ def test_a_stop_while_heating_ends_the_heater_wait(tmp_path: Path) -> None:
             job = api.post("/jobs", files={"gcode": ("hot.gcode", f)}, data={"start": "true"}).json()["id"]
         wait_for(api, job, "heating", timeout=30, poll=0.02)
         wait_until("the bed wait running", lambda: "M190 S100" in executed(sim), poll=0.01)
+        # the link sends ahead at its own pace: stop only once M109 is in the firmware's queue
+        wait_until("M109 queued behind the bed wait", lambda: "M109 S200" in sim.queued(), poll=0.01)
         assert daemon.proc is not None
         daemon.proc.send_signal(signal.SIGTERM)
         assert daemon.proc.wait(40) == 0
