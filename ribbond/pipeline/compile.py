@@ -163,6 +163,7 @@ class _Run:
     uv: np.ndarray = field(init=False)
     rotation: float = field(init=False)
     scale: float = field(init=False)
+    fitted: bool = False            # scaled to fit the frame once (unsized "fit"): V is no longer the curvature's
     direction: np.ndarray = field(init=False)
     pullback: np.ndarray = field(init=False)
     k1_target: np.ndarray = field(init=False)
@@ -372,11 +373,13 @@ def _flat_start(run: _Run) -> np.ndarray | None:
 
 
 def _fit_in_frame(run: _Run) -> None:
-    """Scale the design to the largest that fits the frame, or refuse a given size that does not fit."""
+    """Scale the design to the largest that fits the frame, or refuse a given size that does not fit.
+    Without a size every flattening of the run is so scaled (the line field's alternative too, from the
+    size the first one chose); ``scale`` is the size over the one the curvature was measured at."""
     frame, margin = run.frame, run.solver.layout_margin
     fits = fit_scale(run.uv, frame, margin)
     if run.params.size is None and run.unsized == "fit":
-        run.scale = fits
+        run.scale, run.fitted = fits * (run.scale if run.fitted else 1.0), True
         run.V, run.uv = run.V * fits, (run.uv - np.array(frame.center)) * fits + np.array(frame.center)
         run.size *= fits
         return
@@ -647,6 +650,7 @@ def _choose_field(run: _Run, family: SaddleFamily, paper: Prediction) -> Predict
     run.progress.iteration("optimize", 0, 0.0, 0.0)
     alt = copy.copy(run)
     alt.timings, alt.progress = {}, NoProgress()
+    alt.frames = face_frames(alt.V, alt.F)        # at V's size: a fit to the frame scaled V after the curvature
     try:
         alt.line_field = curvature_line_field(alt.V, alt.F, alt.frames, alt.curvature, alt.params.smoothing_lambda,
                                               alt.solver.umbilic_tolerance, targets=(family.angle, family.weight))

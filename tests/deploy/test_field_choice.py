@@ -16,6 +16,7 @@ import pytest
 from ribbond.design import surfaces
 from ribbond.design.errors import DesignError
 from ribbond.design.params import DesignParameters, SizeSpec, SolverSettings
+from ribbond.design.stripes import face_areas
 from ribbond.mesh.files import write_obj
 from ribbond.pipeline import compile as C
 
@@ -120,3 +121,29 @@ def test_a_cylinder_whose_rows_reach_its_edges_gets_no_rim(tmp_path):
     write_obj(path, V, F)
     res = design_mesh(path, DesignParameters(size=SizeSpec(bbox_diagonal=100.0)), predict=False, finish=False)
     assert res.layout.rim == 0 and res.design.report.ribbons.rim == 0
+
+
+def test_a_size_chosen_to_fit_the_frame_fits_the_one_family_layout(tmp_path, monkeypatch):
+    """Without a size the one-family layout too is scaled to the largest that fits the frame (its flat
+    sheet, larger than the paper's here, fills the frame); the target is at that size, the flat sheet at
+    least as large as the target (σ ≥ 1), and κ1 is the target's at that size."""
+    V, F = surfaces.saddle(80.0, 1 / 50.0, 1 / 50.0, rings=12)
+    path = tmp_path / "saddle.obj"
+    write_obj(path, V, F)
+    run = C._prepare(path, DesignParameters(), SolverSettings(), None, C.NoProgress(), True, None)
+    run.unsized = "fit"
+    for stage in C.STAGES[:5]:
+        C._run_stage(run, stage)
+    monkeypatch.setattr(C, "_predict", lambda *a, **k: _stand_in(1.0, 1.0))
+    C._choose_field(run, run.family, _stand_in(3.0, 3.4))
+    assert run.line_field.one_family, run.field_choice["reason"]
+    assert C.fit_scale(run.uv, run.frame, run.solver.layout_margin) == pytest.approx(1.0)
+    assert C._bbox_diagonal(run.V) == pytest.approx(run.size)
+    assert run.design.parameters.size.bbox_diagonal == pytest.approx(run.size)
+    e1, e2 = run.V[run.F[:, 1]] - run.V[run.F[:, 0]], run.V[run.F[:, 2]] - run.V[run.F[:, 0]]
+    target_area = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum()
+    assert face_areas(run.uv, run.F).sum() >= 0.99 * target_area       # σ1 σ2 ≥ 1: never smaller than the target
+    centre = np.argmin(np.linalg.norm(run.V - run.V.mean(axis=0), axis=1))
+    faces = np.flatnonzero((run.F == centre).any(axis=1))
+    radius = 50.0 * run.size / C._bbox_diagonal(V)                       # κ = ±1/50 at the file's scale
+    assert np.abs(run.kappa1[faces]) == pytest.approx(1 / radius, rel=0.1)
