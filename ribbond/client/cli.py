@@ -280,8 +280,11 @@ def size_line(report: Any, bbox_diagonal: float) -> str:
         return f"size        {bbox_diagonal:.1f} mm bounding-box diagonal"
     source = f"the file's {sc.source_diagonal:.4g} (its units)"
     why = {"size": f"as asked (--size or --params): {source} scaled × {sc.factor:.4g}",
-           "fit": f"SCALED × {sc.factor:.4g} from {source} to the largest that fits the frame (--size fit, or no size "
-                  "given to the daemon); --size MM to choose",
+           "fit": f"SCALED × {sc.factor:.4g} from {source} to the largest "
+                  + (f"whose curvature the plastic can make: at the {sc.frame_diagonal:.0f} mm the frame would take, the "
+                     "target is flatter than the thinnest plastic curls" if sc.limited_by == "curvature table"
+                     else "that fits the frame")
+                  + " (--size fit, or no size given to the daemon); --size MM to choose",
            "file": "the file's units read as mm (no --size); --size MM to scale it, --size fit for the largest "
                    "that fits the frame"}[sc.rule]
     return f"size        {bbox_diagonal:.1f} mm bounding-box diagonal: {why}"

@@ -315,10 +315,14 @@ class ScaleReport(BaseModel):
     model_config = _CONFIG
     rule: Literal["size", "fit", "file"] = Field(
         description="size: the size asked for (--size, size.bbox_diagonal); fit: none asked, scaled to the "
-        "largest at which the layout fits the frame; file: none asked, the file's units read as mm (factor 1)")
+        "largest at which the layout fits the frame and the curvature table reaches the target's curvature; file: none asked, the file's units read as mm (factor 1)")
     source_diagonal: float = Field(gt=0, description="the target's bounding-box diagonal in the file's units "
                                    "(as read, cleaned and refined)")
     factor: float = Field(gt=0, description="mm per file unit: the design's diagonal / source_diagonal")
+    limited_by: Literal["frame", "curvature table"] | None = Field(
+        None, description="fit only: what set the size: the frame (the largest flat layout it takes) or the "
+        "curvature table (a larger target would be flatter than the thinnest plastic curls on more of its area)")
+    frame_diagonal: float | None = Field(None, gt=0, description="fit only: the size the frame alone would take, mm")
 
 
 class ThicknessFit(BaseModel):

@@ -258,6 +258,63 @@ def fitting_scale(result: ThicknessResult) -> tuple[float, int]:
     return float(scale[np.argmin(np.abs(np.log(scale)))]), int(len(k) - cover.max())
 
 
+#: A face counts as within the table when its curvature is this far inside the table's range (relative):
+#: a ribbon's κ1 and μ2 are averages along it, not the face's.
+TABLE_MARGIN = 0.03
+#: The largest size kept may cover this share of the area less than the best size at most the frame's.
+TABLE_SLACK = 0.02
+
+
+def largest_table_scale(table: CurvatureTable, kappa1: np.ndarray, mu2: np.ndarray, weight: np.ndarray,
+                        at_most: float) -> float:
+    """The largest size factor λ ≤ ``at_most`` at which the curvature table reaches the target's
+    curvature on (almost) as much of the surface as at any size up to it.
+
+    Scaling the target by λ keeps its flattening (σ, so μ2 of Eq. 10) and divides κ1 by λ: a face is
+    within the table for λ ∈ [|κ1| (1 + m) / κ(τ_max, μ2), |κ1| / (κ(τ_min, μ2) (1 + m))], m =
+    ``TABLE_MARGIN``, on the side the sign of κ1 picks (none where κ1 = 0 or μ2 is outside the table).
+    Of the λ ≤ ``at_most`` whose covered weight is within ``TABLE_SLACK`` of the most, the largest.
+
+    Parameters
+    ----------
+    table : the curvature table.
+    kappa1 : (m,) signed curvature along the ribbon direction per face at the current size, 1/mm.
+    mu2 : (m,) Eq. 10's spacing across the ribbons per face, mm (size-independent).
+    weight : (m,) face weights (areas), ≥ 0.
+    at_most : the largest factor allowed (the frame's), > 0.
+
+    Returns
+    -------
+    λ, in (0, at_most]; ``at_most`` when no face can be within the table at any size.
+    """
+    k, mu, w = (np.asarray(a, dtype=np.float64) for a in (kappa1, mu2, weight))
+    if not (k.shape == mu.shape == w.shape and k.ndim == 1):
+        raise ValueError(f"kappa1, mu2 and weight must be 1-D of one length, got {k.shape}, {mu.shape}, {w.shape}")
+    if not (at_most > 0 and np.isfinite(at_most)):
+        raise ValueError(f"at_most = {at_most} must be finite and > 0")
+    tau, spacing = np.asarray(table.thickness), np.asarray(table.spacing)
+    inside = np.isfinite(k) & (k != 0) & (mu >= spacing[0]) & (mu <= spacing[-1]) & (w > 0)
+    if not inside.any():
+        return float(at_most)
+    front = k[inside] > 0
+    k, mu, w = np.abs(k[inside]), mu[inside], w[inside]
+    reach = np.stack([np.where(front, table_curvature(table, "front", np.full(len(k), t), mu),
+                               table_curvature(table, "back", np.full(len(k), t), mu)) for t in (tau[0], tau[-1])])
+    lo = k * (1 + TABLE_MARGIN) / reach.max(axis=0)
+    hi = k / (reach.min(axis=0) * (1 + TABLE_MARGIN))
+    x = np.concatenate([lo, hi])
+    step = np.concatenate([w, -w])
+    order = np.lexsort((-step, x))                       # at a tie an interval opens before one closes
+    x, cover = x[order], np.cumsum(step[order])          # cover on [x_i, x_i+1)
+    end = np.append(x[1:], np.inf)
+    usable = (x < at_most) & (end > x)
+    if not usable.any():
+        return float(at_most)
+    best = cover[usable].max()
+    good = np.flatnonzero(usable & (cover >= best - TABLE_SLACK * w.sum()))
+    return float(min(end[good[-1]], at_most))
+
+
 def table_curvature(table: CurvatureTable, side: Literal["front", "back"],
                     thickness: np.ndarray, mu2: np.ndarray) -> np.ndarray:
     """Forward bilinear interpolation of the table: the curvature κ(τ, μ2) of one side.

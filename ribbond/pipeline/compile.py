@@ -48,9 +48,11 @@ from ..design.preview import render_preview
 from ..design.refine import Refined, refine_target
 from ..design.report import flattening_report, umbilic_split
 from ..design.saddle_family import SaddleFamily, saddle_family
-from ..design.ribbons import RibbonLayout, StripeGrid, layout_ribbons, ribbon_quantiles, stripe_grid, with_rim
+from ..design.ribbons import (RibbonLayout, StripeGrid, face_spacing, layout_ribbons, ribbon_quantiles, stripe_grid,
+                              with_rim)
 from ..design.rim import RIM_SHORT
-from ..design.thickness import CurvatureTable, ThicknessResult, fitting_scale, load_curvature_table, ribbon_thickness
+from ..design.thickness import (CurvatureTable, ThicknessResult, fitting_scale, largest_table_scale, load_curvature_table,
+                                ribbon_thickness)
 
 #: How far outside the layout's bounding box the registration marks sit, mm.
 MARK_OFFSET = 5.0
@@ -164,6 +166,8 @@ class _Run:
     rotation: float = field(init=False)
     scale: float = field(init=False)
     fitted: bool = False            # scaled to fit the frame once (unsized "fit"): V is no longer the curvature's
+    table_scale: float = field(init=False)    # unsized "fit": the largest the curvature table reaches (× curvature's)
+    frame_size: float | None = None           # unsized "fit": the size the frame alone would take, mm
     direction: np.ndarray = field(init=False)
     pullback: np.ndarray = field(init=False)
     k1_target: np.ndarray = field(init=False)
@@ -373,15 +377,22 @@ def _flat_start(run: _Run) -> np.ndarray | None:
 
 
 def _fit_in_frame(run: _Run) -> None:
-    """Scale the design to the largest that fits the frame, or refuse a given size that does not fit.
-    Without a size every flattening of the run is so scaled (the line field's alternative too, from the
-    size the first one chose); ``scale`` is the size over the one the curvature was measured at."""
+    """Scale the design to the largest that fits the frame and the curvature table, or refuse a given
+    size that does not fit the frame. Without a size every flattening of the run is so scaled (the line
+    field's alternative too, from the size the first one chose); ``scale`` is the size over the one the
+    curvature was measured at."""
     frame, margin = run.frame, run.solver.layout_margin
     fits = fit_scale(run.uv, frame, margin)
     if run.params.size is None and run.unsized == "fit":
-        run.scale, run.fitted = fits * (run.scale if run.fitted else 1.0), True
-        run.V, run.uv = run.V * fits, (run.uv - np.array(frame.center)) * fits + np.array(frame.center)
-        run.size *= fits
+        before = run.scale if run.fitted else 1.0
+        if not run.fitted:
+            run.table_scale = _table_scale(run, fits)
+        total = min(fits * before, run.table_scale)
+        factor = total / before
+        run.frame_size = run.size * fits
+        run.scale, run.fitted = total, True
+        run.V, run.uv = run.V * factor, (run.uv - np.array(frame.center)) * factor + np.array(frame.center)
+        run.size *= factor
         return
     run.scale = 1.0
     if fits < 1.0:
@@ -392,6 +403,15 @@ def _fit_in_frame(run: _Run) -> None:
             f"larger than the frame's {frame.size[0]:.0f} × {frame.size[1]:.0f} mm less a "
             f"{margin:.0f} mm margin; the largest size that fits is {run.size * fits:.1f} mm"
             + (" (--size fit)" if units else "") + _panels_hint(run))
+
+
+def _table_scale(run: _Run, at_most: float) -> float:
+    """The largest factor up to ``at_most`` at which the curvature table reaches the target's curvature
+    along the field (``largest_table_scale``): a larger sheet of a shape the plastic cannot curl so flat
+    would fold, not take it."""
+    kappa1 = run.curvature.normal_curvature(run.line_field.local)
+    mu2 = face_spacing(run.flat.sigma, run.params)[:, 1]
+    return largest_table_scale(run.table, kappa1, mu2, run.frames.area, at_most)
 
 
 def _panels_hint(run: _Run) -> str:
@@ -537,7 +557,11 @@ def _design_document(run: _Run) -> None:
         **{key: Quantiles(**value) for key, value in q.items()})
     report["realization"] = _realization(run)
     rule = "size" if run.params.size is not None else run.unsized
-    report["scale"] = ScaleReport(rule=rule, source_diagonal=run.source_diagonal, factor=run.size / run.source_diagonal)
+    limit = {} if rule != "fit" or run.frame_size is None else {
+        "frame_diagonal": run.frame_size,
+        "limited_by": "curvature table" if run.size < run.frame_size * (1 - 1e-9) else "frame"}
+    report["scale"] = ScaleReport(rule=rule, source_diagonal=run.source_diagonal, factor=run.size / run.source_diagonal,
+                                  **limit)
     run.parameters = Parameters.resolved(run.params, run.size)
     target, flat = run.target, run.flat
     run.design = Design(

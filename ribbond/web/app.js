@@ -269,7 +269,7 @@ for (const b of document.querySelectorAll("[data-filter]")) {
 function sizeOf(j) {
   if (j.kind === "gcode") return "G-code";
   const d = j.parameters?.size?.bbox_diagonal;
-  return d ? `${Number(d).toFixed(0)} mm` : "fits frame";
+  return d ? `${Number(d).toFixed(0)} mm` : "fit";
 }
 
 function percent(j) { return `${Math.round((j.progress || 0) * 100)} %`; }
@@ -425,7 +425,7 @@ $("panels").addEventListener("change", () => {
   const panels = $("panels").value;
   $("seam-row").hidden = !panels;
   // a project keeps one scale: without a size the mesh's units are read as mm
-  $("size").placeholder = panels ? "the mesh's own units, as mm" : "largest that fits the frame";
+  $("size").placeholder = panels ? "the mesh's own units, as mm" : "largest the frame and the plastic allow";
 });
 const drop = $("drop");
 drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });

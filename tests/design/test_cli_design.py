@@ -23,6 +23,7 @@ from ribbond.design.folder import read_design_folder
 from ribbond.mesh.files import read_mesh, write_obj
 from ribbond.design.params import SolverSettings
 from ribbond.design.refine import Refined, levels_for, refine
+from ribbond.design.thickness import TABLE_MARGIN, load_curvature_table, table_curvature
 from ribbond.gcode.profiles import load_profile
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -354,6 +355,39 @@ def test_size_fit_is_reported_as_a_scaling(cylinder: dict[str, Any]) -> None:
     assert scale["factor"] == pytest.approx(size / scale["source_diagonal"], rel=1e-9) and scale["factor"] > 1
     assert re.search(rf"^size\s+{size:.1f} mm bounding-box diagonal: SCALED × {scale['factor']:.4g} from the "
                      rf"file's {diag:.4g}", cylinder["proc"].stdout, re.M), cylinder["proc"].stdout
+
+
+def test_size_fit_of_a_cylinder_is_the_frame_s(cylinder: dict[str, Any]) -> None:
+    """A cylinder's curvature is within the table at the frame's size: the frame sets it."""
+    d = design_json(cylinder["out"])
+    scale, size = d["report"]["scale"], d["parameters"]["size"]["bbox_diagonal"]
+    assert scale["limited_by"] == "frame" and scale["frame_diagonal"] == pytest.approx(size, rel=1e-9)
+    assert d["report"]["ribbons"]["thickness_clamped"] == 0
+
+
+def test_size_fit_of_a_shallow_cap_is_the_largest_the_plastic_curls(tmp_path: Path) -> None:
+    """A 20° cap of a sphere: at the frame's size its κ = 1/R is below what the thinnest plastic curls,
+    so --size fit takes the largest size at which it is not (κ goes as 1/size), and says so."""
+    V, F = surfaces.sphere_cap(80.0, 20.0, rings=16)
+    mesh = tmp_path / "cap.obj"
+    write_obj(mesh, V, F)
+    proc = run_design(mesh, tmp_path / "d", "--size", "fit")
+    assert proc.returncode == 0, proc.stderr
+    d = design_json(tmp_path / "d")
+    scale, size = d["report"]["scale"], d["parameters"]["size"]["bbox_diagonal"]
+    assert scale["limited_by"] == "curvature table" and size < scale["frame_diagonal"]
+    table = load_curvature_table(d["parameters"]["curvature_table"])
+    mu2 = np.median([r["spacing"][1] for r in d["ribbons"]])
+    side = d["ribbons"][0]["side"]                                     # a sphere: one side
+    thinnest = float(table_curvature(table, side, np.array([table.thickness[0]]), np.array([mu2]))[0])
+    radius = 80.0 * size / bbox_diagonal(V)                           # the sphere's radius at the design's size
+    assert 1.0 / radius >= thinnest * (1 + TABLE_MARGIN) * 0.98       # the thinnest plastic curls it ...
+    assert 1.0 / radius <= thinnest * (1 + TABLE_MARGIN) * 1.10       # ... and no larger size would (2 % slack, μ2 spread)
+    assert 1.0 / (80.0 * scale["frame_diagonal"] / bbox_diagonal(V)) < thinnest   # the frame's size: too flat
+    ribbons = d["report"]["ribbons"]
+    assert ribbons["thickness_clamped_flat"] <= 0.05 * (ribbons["front"] + ribbons["back"])
+    assert f"at the {scale['frame_diagonal']:.0f} mm the frame would take, the target is flatter than the thinnest " \
+           "plastic curls" in proc.stdout
 
 
 def test_a_file_too_large_for_one_sheet_is_refused_naming_fit_and_panels(cylinder: dict[str, Any],

@@ -14,9 +14,11 @@ import pytest
 
 from ribbond.design.thickness import (
     TABLE_DIR,
+    TABLE_MARGIN,
     CurvatureTable,
     ThicknessResult,
     available_tables,
+    largest_table_scale,
     load_curvature_table,
     ribbon_thickness,
     table_curvature,
@@ -272,3 +274,53 @@ def test_the_shipped_table():
     assert 0.025 <= table_curvature(table, "front", np.array([0.5]), np.array([6.0]))[0] <= 0.03
     # The spacing range covers Eq. 10 at the default σ2 bounds (μ2 ≈ 3.9-15.1 mm) within rounding.
     assert table.spacing[0] <= 3.9 and table.spacing[-1] >= 15.0
+
+
+# --- the largest size the table reaches ------------------------------------------------------
+
+
+def test_one_curvature_scales_to_where_the_thinnest_plastic_curls_it():
+    """A sphere-like target (one |κ1|, one μ2): too flat at the frame's size, the size drops until
+    |κ1| / λ = κ(τ_min, μ2) (1 + m): κ goes as 1/size."""
+    table, mu, kappa = synthetic(), 5.0, 0.002              # κ(τ_min = 0.2, 5) = 0.023: too flat at λ = 1
+    k_min = kappa_front(TAU[0], mu)
+    lam = largest_table_scale(table, np.full(10, kappa), np.full(10, mu), np.ones(10), at_most=1.0)
+    assert lam == pytest.approx(kappa / (k_min * (1 + TABLE_MARGIN)))
+    # on the back the table is half: twice the curvature at the same size, half the size
+    lam_back = largest_table_scale(table, np.full(10, -kappa), np.full(10, mu), np.ones(10), at_most=1.0)
+    assert lam_back == pytest.approx(2 * lam)
+
+
+def test_a_size_within_the_table_is_kept_and_no_size_is_made_larger():
+    table, mu = synthetic(), 5.0
+    inside = 0.5 * (kappa_front(TAU[0], mu) + kappa_front(TAU[-1], mu))
+    assert largest_table_scale(table, np.full(4, inside), np.full(4, mu), np.ones(4), at_most=1.0) == 1.0
+    # too curved for the thickest plastic at the frame's size: only a larger size helps, and none is allowed
+    assert largest_table_scale(table, np.full(4, 1.0), np.full(4, mu), np.ones(4), at_most=1.0) == 1.0
+    # nothing within reach at any size (κ1 = 0, μ2 outside the table)
+    assert largest_table_scale(table, np.zeros(3), np.full(3, mu), np.ones(3), at_most=0.7) == 0.7
+    assert largest_table_scale(table, np.full(3, 0.01), np.full(3, 40.0), np.ones(3), at_most=0.7) == 0.7
+
+
+def test_the_area_decides_between_two_curvatures():
+    """Faces of two curvatures whose size ranges do not overlap: the size serves the larger area,
+    unless the other is within the slack of it."""
+    table, mu = synthetic(), 5.0
+    k_min, k_max = kappa_front(TAU[0], mu), kappa_front(TAU[-1], mu)
+    flat, curved = 0.1 * k_min, 3.0 * k_max                 # ranges [0.1 k_min/k_max, 0.1] and [3, 3 k_max/k_min]·(margin)
+    kappa = np.array([flat, curved])
+    mus = np.full(2, mu)
+    lam = largest_table_scale(table, kappa, mus, np.array([0.3, 0.7]), at_most=10.0)
+    assert lam == pytest.approx(curved / (k_min * (1 + TABLE_MARGIN)))
+    lam = largest_table_scale(table, kappa, mus, np.array([0.7, 0.3]), at_most=10.0)
+    assert lam == pytest.approx(flat / (k_min * (1 + TABLE_MARGIN)))
+    lam = largest_table_scale(table, kappa, mus, np.array([0.7, 0.3]), at_most=1.0)
+    assert lam == pytest.approx(flat / (k_min * (1 + TABLE_MARGIN)))
+
+
+def test_bad_input_to_the_table_scale_is_refused():
+    table = synthetic()
+    with pytest.raises(ValueError, match="one length"):
+        largest_table_scale(table, np.ones(3), np.ones(2), np.ones(3), at_most=1.0)
+    with pytest.raises(ValueError, match="at_most"):
+        largest_table_scale(table, np.ones(3), np.ones(3), np.ones(3), at_most=0.0)
