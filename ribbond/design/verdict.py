@@ -281,6 +281,16 @@ def _layout_misses(report: dict[str, Any]) -> float | None:
     return None
 
 
+def _metric_curvature_loss(report: dict[str, Any]) -> float | None:
+    """How much of the target's ∫K the realized metric loses against the intended one, points of %
+    (None where the report lacks them or the target is nearly developable)."""
+    k = (report.get("realization") or {}).get("total_gaussian_curvature")
+    if not k or k.get("realized") is None:
+        return None
+    intended, realized = _ratio(k["intended"], k["target"]), _ratio(k["realized"], k["target"])
+    return None if intended is None or realized is None else abs(intended - realized)
+
+
 def _shape_line(report: dict[str, Any]) -> list[str]:
     """Where the shape is lost (issue 34): each step's figure, then the first step, in the order of the
     chain, that misses what it was asked (a step's loss comes after the ones before it: a layout that
@@ -298,6 +308,12 @@ def _shape_line(report: dict[str, Any]) -> list[str]:
     for step, _, loss in steps:
         if step == "the layout" and _layout_misses(report) is not None:
             return [text + f". The step to look at: the layout (its metric off by {loss:.1f} %: {_WHY[step]})"]
+        lost = _metric_curvature_loss(report)
+        if step == "the layout" and lost is not None and lost > SHAPE_LOSS_PCT:
+            return [text + f". The step to look at: the layout (its metric loses {lost:.0f} % of the target's "
+                    "curvature that the flattening's keeps, though its medians are within "
+                    f"{REALIZED_MEDIAN_PCT:g} %: a metric's total curvature is decided along the outline "
+                    "(Gauss–Bonnet), where the ribbons meet the cut)"]
         if step != "the layout" and loss > SHAPE_LOSS_PCT:
             lost = "the release" if step == "the prediction" else step
             return [text + f". The step to look at: {lost} ({loss:.0f} % lost there: {_WHY[step]})"]

@@ -256,6 +256,20 @@ def test_the_step_that_loses_the_most_is_named() -> None:
     assert "The step to look at: the layout (its metric off by 15.0 %" in line
 
 
+def test_a_layout_within_its_medians_whose_metric_loses_the_curvature_is_named() -> None:
+    """Medians within 1 % but the realized metric's ∫K far from the intended one (the faces along the
+    outline decide it): the layout is named, not the release."""
+    target = cap_total_curvature(20.0)
+    report = chain_report(target, (-1.0, -0.4, 0.6), -0.59 * target, target)
+    report["realization"]["total_gaussian_curvature"]["realized"] = -0.60 * target
+    line = shape_line(report)
+    assert "a metric that keeps -60 % of the target's curvature" in line
+    assert "The step to look at: the layout (its metric loses 160 % of the target's curvature" in line, line
+    # within SHAPE_LOSS_PCT of the intended: the release is the step, as before
+    report["realization"]["total_gaussian_curvature"]["realized"] = 0.95 * target
+    assert "The step to look at: the release (159 % lost there" in shape_line(report)
+
+
 def test_a_reached_prediction_names_no_step_to_look_at() -> None:
     target = cap_total_curvature(60.0)
     report = chain_report(0.94 * target, (-14.0, -5.4, 3.7), 0.92 * target, target)
