@@ -305,12 +305,12 @@ def _shape_line(report: dict[str, Any]) -> list[str]:
         return [text + ". The prediction reaches the shape" + (
             f"; the layout still misses its own metric by {miss:.1f} % (the released sheet's bending and "
             "stretching make up the rest)" if miss is not None else "")]
+    metric_loss = _metric_curvature_loss(report)
     for step, _, loss in steps:
         if step == "the layout" and _layout_misses(report) is not None:
             return [text + f". The step to look at: the layout (its metric off by {loss:.1f} %: {_WHY[step]})"]
-        lost = _metric_curvature_loss(report)
-        if step == "the layout" and lost is not None and lost > SHAPE_LOSS_PCT:
-            return [text + f". The step to look at: the layout (its metric loses {lost:.0f} % of the target's "
+        if step == "the layout" and metric_loss is not None and metric_loss > SHAPE_LOSS_PCT:
+            return [text + f". The step to look at: the layout (its metric loses {metric_loss:.0f} % of the target's "
                     "curvature that the flattening's keeps, though its medians are within "
                     f"{REALIZED_MEDIAN_PCT:g} %: a metric's total curvature is decided along the outline "
                     "(Gauss–Bonnet), where the ribbons meet the cut)"]

@@ -165,9 +165,8 @@ class _Run:
     uv: np.ndarray = field(init=False)
     rotation: float = field(init=False)
     scale: float = field(init=False)
-    fitted: bool = False            # scaled to fit the frame once (unsized "fit"): V is no longer the curvature's
     table_scale: float = field(init=False)    # unsized "fit": the largest the curvature table reaches (× curvature's)
-    frame_size: float | None = None           # unsized "fit": the size the frame alone would take, mm
+    frame_size: float | None = None           # unsized "fit", once scaled: the size the frame alone would take, mm
     direction: np.ndarray = field(init=False)
     pullback: np.ndarray = field(init=False)
     k1_target: np.ndarray = field(init=False)
@@ -384,13 +383,14 @@ def _fit_in_frame(run: _Run) -> None:
     frame, margin = run.frame, run.solver.layout_margin
     fits = fit_scale(run.uv, frame, margin)
     if run.params.size is None and run.unsized == "fit":
-        before = run.scale if run.fitted else 1.0
-        if not run.fitted:
+        fitted = run.frame_size is not None
+        before = run.scale if fitted else 1.0
+        if not fitted:
             run.table_scale = _table_scale(run, fits)
         total = min(fits * before, run.table_scale)
         factor = total / before
         run.frame_size = run.size * fits
-        run.scale, run.fitted = total, True
+        run.scale = total
         run.V, run.uv = run.V * factor, (run.uv - np.array(frame.center)) * factor + np.array(frame.center)
         run.size *= factor
         return
