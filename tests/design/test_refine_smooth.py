@@ -330,7 +330,7 @@ def test_refine_target_dispatches_and_refuses_an_unknown_method():
 def test_solver_setting_is_accepted_or_refused():
     assert SolverSettings().refine_method == "quadric"                 # the default stays the quadric fits
     assert settings_from_dict({"solver": {"refine_method": "smooth"}}).solver.refine_method == "smooth"
-    with pytest.raises(ValueError, match="refine_method"):
+    with pytest.raises(ValueError, match="solver.refine_method = 'cubic'"):
         settings_from_dict({"solver": {"refine_method": "cubic"}})
 
 
