@@ -346,3 +346,18 @@ def test_the_method_reaches_the_compiled_target_and_its_report(tmp_path):
     got = runs["smooth"].V
     scale = np.linalg.norm(got.max(axis=0) - got.min(axis=0)) / np.linalg.norm(want.max(axis=0) - want.min(axis=0))
     assert np.allclose(got, (want - want.mean(axis=0)) * scale, atol=1e-9 * 120)
+
+
+def test_the_panels_refine_with_the_chosen_method(tmp_path):
+    from ribbond.panels.project import _load_scaled
+
+    V, F = S.torus_patch(50.0, 20.0, (0, 60), (-30, 30), 20, 10)        # 400 faces
+    write_obj(tmp_path / "coarse.obj", V, F)
+    params = DesignParameters(size={"bbox_diagonal": 120.0})
+    for method, fn_V in (("smooth", refine_smooth(V, F, 2).V), ("quadric", None)):
+        target, _, _ = _load_scaled(tmp_path / "coarse.obj", params, SolverSettings(refine_to_faces=6_000,
+                                                                                     refine_method=method))
+        if fn_V is not None:
+            assert np.allclose(target.V, fn_V, atol=1e-9 * 120)
+        else:
+            assert np.allclose(target.V[: len(V)], V, atol=1e-9 * 120)   # the quadric scheme keeps the file's vertices
