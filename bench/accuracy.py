@@ -235,10 +235,10 @@ def scan_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarray
 COARSE_GOALS = (0.5, 1.0)
 
 
-def coarse_table(cases, refine_to: list[int | None]) -> None:
+def coarse_table(cases, refine_to: list[int | None], methods: tuple[str, ...] = ("quadric",)) -> None:
     """The same surfaces designed at ~900 faces (without and with refinement at intake, once per
-    ``refine_to`` value, None: the settings' default) and at ~40k; each coarse figure against the
-    fine one, goal and met / NOT met."""
+    ``refine_to`` value, None: the settings' default, and per ``[solver] refine_method`` in
+    ``methods``) and at ~40k; each coarse figure against the fine one, goal and met / NOT met."""
     from ribbond.design.folder import read_design_folder
     from ribbond.mesh.files import write_obj
     from ribbond.design.params import DesignParameters, SolverSettings
@@ -271,10 +271,10 @@ def coarse_table(cases, refine_to: list[int | None]) -> None:
                     (f"{len(Fs)} faces, sampled exactly", done[(len(Fs), float(Vs.sum()))]),
                     (f"{len(Fc)} faces, as given", figures(Vc, Fc, exact, SolverSettings(refine_below_faces=0),
                                                               Path(tmp) / f"{i}-raw")),
-                    *((f"{len(Fc)} faces, refined" + (f" to ≥ {n}" if n is not None else ""),
-                       figures(Vc, Fc, exact, SolverSettings() if n is None else SolverSettings(refine_to_faces=n),
-                               Path(tmp) / f"{i}-ref{n}"))
-                      for n in refine_to)]
+                    *((f"{len(Fc)} faces, {m}" + (f" to ≥ {n}" if n is not None else ""),
+                       figures(Vc, Fc, exact, SolverSettings(refine_method=m) if n is None else
+                               SolverSettings(refine_to_faces=n, refine_method=m), Path(tmp) / f"{i}-ref{n}{m}"))
+                      for n in refine_to for m in methods)]
             ref = rows[0][1]
             for label, (faces, med, p95, across, secs) in rows:
                 tail = ""
@@ -298,9 +298,19 @@ def main() -> int:
                     "and refined at intake) against ~40k (issue 23)")
     ap.add_argument("--refine-to", type=int, nargs="+", default=None, metavar="N",
                     help="with --coarse: [solver] refine_to_faces values to refine with (default: the settings' own)")
+    ap.add_argument("--refine-method", nargs="+", default=["quadric"], choices=["quadric", "smooth"],
+                    help="with --coarse: [solver] refine_method values to refine with (default: quadric)")
+    ap.add_argument("--scan-only", action="store_true", help="with --coarse: only the scan-like meshes")
+    ap.add_argument("--noise", type=float, default=0.0, metavar="MM",
+                    help="with --coarse --scan-only: Gaussian noise of this σ (mm, seed 7) on the coarse meshes' coordinates")
     args = ap.parse_args()
     if args.coarse:
-        coarse_table(coarse_cases() + scan_cases(), args.refine_to or [None])
+        cases = scan_cases() if args.scan_only else coarse_cases() + scan_cases()
+        if args.noise > 0:      # a scan's noise on the coarse mesh only (the fine references stay exact)
+            noisy = lambda b, c: lambda k: (lambda V, F: (V + np.random.default_rng(7).normal(  # noqa: E731
+                0.0, args.noise, V.shape), F) if k == c else (V, F))(*b(k))
+            cases = [(f"{n}, σ {args.noise:g}", noisy(b, c), (c, f), e) for n, b, (c, f), e in cases]
+        coarse_table(cases, args.refine_to or [None], tuple(args.refine_method))
         return 0
     if not args.ribbons_only:
         field_table(args.quick)

@@ -161,6 +161,12 @@ class SolverSettings(BaseModel):
         "(within max_faces), so that coarse meshes give smooth layouts; 0 turns it off")
     refine_to_faces: int = Field(
         10_000, ge=1, description="the face count a refined target reaches at least (each round × 4 faces)")
+    refine_method: Literal["quadric", "smooth"] = Field(
+        "quadric", description="how a coarse target is refined (refine_below_faces): 'quadric', midpoint "
+        "subdivision onto two-ring quadric fits, the file's vertices kept (the default: best on bumpy "
+        "targets and small developable ones); 'smooth', Loop subdivision's limit weights blending "
+        "four-ring cubic fits, the file's vertices moved (per-face curvature far closer on noisy scans; "
+        "docs/engine.md, 'Coarse targets')")
     max_faces: int = Field(400_000, ge=1, description="meshes with more faces are refused")
     merge_tolerance: float = Field(
         1e-7, ge=0, description="vertices closer than this × bbox diagonal are merged")

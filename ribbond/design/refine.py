@@ -211,16 +211,24 @@ def offset_pct(points: np.ndarray, V: np.ndarray, F: np.ndarray) -> float:
     return float(100.0 * np.sqrt(np.max(d2)) / diagonal) if diagonal > 0 else 0.0
 
 
-def refine_target(target: TargetMesh, refine_below: int, refine_to: int,
-                  max_faces: int) -> tuple[TargetMesh, Refined | None]:
-    """The cleaned target refined when it has fewer than ``refine_below`` faces (see ``levels_for``),
-    with its boundary loop recomputed; unchanged (and None) otherwise. ``source_faces``, the name
-    and the digest stay the file's."""
+#: The refinement schemes ``[solver] refine_method`` chooses from: "quadric" this module's (the
+#: default), "smooth" ``refine_smooth``'s.
+REFINE_METHODS = ("quadric", "smooth")
+
+
+def refine_target(target: TargetMesh, refine_below: int, refine_to: int, max_faces: int,
+                  method: str = "quadric") -> tuple[TargetMesh, Refined | None]:
+    """The cleaned target refined when it has fewer than ``refine_below`` faces (see ``levels_for``)
+    by ``method`` (one of ``REFINE_METHODS``), with its boundary loop recomputed; unchanged (and
+    None) otherwise. ``source_faces``, the name and the digest stay the file's."""
+    if method not in REFINE_METHODS:
+        raise ValueError(f"refine_target: refine_method = {method!r}: must be one of {', '.join(REFINE_METHODS)}")
     levels = levels_for(len(target.F), refine_below, refine_to, max_faces)
     if levels == 0:
         return target, None
-    fine = refine(target.V, target.F, levels)
+    from .refine_smooth import refine_smooth       # here: refine_smooth builds on this module's helpers
+    fine = (refine_smooth if method == "smooth" else refine)(target.V, target.F, levels)
     loops = igl.boundary_loop_all(fine.F)
-    if len(loops) != 1:       # midpoint subdivision keeps the topology: this would be a bug
+    if len(loops) != 1:       # subdivision keeps the topology: this would be a bug
         raise ValueError(f"refining {target.name} gave {len(loops)} boundary loops instead of one")
     return replace(target, V=fine.V, F=fine.F, boundary=np.asarray(loops[0], dtype=np.int64)), fine

@@ -310,7 +310,8 @@ def _load_scaled(mesh_path: str | Path, params: DesignParameters, solver: Solver
     file's own units read as mm (a project's panels must keep one scale: "largest that fits" has no
     meaning when more panels make anything fit)."""
     target = load_target(mesh_path, max_faces=solver.max_faces, merge_tolerance=solver.merge_tolerance)
-    target, _ = refine_target(target, solver.refine_below_faces, solver.refine_to_faces, solver.max_faces)
+    target, _ = refine_target(target, solver.refine_below_faces, solver.refine_to_faces, solver.max_faces,
+                              solver.refine_method)
     diag = float(np.linalg.norm(target.V.max(axis=0) - target.V.min(axis=0)))
     size = params.size.bbox_diagonal if params.size is not None else diag
     return target, (target.V - target.V.mean(axis=0)) * (size / diag), size

@@ -301,7 +301,7 @@ def _load(run: _Run) -> str:
     target = load_target(run.mesh_path, max_faces=solver.max_faces, merge_tolerance=solver.merge_tolerance)
     run.coarse_faces = len(target.F)
     run.target, run.refined = refine_target(target, solver.refine_below_faces, solver.refine_to_faces,
-                                            solver.max_faces)
+                                            solver.max_faces, solver.refine_method)
     run.source_diagonal = diag0 = _bbox_diagonal(run.target.V)
     run.size = _first_size(run, diag0)
     run.V = (run.target.V - run.target.V.mean(axis=0)) * (run.size / diag0)

@@ -130,6 +130,7 @@ def test_refused_submits_leave_no_job_and_no_file(daemon: Daemon, client: httpx.
         "solver.max_iteration": {"solver": {"max_iteration": 1}},            # a misspelt key
         "colour": {"colour": "red"},
         "solver.max_faces = 100000": {"solver": {"max_faces": 100_000}},     # above [limits] max_faces
+        "solver.refine_method = 'cubic'": {"solver": {"refine_method": "cubic"}},   # not a refinement scheme
     }
     for field, parameters in refusals.items():
         r = post(client, small, parameters, name="x" * 300 + ".obj")
