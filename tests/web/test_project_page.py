@@ -33,7 +33,7 @@ def test_the_panel_map_and_the_step_between_panels(browser_page: Any, shared_dae
     page.goto(shared_daemon.url + "/")
     page.set_input_files("#file", str(meshes["two_sided"]))
     page.fill("#size", "70")
-    assert "fits the frame" in page.get_attribute("#size", "placeholder")
+    assert "largest the frame and the plastic allow" in page.get_attribute("#size", "placeholder")
     page.select_option("#panels", "3")
     assert page.is_visible("#seam_allowance")
     assert "own units" in page.get_attribute("#size", "placeholder")    # a project keeps the mesh's scale
