@@ -169,52 +169,21 @@ def coarse_cases() -> list[tuple[str, Callable[[int], tuple[np.ndarray, np.ndarr
     ]
 
 
-def _irregular_grid(nu: int, nv: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """A scan-like triangulation of [0, 1]²: the grid's interior vertices moved by up to 0.2 of a
-    cell each way and every cell's diagonal drawn at random (valences 4 to 8), CCW from +z."""
-    rng = np.random.default_rng(seed)
-    UV, F = S.grid(nu, nv)
-    inner = (UV > 0).all(axis=1) & (UV < 1).all(axis=1)
-    UV[inner] += rng.uniform(-0.2, 0.2, (inner.sum(), 2)) / np.array([nu, nv])
-    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    flip = rng.random(nu * nv) < 0.5
-    t1 = np.where(flip[:, None], np.column_stack([a, b, d]), np.column_stack([a, b, c]))
-    t2 = np.where(flip[:, None], np.column_stack([b, c, d]), np.column_stack([a, c, d]))
-    return UV, np.vstack([t1, t2]).astype(np.int64)
-
-
-def _irregular_disk(rings: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """``surfaces.disk`` with its interior points moved by up to 0.3 of a ring spacing each way,
-    Delaunay-triangulated again (the boundary circle kept), CCW from +z."""
-    from scipy.spatial import Delaunay
-
-    rng = np.random.default_rng(seed)
-    P, _ = S.disk(rings)
-    inner = np.hypot(P[:, 0], P[:, 1]) < 1 - 0.5 / rings
-    P[inner] += rng.uniform(-0.3, 0.3, (inner.sum(), 2)) / rings
-    F = Delaunay(P).simplices.astype(np.int64)
-    e1, e2 = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
-    cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
-    F[cw] = F[cw][:, [0, 2, 1]]
-    return P, F
-
-
 def _scan_torus(k: int) -> tuple[np.ndarray, np.ndarray]:
-    UV, F = _irregular_grid(k, k // 2, seed=23)
+    UV, F = S.irregular_grid(k, k // 2, seed=23)
     u, v = np.radians(60 * UV[:, 0]), np.radians(-30 + 60 * UV[:, 1])
     rho = 50 + 20 * np.cos(v)
     return np.column_stack([rho * np.cos(u), rho * np.sin(u), 20 * np.sin(v)]), F
 
 
 def _scan_saddle(rings: int) -> tuple[np.ndarray, np.ndarray]:
-    P, F = _irregular_disk(rings, seed=23)
+    P, F = S.irregular_disk(rings, seed=23)
     xy = 50.0 * P
     return np.column_stack([xy, 0.5 * (xy[:, 0] ** 2 / 30 - xy[:, 1] ** 2 / 60)]), F
 
 
 def _scan_shoulder(k: int) -> tuple[np.ndarray, np.ndarray]:
-    UV, F = _irregular_grid(k, (18 * k) // 25, seed=23)
+    UV, F = S.irregular_grid(k, (18 * k) // 25, seed=23)
     xy = np.column_stack([-50 + 78 * UV[:, 0], 28 * (2 * UV[:, 1] - 1)])   # cap_cylinder_blend's domain
     return np.column_stack([xy, S._blend(xy, 40.0)[0]]), F
 

@@ -164,6 +164,20 @@ def _subdivision(F: np.ndarray, n: int, levels: int) -> tuple[sp.coo_matrix, np.
     return S.tocoo(), np.asarray(faces, dtype=np.int64)
 
 
+def checked_input(caller: str, V: np.ndarray, F: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray]:
+    """V as (n, 3) float64 and F as (m, 3) int64, or a ValueError naming ``caller`` and what is wrong."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
+        raise ValueError(f"{caller}: V must be an (n, 3) array of finite positions, got shape {V.shape}")
+    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or F.min() < 0 or F.max() >= len(V):
+        raise ValueError(f"{caller}: F must be a non-empty (m, 3) array of indices into V's {len(V)} "
+                         f"vertices, got shape {F.shape}")
+    if levels < 0:
+        raise ValueError(f"{caller}: levels = {levels}: must be >= 0")
+    return V, F
+
+
 def refine(V: np.ndarray, F: np.ndarray, levels: int) -> Refined:
     """Refine (V (n, 3), F (m, 3)) by ``levels`` midpoint subdivisions onto the vertices' local fits.
 
@@ -177,15 +191,7 @@ def refine(V: np.ndarray, F: np.ndarray, levels: int) -> Refined:
     ValueError
         when ``levels`` is negative, V is not (n, 3) finite or F not (m, 3) indices into V.
     """
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
-        raise ValueError(f"refine: V must be an (n, 3) array of finite positions, got shape {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or F.min() < 0 or F.max() >= len(V):
-        raise ValueError(f"refine: F must be a non-empty (m, 3) array of indices into V's {len(V)} "
-                         f"vertices, got shape {F.shape}")
-    if levels < 0:
-        raise ValueError(f"refine: levels = {levels}: must be >= 0")
+    V, F = checked_input("refine", V, F, levels)
     if levels == 0:
         return Refined(V=V.copy(), F=F.copy(), levels=0, offset_pct=0.0)
     t1, t2, N, coef = fit_vertices(V, F)

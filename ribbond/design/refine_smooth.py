@@ -60,7 +60,7 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 
-from .refine import Refined, _frames, offset_pct, vertex_normals
+from .refine import Refined, _frames, checked_input, offset_pct, vertex_normals
 
 #: The scheme, as the report names it.
 SMOOTH_METHOD = "Loop subdivision's limit weights blending local cubic fits (the file's vertices smoothed)"
@@ -248,15 +248,7 @@ def refine_smooth(V: np.ndarray, F: np.ndarray, levels: int) -> Refined:
     ValueError
         when ``levels`` is negative, V is not (n, 3) finite or F not (m, 3) indices into V.
     """
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
-        raise ValueError(f"refine_smooth: V must be an (n, 3) array of finite positions, got shape {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or F.min() < 0 or F.max() >= len(V):
-        raise ValueError(f"refine_smooth: F must be a non-empty (m, 3) array of indices into V's {len(V)} "
-                         f"vertices, got shape {F.shape}")
-    if levels < 0:
-        raise ValueError(f"refine_smooth: levels = {levels}: must be >= 0")
+    V, F = checked_input("refine_smooth", V, F, levels)
     if levels == 0:
         return Refined(V=V.copy(), F=F.copy(), levels=0, offset_pct=0.0, method=SMOOTH_METHOD)
     t1, t2, N, coef = fit_cubics(V, F)

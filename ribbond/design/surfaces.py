@@ -61,6 +61,35 @@ def disk(rings: int) -> tuple[np.ndarray, np.ndarray]:
     return P, F
 
 
+def irregular_grid(nu: int, nv: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A scan-like triangulation of [0, 1]²: the grid's interior vertices moved by up to 0.2 of a
+    cell each way and every cell's diagonal drawn at random (valences 4 to 8), CCW from +z."""
+    rng = np.random.default_rng(seed)
+    UV, F = grid(nu, nv)
+    inner = (UV > 0).all(axis=1) & (UV < 1).all(axis=1)
+    UV[inner] += rng.uniform(-0.2, 0.2, (inner.sum(), 2)) / np.array([nu, nv])
+    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    flip = rng.random(nu * nv) < 0.5
+    t1 = np.where(flip[:, None], np.column_stack([a, b, d]), np.column_stack([a, b, c]))
+    t2 = np.where(flip[:, None], np.column_stack([b, c, d]), np.column_stack([a, c, d]))
+    return UV, np.vstack([t1, t2]).astype(np.int64)
+
+
+def irregular_disk(rings: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``disk`` with its interior points moved by up to 0.3 of a ring spacing each way,
+    Delaunay-triangulated again (the boundary circle kept), CCW from +z."""
+    rng = np.random.default_rng(seed)
+    P, _ = disk(rings)
+    inner = np.hypot(P[:, 0], P[:, 1]) < 1 - 0.5 / rings
+    P[inner] += rng.uniform(-0.3, 0.3, (inner.sum(), 2)) / rings
+    F = Delaunay(P).simplices.astype(np.int64)
+    e1, e2 = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
+    cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
+    F[cw] = F[cw][:, [0, 2, 1]]
+    return P, F
+
+
 def cylinder_patch(radius: float = 40.0, angle_deg: float = 120.0, height: float = 60.0,
                    n_around: int = 40, n_along: int = 20) -> tuple[np.ndarray, np.ndarray]:
     """A patch of a cylinder about the z-axis; n points away from the axis (κ1 = +1/radius).

@@ -10,7 +10,6 @@ subdivision, the same mesh without the fits, is far off: its curvature sits on t
 
 from __future__ import annotations
 
-from collections.abc import Callable
 
 import igl
 import numpy as np
@@ -25,36 +24,7 @@ from ribbond.design.params import DesignParameters, SolverSettings, settings_fro
 from ribbond.pipeline.compile import design_mesh, write_design
 from ribbond.design.refine import _subdivision, levels_for, refine
 
-Mesh = tuple[np.ndarray, np.ndarray]
-
-
-def _sphere_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(np.linalg.norm(P, axis=1) - 60.0)
-
-
-def _saddle_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(P[:, 2] - 0.5 * (P[:, 0] ** 2 / 30 - P[:, 1] ** 2 / 60))
-
-
-def _cylinder_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(np.hypot(P[:, 0], P[:, 1]) - 40.0)
-
-
-def _torus_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(np.hypot(np.hypot(P[:, 0], P[:, 1]) - 50.0, P[:, 2]) - 20.0)
-
-
-# (name, coarse mesh, distance to the analytic surface, exact curvature at points)
-CASES: list[tuple[str, Mesh, Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], S.ExactCurvature] | None]] = [
-    ("sphere cap", S.sphere_cap(60.0, 40.0, rings=8), _sphere_distance, None),
-    ("saddle", S.saddle(100.0, 1 / 30, 1 / 60, rings=12), _saddle_distance,
-     lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
-    ("cylinder", S.cylinder_patch(40.0, 120.0, 60.0, 20, 10), _cylinder_distance,
-     lambda P: S.cylinder_curvature(P, 40.0)),
-    ("torus patch", S.torus_patch(50.0, 20.0, (0, 60), (-30, 30), 30, 15), _torus_distance,
-     lambda P: S.torus_curvature(P, 50.0, 20.0)),
-]
-IDS = [c[0] for c in CASES]
+from .refine_cases import CASES, IDS, Mesh
 
 
 @pytest.mark.parametrize("levels", [1, 2])

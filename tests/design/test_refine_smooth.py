@@ -13,7 +13,6 @@ method is refused.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 
 import igl
 import numpy as np
@@ -29,67 +28,7 @@ from ribbond.design.refine_smooth import SMOOTH_METHOD, corners, refine_smooth, 
 from ribbond.mesh.files import write_obj
 from ribbond.pipeline.compile import design_mesh
 
-Mesh = tuple[np.ndarray, np.ndarray]
-
-
-def _sphere_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(np.linalg.norm(P, axis=1) - 60.0)
-
-
-def _saddle_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(P[:, 2] - 0.5 * (P[:, 0] ** 2 / 30 - P[:, 1] ** 2 / 60))
-
-
-def _cylinder_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(np.hypot(P[:, 0], P[:, 1]) - 40.0)
-
-
-def _torus_distance(P: np.ndarray) -> np.ndarray:
-    return np.abs(np.hypot(np.hypot(P[:, 0], P[:, 1]) - 50.0, P[:, 2]) - 20.0)
-
-
-# (name, coarse mesh, distance to the analytic surface, exact curvature at points)
-CASES: list[tuple[str, Mesh, Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], S.ExactCurvature] | None]] = [
-    ("sphere cap", S.sphere_cap(60.0, 40.0, rings=8), _sphere_distance, None),
-    ("saddle", S.saddle(100.0, 1 / 30, 1 / 60, rings=12), _saddle_distance,
-     lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
-    ("cylinder", S.cylinder_patch(40.0, 120.0, 60.0, 20, 10), _cylinder_distance,
-     lambda P: S.cylinder_curvature(P, 40.0)),
-    ("torus patch", S.torus_patch(50.0, 20.0, (0, 60), (-30, 30), 30, 15), _torus_distance,
-     lambda P: S.torus_curvature(P, 50.0, 20.0)),
-]
-IDS = [c[0] for c in CASES]
-
-
-def _jittered_grid(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray]:
-    """``surfaces.grid`` (valences 4 and 8) with its interior points moved by up to 0.2 of a cell
-    each way and every cell's diagonal drawn at random: a scan's irregular triangulation."""
-    rng = np.random.default_rng(5)
-    UV, _ = S.grid(nu, nv)
-    inner = (UV > 0).all(axis=1) & (UV < 1).all(axis=1)
-    UV[inner] += rng.uniform(-0.2, 0.2, (inner.sum(), 2)) / np.array([nu, nv])
-    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    flip = rng.random(nu * nv) < 0.5
-    t1 = np.where(flip[:, None], np.column_stack([a, b, d]), np.column_stack([a, b, c]))
-    t2 = np.where(flip[:, None], np.column_stack([b, c, d]), np.column_stack([a, c, d]))
-    return UV, np.vstack([t1, t2]).astype(np.int64)
-
-
-def _jittered_disk(rings: int) -> tuple[np.ndarray, np.ndarray]:
-    """``surfaces.disk`` with its interior points moved by up to 0.3 of a ring spacing, triangulated
-    again (Delaunay, CCW from +z)."""
-    from scipy.spatial import Delaunay
-
-    rng = np.random.default_rng(5)
-    P, _ = S.disk(rings)
-    inner = np.hypot(P[:, 0], P[:, 1]) < 1 - 0.5 / rings
-    P[inner] += rng.uniform(-0.3, 0.3, (inner.sum(), 2)) / rings
-    F = Delaunay(P).simplices.astype(np.int64)
-    e1, e2 = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
-    cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
-    F[cw] = F[cw][:, [0, 2, 1]]
-    return P, F
+from .refine_cases import CASES, IDS, Mesh
 
 
 def _noise(V: np.ndarray, sigma: float) -> np.ndarray:
@@ -99,14 +38,14 @@ def _noise(V: np.ndarray, sigma: float) -> np.ndarray:
 def _scan_cylinder(sigma: float) -> Mesh:
     """A cylinder of radius 40 mm (120° × 60 mm, 576 faces, edges ~3.5 mm) triangulated as a scan,
     with noise σ (mm) on every coordinate."""
-    UV, F = _jittered_grid(24, 12)
+    UV, F = S.irregular_grid(24, 12, seed=5)
     a, z = np.radians(-60 + 120 * UV[:, 0]), 60 * UV[:, 1]
     return _noise(np.column_stack([40 * np.cos(a), 40 * np.sin(a), z]), sigma), F
 
 
 def _scan_cap(sigma: float) -> Mesh:
     """A sphere cap of radius 60 mm (half-angle 40°, 486 faces) triangulated as a scan, with noise."""
-    P, F = _jittered_disk(9)
+    P, F = S.irregular_disk(9, seed=5)
     rho, phi = np.radians(40.0) * np.hypot(P[:, 0], P[:, 1]), np.arctan2(P[:, 1], P[:, 0])
     V = 60 * np.column_stack([np.sin(rho) * np.cos(phi), np.sin(rho) * np.sin(phi), np.cos(rho)])
     return _noise(V, sigma), F
@@ -114,7 +53,7 @@ def _scan_cap(sigma: float) -> Mesh:
 
 def _scan_saddle(sigma: float) -> Mesh:
     """z = (x²/30 − y²/60)/2 over a 100 mm disk (864 faces) triangulated as a scan, with noise."""
-    P, F = _jittered_disk(12)
+    P, F = S.irregular_disk(12, seed=5)
     xy = 50.0 * P
     return _noise(np.column_stack([xy, 0.5 * (xy[:, 0] ** 2 / 30 - xy[:, 1] ** 2 / 60)]), sigma), F
 

@@ -1,0 +1,41 @@
+"""Coarse analytic surfaces shared by the refinement tests (``test_refine``, ``test_refine_smooth``):
+each with its distance to the analytic surface and, where k1 is defined, its exact curvature."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ribbond.design import surfaces as S
+
+Mesh = tuple[np.ndarray, np.ndarray]
+
+
+def _sphere_distance(P: np.ndarray) -> np.ndarray:
+    return np.abs(np.linalg.norm(P, axis=1) - 60.0)
+
+
+def _saddle_distance(P: np.ndarray) -> np.ndarray:
+    return np.abs(P[:, 2] - 0.5 * (P[:, 0] ** 2 / 30 - P[:, 1] ** 2 / 60))
+
+
+def _cylinder_distance(P: np.ndarray) -> np.ndarray:
+    return np.abs(np.hypot(P[:, 0], P[:, 1]) - 40.0)
+
+
+def _torus_distance(P: np.ndarray) -> np.ndarray:
+    return np.abs(np.hypot(np.hypot(P[:, 0], P[:, 1]) - 50.0, P[:, 2]) - 20.0)
+
+
+# (name, coarse mesh, distance to the analytic surface, exact curvature at points)
+CASES: list[tuple[str, Mesh, Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], S.ExactCurvature] | None]] = [
+    ("sphere cap", S.sphere_cap(60.0, 40.0, rings=8), _sphere_distance, None),
+    ("saddle", S.saddle(100.0, 1 / 30, 1 / 60, rings=12), _saddle_distance,
+     lambda P: S.saddle_curvature(P[:, :2], 1 / 30, 1 / 60)),
+    ("cylinder", S.cylinder_patch(40.0, 120.0, 60.0, 20, 10), _cylinder_distance,
+     lambda P: S.cylinder_curvature(P, 40.0)),
+    ("torus patch", S.torus_patch(50.0, 20.0, (0, 60), (-30, 30), 30, 15), _torus_distance,
+     lambda P: S.torus_curvature(P, 50.0, 20.0)),
+]
+IDS = [c[0] for c in CASES]
