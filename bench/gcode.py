@@ -1,8 +1,8 @@
 """Benchmark of the G-code stage: ordering the ribbons and writing the programs, on designs of increasing size.
 
 For each example surface (torus patch, saddle, cylinder of ``examples/meshes``, default resolution)
-at two or three physical sizes (bounding-box diagonal 80 mm, 130 mm and the largest that fits the
-printer's frame), the design is made first (``design_mesh``: it is the input, not what is timed).
+at two or three physical sizes (bounding-box diagonal 80 mm, 130 mm and ``--size fit``: the largest
+the printer's frame and the curvature table allow), the design is made first (``design_mesh``: it is the input, not what is timed).
 Then for each side with something to print: ``plan_side`` (the ordering, with its default budget
 of ``MOVE_BUDGET`` candidate moves, and with a budget of 0: greedy and one 2-opt/Or-opt descent, no
 kick) and ``render_side`` are timed apart, and the
@@ -43,7 +43,7 @@ from ribbond.gcode.profiles import PrinterProfile, load_profile  # noqa: E402
 from ribbond.gcode.program import Correction, GcodeError, mirror, plan_side, render_side  # noqa: E402
 
 SURFACES = ("torus_patch", "saddle", "cylinder")
-SIZES: tuple[float | None, ...] = (80.0, 130.0, None)      # None: the largest that fits the frame
+SIZES: tuple[float | None, ...] = (80.0, 130.0, None)      # None: --size fit (the frame and the curvature table)
 SIDES = ("front", "back")
 RENDER_REPEATS = 3              # render times: best of this many
 CORRECTION = Correction(rotation_deg=0.5, center=(110.0, 110.0), offset=(0.3, -0.2))
@@ -245,7 +245,7 @@ def main() -> int:
         print(f"{d.surface:<12} {d.size_label:>5} {d.diagonal:>7.1f} {d.ribbons:>7} {d.front:>5} {d.back:>5} "
               f"{d.marks:>5} {d.mean_length:>8.2f} {d.mean_lines:>5.2f} {d.mean_layers:>6.2f} "
               f"{d.mean_passes:>6.2f} {d.design_s:>8.2f}")
-    print("size: requested bounding-box diagonal (max = the largest that fits the frame), diag = the one used; "
+    print("size: requested bounding-box diagonal (max = --size fit: the largest the frame and the curvature table allow), diag = the one used; "
           "mean l_r = mean centerline length, mm; lines, layers, passes = means per ribbon "
           "(lines = max(1, round(w_r / nozzle)), layers = ceil(τ / max layer height), passes = lines × layers)")
 

@@ -286,7 +286,7 @@ def size_line(report: Any, bbox_diagonal: float) -> str:
                      else "that fits the frame")
                   + " (--size fit, or no size given to the daemon); --size MM to choose",
            "file": "the file's units read as mm (no --size); --size MM to scale it, --size fit for the largest "
-                   "that fits the frame"}[sc.rule]
+                   "the frame and the curvature table allow"}[sc.rule]
     return f"size        {bbox_diagonal:.1f} mm bounding-box diagonal: {why}"
 
 

@@ -59,7 +59,8 @@ class DesignParameters(BaseModel):
     min_ribbon_length: float = Field(2.0, gt=0, description="shorter ribbons are dropped, mm")
     max_trim_angle: float = Field(25.0, gt=0, lt=90, description="trim where a ribbon turns away "
                                   "from the direction field by more than this, degrees")
-    size: SizeSpec | None = Field(None, description="physical size; None: the largest that fits the frame")
+    size: SizeSpec | None = Field(None, description="physical size; None: the largest that fits the frame "
+                             "and the curvature table (the daemon's default; the CLI reads the file's units as mm)")
     printer_profile: str = Field("ultimaker2-tpu", min_length=1)
     curvature_table: str = Field("tpu95a-lycra-default", min_length=1)
 
