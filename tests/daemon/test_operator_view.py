@@ -58,7 +58,7 @@ def verdicts(text: str) -> list[str]:
 def surfaces(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("verdict-meshes")
     out = {}
-    for name, (V, F) in {"hemisphere": sphere_cap(40.0, 90.0, rings=10), "plane": plane_disk(80.0, rings=6)}.items():
+    for name, (V, F) in {"hemisphere": sphere_cap(40.0, 90.0, rings=13), "plane": plane_disk(80.0, rings=6)}.items():
         out[name] = folder / f"{name}.obj"
         write_obj(out[name], V, F)
     return out
