@@ -626,7 +626,8 @@ def _intervals(c: _Centerlines, k1: np.ndarray, a: np.ndarray, b: np.ndarray, in
     lo, hi = bp[:-1], bp[1:]
     mid = 0.5 * (lo + hi)
     r = np.searchsorted(a, mid, side="right") - 1
-    in_ribbon = (r >= 0) & (mid < b[np.maximum(r, 0)])
+    # no ribbons at all (a row wholly outside the inset outline): no interval lies in one
+    in_ribbon = (r >= 0) & (mid < b[np.maximum(r, 0)]) if len(a) else np.zeros(len(mid), dtype=bool)
     has_next = c.link_face >= 0
     link = np.clip(np.searchsorted(c.s, mid, side="right") - 1, 0, len(c.s) - 1)
     on_line = has_next[link] & (c.poly[np.minimum(link + 1, len(c.s) - 1)] == c.poly[link])

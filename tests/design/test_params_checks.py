@@ -98,7 +98,7 @@ def test_chaining_no_segments_gives_no_polylines() -> None:
 
 @pytest.fixture(scope="module")
 def mesh(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    V, F = saddle(80.0, 1 / 50, 1 / 50, rings=8)
+    V, F = saddle(80.0, 1 / 50, 1 / 50, rings=13)
     path = tmp_path_factory.mktemp("params-checks") / "saddle.obj"
     write_obj(path, V, F)
     return path

@@ -54,7 +54,7 @@ def keep_shot(path: Path, name: str) -> None:
 def test_a_design_page_shows_the_verdict_in_the_preview_colours_with_its_files(
         browser_page: Any, shared_daemon: Daemon, api: httpx.Client, tmp_path: Path) -> None:
     mesh = tmp_path / "hemisphere.obj"
-    write_obj(mesh, *sphere_cap(40.0, 90.0, rings=10))      # most faces outside the stretch bounds
+    write_obj(mesh, *sphere_cap(40.0, 90.0, rings=13))      # most faces outside the stretch bounds
     job = submit(api, mesh, start=False)
     record = wait_for(api, job, "ready", timeout=120)
     assert record["verdict"] and record["verdict"][0].startswith("OUTSIDE the stretch bounds")
