@@ -153,13 +153,17 @@ def test_heating_shows_the_temperatures_the_title_and_a_full_chart(
 
 
 def click_option(page: Any, job: str, action: str, text: str) -> dict[str, Any]:
-    """Click the resume option ``text`` (a button of ``action`` with a body) and return the body sent."""
+    """Click the resume option ``text`` (a button of ``action`` with a body) and return the body sent,
+    once the daemon has answered it (a poll right after the request may still see the old state)."""
     button = page.locator(f"#j-actions button[data-action='{action}'][data-body]")
     button.wait_for(timeout=30 * SECOND)
     assert button.inner_text() == text
-    with page.expect_request(lambda r: r.url.endswith(f"/jobs/{job}/{action}") and r.method == "POST") as sent:
+    with page.expect_response(lambda r: r.url.endswith(f"/jobs/{job}/{action}")
+                              and r.request.method == "POST", timeout=30 * SECOND) as answered:
         button.click()
-    return dict(json.loads(sent.value.post_data or "{}"))
+    response = answered.value
+    assert response.ok, response.text()
+    return dict(json.loads(response.request.post_data or "{}"))
 
 
 def test_resume_options_reprint_the_ribbon_begun_and_keep_the_alignment(
