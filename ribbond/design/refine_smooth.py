@@ -61,6 +61,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .refine import Refined, _frames, checked_input, offset_pct, vertex_normals
+from .stripes import edge_topology
 
 #: The scheme, as the report names it.
 SMOOTH_METHOD = "Loop subdivision's limit weights blending local cubic fits (the file's vertices smoothed)"
@@ -144,14 +145,11 @@ def fit_cubics(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     return t1, t2, N, c * scale[:, None] ** (1 - _DEGREE)[None, :]
 
 
-def _edges(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The undirected edges of F (m, 3): (e, 2) their ends (sorted), the edge of each face's
-    corners' opposite sides (m, 3: side k joins corners k+1 and k+2), and each edge's face count (e,)."""
-    a, b = F[:, [1, 2, 0]].ravel(order="F"), F[:, [2, 0, 1]].ravel(order="F")   # side k of every face
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    unique, side = np.unique(key, return_inverse=True)
-    ends = np.column_stack([unique // n, unique % n])
-    return ends, side.reshape(3, -1).T, np.bincount(side, minlength=len(unique))
+def _edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``stripes.edge_topology`` of F (m, 3) as Loop's rules read it: (e, 2) the edges' ends, the
+    edge opposite each face corner (m, 3: side k joins corners k+1 and k+2), each edge's face count (e,)."""
+    top = edge_topology(F)
+    return top.edges, top.face_edges[:, [1, 2, 0]], top.faces_per_edge
 
 
 def corners(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -194,7 +192,7 @@ def _loop_rules(ends: np.ndarray, count: np.ndarray, n: int, corner: np.ndarray,
 def _loop_step(F: np.ndarray, n: int, corner: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
     """One round of Loop subdivision of F (m, 3) on n vertices: its (n + e, n) matrix (the old
     vertices first, then one per edge) and the 4m faces, each coarse face's four wound as it is."""
-    ends, side, count = _edges(F, n)
+    ends, side, count = _edges(F)
     e = len(ends)
     # edge points: 3/8 each end and 1/8 each opposite corner inside, 1/2 each end on the boundary
     end_w = np.where(count == 2, 3 / 8, 1 / 2)
@@ -228,7 +226,7 @@ def subdivision(V: np.ndarray, F: np.ndarray, levels: int) -> tuple[sp.coo_matri
         step, faces = _loop_step(faces, W.shape[0], corner)
         W = (step @ W).tocsr()
         corner = np.concatenate([corner, np.zeros(step.shape[0] - len(corner), dtype=bool)])
-    ends, _, count = _edges(faces, W.shape[0])
+    ends, _, count = _edges(faces)
     W = (_loop_rules(ends, count, W.shape[0], corner, limit=True) @ W).tocoo()
     W.sum_duplicates()
     return W, faces

@@ -8,6 +8,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ribbond.design import surfaces as S
+from ribbond.design.curvature import face_curvature
+from ribbond.design.frames import face_frames
 
 Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -39,3 +41,17 @@ CASES: list[tuple[str, Mesh, Callable[[np.ndarray], np.ndarray], Callable[[np.nd
      lambda P: S.torus_curvature(P, 50.0, 20.0)),
 ]
 IDS = [c[0] for c in CASES]
+
+
+def curvature_errors(V: np.ndarray, F: np.ndarray, exact: Callable[[np.ndarray], S.ExactCurvature]
+                     ) -> tuple[float, float]:
+    """Of the engine's per-face curvature on (V, F): median |κ1 − exact| / max |κ1|, and the median
+    angle (°) of its k1 off the exact one on the anisotropic faces."""
+    fr = face_frames(V, F)
+    c = face_curvature(V, F, fr)
+    E = exact(V[F].mean(axis=1))
+    d = np.cos(c.angle)[:, None] * fr.e1 + np.sin(c.angle)[:, None] * fr.e2
+    t = E.direction1 - np.einsum("ij,ij->i", E.direction1, fr.n)[:, None] * fr.n
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    angle = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, t)), 0, 1)))[E.anisotropy > 0.3]
+    return float(np.median(np.abs(c.kappa1 - E.kappa1)) / np.abs(E.kappa1).max()), float(np.median(angle))

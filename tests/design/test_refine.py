@@ -16,15 +16,13 @@ import numpy as np
 import pytest
 
 from ribbond.design import surfaces as S
-from ribbond.design.curvature import face_curvature
 from ribbond.design.folder import read_design_folder
-from ribbond.design.frames import face_frames
 from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters, SolverSettings, settings_from_dict
 from ribbond.pipeline.compile import design_mesh, write_design
 from ribbond.design.refine import _subdivision, levels_for, refine
 
-from .refine_cases import CASES, IDS, Mesh
+from .refine_cases import CASES, IDS, Mesh, curvature_errors
 
 
 @pytest.mark.parametrize("levels", [1, 2])
@@ -91,19 +89,8 @@ def test_curvature_on_the_refined_mesh_is_near_the_exact_one(case):
     _, (V, F), _, exact = case
     r = refine(V, F, 2)
     S2, F2 = _subdivision(F, len(V), 2)
-
-    def errors(V_, F_):
-        fr = face_frames(V_, F_)
-        c = face_curvature(V_, F_, fr)
-        E = exact(V_[F_].mean(axis=1))
-        d = np.cos(c.angle)[:, None] * fr.e1 + np.sin(c.angle)[:, None] * fr.e2
-        t = E.direction1 - np.einsum("ij,ij->i", E.direction1, fr.n)[:, None] * fr.n
-        t /= np.linalg.norm(t, axis=1, keepdims=True)
-        angle = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, t)), 0, 1)))[E.anisotropy > 0.3]
-        return np.median(np.abs(c.kappa1 - E.kappa1)) / np.abs(E.kappa1).max(), np.median(angle)
-
-    k_err, angle = errors(r.V, r.F)
-    k_mid, _ = errors(S2 @ V, F2)
+    k_err, angle = curvature_errors(r.V, r.F, exact)
+    k_mid, _ = curvature_errors(S2 @ V, F2, exact)
     assert k_err < 0.02 and angle < 0.5
     assert k_err < 0.1 * k_mid
 

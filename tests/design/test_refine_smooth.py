@@ -28,7 +28,7 @@ from ribbond.design.refine_smooth import SMOOTH_METHOD, corners, refine_smooth, 
 from ribbond.mesh.files import write_obj
 from ribbond.pipeline.compile import design_mesh
 
-from .refine_cases import CASES, IDS, Mesh
+from .refine_cases import CASES, IDS, Mesh, curvature_errors
 
 
 def _noise(V: np.ndarray, sigma: float) -> np.ndarray:
@@ -147,24 +147,12 @@ def test_the_weights_are_a_partition_of_unity_and_corners_stay():
     assert len(on_edge) == 4 * 6 + 1
 
 
-def _curvature_errors(V_: np.ndarray, F_: np.ndarray, exact) -> tuple[float, float]:
-    """Median |κ1 − exact| / max |κ1| and median angle (°) off the exact k1 on anisotropic faces."""
-    fr = face_frames(V_, F_)
-    c = face_curvature(V_, F_, fr)
-    E = exact(V_[F_].mean(axis=1))
-    d = np.cos(c.angle)[:, None] * fr.e1 + np.sin(c.angle)[:, None] * fr.e2
-    t = E.direction1 - np.einsum("ij,ij->i", E.direction1, fr.n)[:, None] * fr.n
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    angle = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, t)), 0, 1)))[E.anisotropy > 0.3]
-    return np.median(np.abs(c.kappa1 - E.kappa1)) / np.abs(E.kappa1).max(), np.median(angle)
-
-
 @pytest.mark.parametrize("case", [c for c in CASES if c[3] is not None], ids=[c[0] for c in CASES if c[3] is not None])
 def test_curvature_on_the_refined_mesh_is_near_the_exact_one(case):
     _, (V, F), _, exact = case
     r = refine_smooth(V, F, 2)
-    k_err, angle = _curvature_errors(r.V, r.F, exact)
-    k_mid, _ = _curvature_errors(*_midpoint(V, F, 2), exact)
+    k_err, angle = curvature_errors(r.V, r.F, exact)
+    k_mid, _ = curvature_errors(*_midpoint(V, F, 2), exact)
     assert k_err < 0.02 and angle < 0.5
     assert k_err < 0.1 * k_mid
 
