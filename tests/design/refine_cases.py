@@ -1,10 +1,12 @@
-"""Coarse analytic surfaces shared by the refinement tests (``test_refine``, ``test_refine_smooth``):
-each with its distance to the analytic surface and, where k1 is defined, its exact curvature."""
+"""What the refinement tests (``test_refine``, ``test_refine_smooth``) share: coarse analytic surfaces,
+each with its distance to the analytic surface and, where k1 is defined, its exact curvature; the
+topology and boundary check; the curvature errors of a refined mesh."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
+import igl
 import numpy as np
 
 from ribbond.design import surfaces as S
@@ -55,3 +57,23 @@ def curvature_errors(V: np.ndarray, F: np.ndarray, exact: Callable[[np.ndarray],
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     angle = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, t)), 0, 1)))[E.anisotropy > 0.3]
     return float(np.median(np.abs(c.kappa1 - E.kappa1)) / np.abs(E.kappa1).max()), float(np.median(angle))
+
+
+def assert_topology_and_boundary_order(V: np.ndarray, F: np.ndarray, refined_V: np.ndarray, refined_F: np.ndarray,
+                                       levels: int) -> None:
+    """A refinement of (V, F) by ``levels`` rounds keeps a disk, 4^levels faces per face, and the coarse
+    boundary vertices (the first refined ones) in the same cyclic order (either direction), evenly
+    spaced with 2^levels − 1 new ones between neighbours."""
+    assert len(refined_F) == 4 ** levels * len(F)
+    edges = igl.edges(refined_F)
+    assert len(refined_V) - len(edges) + len(refined_F) == 1        # still a disk (Euler characteristic 1)
+    loops = igl.boundary_loop_all(refined_F)
+    assert len(loops) == 1
+    loop = np.asarray(loops[0])
+    old = np.flatnonzero(loop < len(V))
+    coarse = np.asarray(igl.boundary_loop(F))
+    kept = loop[old]
+    start = int(np.flatnonzero(coarse == kept[0])[0])
+    rolled = np.roll(coarse, -start)
+    assert np.array_equal(kept, rolled) or np.array_equal(kept, np.roll(rolled[::-1], 1))
+    assert np.all(np.diff(old) == 2 ** levels) and len(loop) == 2 ** levels * len(coarse)

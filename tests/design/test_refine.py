@@ -21,8 +21,9 @@ from ribbond.mesh.files import write_obj
 from ribbond.design.params import DesignParameters, SolverSettings, settings_from_dict
 from ribbond.pipeline.compile import design_mesh, write_design
 from ribbond.design.refine import _subdivision, levels_for, refine
+from ribbond.design.refine_smooth import refine_smooth
 
-from .refine_cases import CASES, IDS, Mesh, curvature_errors
+from .refine_cases import CASES, IDS, Mesh, assert_topology_and_boundary_order, curvature_errors
 
 
 @pytest.mark.parametrize("levels", [1, 2])
@@ -30,21 +31,8 @@ from .refine_cases import CASES, IDS, Mesh, curvature_errors
 def test_keeps_the_vertices_topology_and_boundary(case, levels):
     _, (V, F), _, _ = case
     r = refine(V, F, levels)
-    assert len(r.F) == 4 ** levels * len(F)
     assert np.array_equal(r.V[: len(V)], V)                       # the file's vertices, exactly
-    edges = igl.edges(r.F)
-    assert len(r.V) - len(edges) + len(r.F) == 1                   # still a disk (Euler characteristic 1)
-    loops = igl.boundary_loop_all(r.F)
-    assert len(loops) == 1
-    loop = np.asarray(loops[0])
-    old = np.flatnonzero(loop < len(V))
-    coarse = np.asarray(igl.boundary_loop(F))
-    # the coarse boundary vertices, in the same cyclic order (either direction), evenly spaced
-    kept = loop[old]
-    start = int(np.flatnonzero(coarse == kept[0])[0])
-    rolled = np.roll(coarse, -start)
-    assert np.array_equal(kept, rolled) or np.array_equal(kept, np.roll(rolled[::-1], 1))
-    assert np.all(np.diff(old) == 2 ** levels) and len(loop) == 2 ** levels * len(coarse)
+    assert_topology_and_boundary_order(V, F, r.V, r.F, levels)
 
 
 @pytest.mark.parametrize("case", CASES, ids=IDS)
@@ -64,10 +52,14 @@ def test_new_vertices_lie_on_the_surface_closer_than_the_chords(case):
     assert r.offset_pct <= 100 * 1.2 * chords.max() / diagonal
 
 
+SCHEMES = {"quadric": refine, "smooth": refine_smooth}
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES))
 @pytest.mark.parametrize("case", CASES, ids=IDS)
-def test_winding_follows_the_surface_normal(case):
+def test_winding_follows_the_surface_normal(case, scheme):
     name, (V, F), _, exact = case
-    r = refine(V, F, 2)
+    r = SCHEMES[scheme](V, F, 2)
     tri = r.V[r.F]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     C = tri.mean(axis=1)
@@ -76,10 +68,11 @@ def test_winding_follows_the_surface_normal(case):
     assert np.all(np.einsum("ij,ij->i", normal, want) > 0)
 
 
-def test_a_plane_stays_a_plane():
+@pytest.mark.parametrize("scheme", list(SCHEMES))
+def test_a_plane_stays_a_plane(scheme):
     V, F = S.plane_disk(80.0, rings=6)
     V = V + np.array([3.0, -2.0, 7.0])
-    r = refine(V, F, 2)
+    r = SCHEMES[scheme](V, F, 2)
     assert np.abs(r.V[:, 2] - 7.0).max() < 1e-9
     assert r.offset_pct < 1e-9
 

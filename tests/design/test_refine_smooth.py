@@ -28,7 +28,7 @@ from ribbond.design.refine_smooth import SMOOTH_METHOD, corners, refine_smooth, 
 from ribbond.mesh.files import write_obj
 from ribbond.pipeline.compile import design_mesh
 
-from .refine_cases import CASES, IDS, Mesh, curvature_errors
+from .refine_cases import CASES, IDS, Mesh, assert_topology_and_boundary_order, curvature_errors
 
 
 def _noise(V: np.ndarray, sigma: float) -> np.ndarray:
@@ -69,21 +69,7 @@ def _midpoint(V: np.ndarray, F: np.ndarray, levels: int) -> Mesh:
 def test_keeps_the_topology_and_the_boundary_order(case, levels):
     _, (V, F), distance, _ = case
     r = refine_smooth(V, F, levels)
-    assert len(r.F) == 4 ** levels * len(F)
-    edges = igl.edges(r.F)
-    assert len(r.V) - len(edges) + len(r.F) == 1                   # still a disk (Euler characteristic 1)
-    loops = igl.boundary_loop_all(r.F)
-    assert len(loops) == 1
-    loop = np.asarray(loops[0])
-    old = np.flatnonzero(loop < len(V))
-    coarse = np.asarray(igl.boundary_loop(F))
-    # the coarse boundary vertices (the first refined ones), in the same cyclic order (either
-    # direction), evenly spaced
-    kept = loop[old]
-    start = int(np.flatnonzero(coarse == kept[0])[0])
-    rolled = np.roll(coarse, -start)
-    assert np.array_equal(kept, rolled) or np.array_equal(kept, np.roll(rolled[::-1], 1))
-    assert np.all(np.diff(old) == 2 ** levels) and len(loop) == 2 ** levels * len(coarse)
+    assert_topology_and_boundary_order(V, F, r.V, r.F, levels)
     # the file's vertices slide along the surface (Loop's limit) but stay on it
     edge = np.linalg.norm(V[F[:, 0]] - V[F[:, 1]], axis=1).mean()
     assert distance(r.V[: len(V)]).max() < 0.01 * edge
@@ -107,24 +93,7 @@ def test_new_vertices_lie_on_the_surface_closer_than_the_chords(case):
     assert r.offset_pct <= 100 * (1.2 * chords.max() + lifted.max()) / diagonal
 
 
-@pytest.mark.parametrize("case", CASES, ids=IDS)
-def test_winding_follows_the_surface_normal(case):
-    name, (V, F), _, exact = case
-    r = refine_smooth(V, F, 2)
-    tri = r.V[r.F]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    C = tri.mean(axis=1)
-    want = np.column_stack([-C[:, 0] / 30, C[:, 1] / 60, np.ones(len(C))]) if name == "saddle" else (
-        C if name == "sphere cap" else exact(C).normal)
-    assert np.all(np.einsum("ij,ij->i", normal, want) > 0)
-
-
-def test_a_plane_stays_a_plane():
-    V, F = S.plane_disk(80.0, rings=6)
-    V = V + np.array([3.0, -2.0, 7.0])
-    r = refine_smooth(V, F, 2)
-    assert np.abs(r.V[:, 2] - 7.0).max() < 1e-9
-    assert r.offset_pct < 1e-9
+# the winding and a plane: tests/design/test_refine.py checks both schemes
 
 
 def test_same_input_same_output_bit_for_bit():
